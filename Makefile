@@ -1,0 +1,34 @@
+# The front door: every target creates or reuses the virtual environment it needs.
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-stamp
+
+.PHONY: install demo test lint bench clean
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	mkdir -p out
+	$(BIN)/prosody convert samples/arctic_a0009.wav -o out/arctic_a0009.fap
+	$(BIN)/prosody inspect out/arctic_a0009.fap
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+lint: $(STAMP)
+	$(BIN)/python -m pip install --quiet ruff mypy
+	$(BIN)/ruff check audio_features prosody tests
+	$(BIN)/mypy audio_features prosody
+
+bench: $(STAMP)
+	$(BIN)/python -m prosody.bench
+
+clean:
+	rm -rf $(VENV) out build *.egg-info .pytest_cache

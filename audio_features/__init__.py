@@ -1,0 +1,26 @@
+"""Acoustic features for visual prosody: Praat F0 with spline conditioning, and Praat intensity.
+
+Everything is returned on a frame grid (frame ``k`` at ``k / fps`` seconds). This package never
+imports :mod:`prosody`.
+"""
+
+from .audio import Audio, load_audio
+from .errors import AudioFeaturesError, AudioLoadError, NoVoicedFramesWarning, ParameterError
+from .features import CSV_COLUMNS, Features, condition_f0, extract_features
+from .tracks import F0Track, Track, frame_count
+
+__all__ = [
+    "CSV_COLUMNS",
+    "Audio",
+    "AudioFeaturesError",
+    "AudioLoadError",
+    "F0Track",
+    "Features",
+    "NoVoicedFramesWarning",
+    "ParameterError",
+    "Track",
+    "condition_f0",
+    "extract_features",
+    "frame_count",
+    "load_audio",
+]

@@ -1,0 +1,215 @@
+"""F0, conditioned F0 and energy of a recording, on the FAP frame grid."""
+
+from __future__ import annotations
+
+import csv
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ._atomic import atomic_write
+from .analysis import analyse_grid, array_reader, sound_file_reader
+from .audio import Audio, check_samples, open_sound_file
+from .errors import AudioLoadError, NoVoicedFramesWarning, ParameterError
+from .tracks import F0Track, Track
+
+#: Column names of the features CSV, in order.
+CSV_COLUMNS = ("frame", "time_s", "f0_hz", "f0_conditioned_hz", "energy_db")
+
+#: Samples per block when scanning a file for its peak (bounded memory).
+_SCAN_BLOCK = 1 << 20
+
+
+@dataclass(frozen=True)
+class Features:
+    """Acoustic tracks of one recording, all on the same frame grid.
+
+    Attributes
+    ----------
+    f0 : F0Track
+        Praat autocorrelation F0 in Hz, NaN where unvoiced.
+    f0_conditioned : Track
+        F0 bridged over unvoiced gaps by a cubic spline and clipped to ``[0, max voiced F0]`` (Hz).
+    energy : Track
+        Praat intensity in dB re 2e-5 Pa (samples taken as pascals).
+    duration_s : float
+        Duration of the recording.
+    source : str
+        Where the audio came from.
+    """
+
+    f0: F0Track
+    f0_conditioned: Track
+    energy: Track
+    duration_s: float
+    source: str
+
+    def __post_init__(self) -> None:
+        lengths = {self.f0.n_frames, self.f0_conditioned.n_frames, self.energy.n_frames}
+        rates = {self.f0.fps, self.f0_conditioned.fps, self.energy.fps}
+        if len(lengths) != 1 or len(rates) != 1:
+            raise ParameterError(f"tracks disagree in length {sorted(lengths)!r} or rate {sorted(rates)!r}")
+
+    @property
+    def fps(self) -> float:
+        return self.f0.fps
+
+    @property
+    def n_frames(self) -> int:
+        return self.f0.n_frames
+
+    def write_csv(self, path: str | os.PathLike[str]) -> None:
+        """Write one row per frame with the columns of :data:`CSV_COLUMNS`, atomically.
+
+        ``f0_hz`` is empty where the frame is unvoiced.
+        """
+        with atomic_write(path) as handle:
+            writer = csv.writer(handle, lineterminator="\n")
+            writer.writerow(CSV_COLUMNS)
+            for k, (time_s, f0, f0c, energy) in enumerate(
+                zip(self.f0.times_s, self.f0.values, self.f0_conditioned.values, self.energy.values)
+            ):
+                writer.writerow(
+                    [k, f"{time_s:.6f}", "" if np.isnan(f0) else f"{f0:.3f}", f"{f0c:.3f}", f"{energy:.3f}"]
+                )
+
+
+def condition_f0(f0: F0Track) -> Track:
+    """Bridge unvoiced gaps of an F0 track with a cubic spline (SPEC section 2).
+
+    The spline passes through every voiced frame; the result is clipped to ``[0, max voiced F0]`` to kill
+    overshoot; frames before the first and after the last voiced frame hold the nearest voiced value.
+    With no voiced frame at all the result is 0 everywhere and a :class:`NoVoicedFramesWarning` is issued.
+
+    Parameters
+    ----------
+    f0 : F0Track
+        Raw F0 in Hz, NaN where unvoiced.
+
+    Returns
+    -------
+    Track
+        Conditioned F0 in Hz, same grid.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> raw = np.array([np.nan, 100.0, np.nan, 120.0, np.nan])
+    >>> condition_f0(F0Track(raw, 30.0, "Hz", "f0", ~np.isnan(raw))).values.tolist()
+    [100.0, 100.0, 110.0, 120.0, 120.0]
+    """
+    from scipy.interpolate import CubicSpline
+
+    frames = np.flatnonzero(f0.voiced)
+    out = np.zeros(f0.n_frames)
+    if frames.size == 0:
+        warnings.warn("no voiced frame found: the conditioned F0 is 0 everywhere", NoVoicedFramesWarning,
+                      stacklevel=2)
+    elif frames.size == 1:
+        out[:] = f0.values[frames[0]]
+    else:
+        voiced_values = f0.values[frames]
+        inside = np.arange(frames[0], frames[-1] + 1)
+        bc = "natural" if frames.size > 2 else "not-a-knot"
+        out[inside] = CubicSpline(frames, voiced_values, bc_type=bc)(inside)
+        out[: frames[0]] = voiced_values[0]
+        out[frames[-1] + 1 :] = voiced_values[-1]
+        out = np.clip(out, 0.0, voiced_values.max())
+    return Track(out, f0.fps, "Hz", "f0_conditioned")
+
+
+def _scan_file(sound, *, source: str) -> float:  # type: ignore[no-untyped-def]
+    """Global absolute peak of the mono mix, read in blocks; rejects non-finite samples."""
+    peak = 0.0
+    offset = 0
+    sound.seek(0)
+    for block in sound.blocks(blocksize=_SCAN_BLOCK, dtype="float64", always_2d=True):
+        mono = block.mean(axis=1)
+        finite = np.isfinite(mono)
+        if not finite.all():
+            bad = offset + int(np.argmin(finite))
+            raise AudioLoadError(f"{source}: sample {bad} is not finite; audio must have no NaN or infinity")
+        peak = max(peak, float(np.max(np.abs(mono), initial=0.0)))
+        offset += mono.shape[0]
+    return peak
+
+
+def extract_features(
+    source: str | os.PathLike[str] | Audio,
+    *,
+    fps: float = 30.0,
+    f0_floor_hz: float = 75.0,
+    f0_ceiling_hz: float = 500.0,
+    intensity_min_pitch_hz: float = 100.0,
+    chunk_s: float = 60.0,
+    margin_s: float = 1.0,
+) -> Features:
+    """Extract F0, conditioned F0 and energy of a recording on the frame grid.
+
+    Files are read chunk by chunk, so memory stays bounded for recordings of hours.
+
+    Parameters
+    ----------
+    source : path or Audio
+        An audio file libsndfile reads (mixed to mono), or audio already in memory.
+    fps : float > 0
+        Frame rate of the output grid; frame ``k`` is at ``k / fps`` seconds.
+    f0_floor_hz, f0_ceiling_hz : float, 0 < floor < ceiling < Nyquist, in Hz
+        Pitch search range of Praat's To Pitch (ac).
+    intensity_min_pitch_hz : float > 0, in Hz
+        Praat's To Intensity minimum pitch (sets the window: 6.4 periods). Praat's default, 100 Hz.
+    chunk_s : float > 0, in s
+        Length of audio analysed at once.
+    margin_s : float >= 0, in s
+        Context given to the pitch path finder on each side of a chunk.
+
+    Returns
+    -------
+    Features
+
+    Raises
+    ------
+    AudioLoadError
+        The file is missing, unreadable, empty, truncated or holds non-finite samples.
+    ParameterError
+        A parameter is out of range.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(16000) / 16000
+    >>> features = extract_features(Audio(0.5 * np.sin(2 * np.pi * 200 * t), 16000))
+    >>> round(float(np.nanmedian(features.f0.values)))
+    200
+    """
+    if not (np.isfinite(fps) and fps > 0):
+        raise ParameterError(f"fps must be a positive number, got {fps!r}")
+    if not chunk_s > 0 or not margin_s >= 0:
+        raise ParameterError(f"need chunk_s > 0 and margin_s >= 0, got {chunk_s!r} and {margin_s!r}")
+    settings = dict(fps=fps, f0_floor_hz=f0_floor_hz, f0_ceiling_hz=f0_ceiling_hz,
+                    intensity_min_pitch_hz=intensity_min_pitch_hz, chunk_s=chunk_s, margin_s=margin_s)
+    if isinstance(source, Audio):
+        name = source.source
+        grid = analyse_grid(array_reader(source.samples), n_samples=source.samples.shape[0],
+                            sample_rate_hz=source.sample_rate_hz,
+                            global_peak=float(np.max(np.abs(source.samples))), source=name, **settings)
+        duration_s = source.duration_s
+    else:
+        name = str(Path(source))
+        with open_sound_file(source) as sound:
+            check_samples(np.zeros(sound.frames), source=name, sample_rate_hz=sound.samplerate)
+            peak = _scan_file(sound, source=name)
+            grid = analyse_grid(sound_file_reader(sound, source=name), n_samples=sound.frames,
+                                sample_rate_hz=int(sound.samplerate), global_peak=peak, source=name, **settings)
+            duration_s = sound.frames / sound.samplerate
+    f0 = F0Track(grid.f0_hz, fps, "Hz", "f0", ~np.isnan(grid.f0_hz))
+    return Features(
+        f0=f0,
+        f0_conditioned=condition_f0(f0),
+        energy=Track(grid.energy_db, fps, "dB", "energy"),
+        duration_s=duration_s,
+        source=name,
+    )
