@@ -1,0 +1,244 @@
+"""Reading and writing MPEG-4 FAP files (.fap), SPEC section 8.
+
+Writing produces the subset that Xface, the Java Greta and the older C++ Greta all read: header
+``2.1 <name> <integer fps> <N>``, 68 mask tokens, frames 0..N-1, integer values, FAP 1 and 2 masked off,
+no comments, every line ending in a newline and no blank line at the end.
+
+Reading is liberal (versions 2.0/2.1, names with spaces or paths, CRLF, tabs, trailing spaces, ``#``
+comment lines, 69-token masks, frame numbers from 1, float values, masks that change, header counts that
+disagree, no header at all) and reports every irregularity in :attr:`FapFile.warnings`. Malformed input
+raises :class:`FapFormatError` naming the file, the line and what was expected.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from audio_features._atomic import atomic_write
+
+from .errors import FapFormatError, FapWriteError
+from .fap_table import N_FAPS
+from .stream import FapStream
+
+#: Frame rate assumed for a stream with no header (MPEG-4 FAP streams are most often 25 fps).
+DEFAULT_HEADERLESS_FPS = 25.0
+#: Largest magnitude an integer FAP value may have in a written file (players parse 32-bit ints).
+MAX_FAP_VALUE = 2**31 - 1
+_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
+
+
+@dataclass(frozen=True)
+class FapFile:
+    """A .fap file as read: the stream plus what the file said about itself.
+
+    Attributes
+    ----------
+    stream : FapStream
+    version : str or None
+        Version token of the header (``"2.0"``, ``"2.1"``), None for a headerless stream.
+    header_frames : int or None
+        Frame count the header promised (None without header).
+    first_frame_number : int or None
+        Frame number written on the first value line.
+    integer_values : bool
+        True when every value token was an integer.
+    warnings : tuple of str
+        Irregularities found and how they were handled.
+    """
+
+    stream: FapStream
+    path: str
+    version: str | None
+    header_frames: int | None
+    first_frame_number: int | None
+    integer_values: bool
+    warnings: tuple[str, ...] = field(default=())
+
+
+def _is_mask_line(tokens: list[str]) -> bool:
+    return len(tokens) in (N_FAPS, N_FAPS + 1) and all(token in ("0", "1") for token in tokens)
+
+
+def _parse_number(token: str, *, path: str, line: int, what: str) -> float:
+    if not _NUMBER.match(token):
+        raise FapFormatError(path, line, f"expected {what}, found {token!r}")
+    return float(token)
+
+
+def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADERLESS_FPS) -> FapFile:
+    """Read a .fap file.
+
+    Parameters
+    ----------
+    path : path-like
+        The file. Bytes are decoded as Latin-1, so any byte sequence reads.
+    default_fps : float > 0
+        Frame rate for a stream without a header.
+
+    Returns
+    -------
+    FapFile
+
+    Raises
+    ------
+    FapFormatError
+        Missing file, unreadable header, a mask line that is not 68 (or 69) tokens of 0/1, a value line
+        whose count disagrees with its mask, or a non-numeric token.
+    """
+    name = str(path)
+    try:
+        text = Path(path).read_bytes().decode("latin-1")
+    except FileNotFoundError:
+        raise FapFormatError(name, None, "no such file") from None
+    except IsADirectoryError:
+        raise FapFormatError(name, None, "is a directory, not a .fap file") from None
+    except OSError as error:
+        raise FapFormatError(name, None, f"cannot be read ({error.strerror})") from None
+    warnings: list[str] = []
+    lines = [
+        (number, line.strip())
+        for number, line in enumerate(text.splitlines(), start=1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+    if len(text.splitlines()) != len(lines) and any(
+        line.lstrip().startswith("#") for line in text.splitlines()
+    ):
+        warnings.append("comment lines ('#') skipped")
+    if not lines:
+        raise FapFormatError(name, None, "the file holds no header, mask or value line")
+
+    version: str | None = None
+    header_frames: int | None = None
+    stream_name = Path(name).stem
+    fps = default_fps
+    first_number, first_line = lines[0]
+    first_tokens = first_line.split()
+    if _is_mask_line(first_tokens):
+        warnings.append(f"no header line: a headerless stream, assumed {default_fps:g} fps")
+        body = lines
+    else:
+        if len(first_tokens) < 3:
+            raise FapFormatError(
+                name, first_number, f"expected a header '<version> <name> <fps> <frames>', found {first_line!r}"
+            )
+        version = first_tokens[0]
+        _parse_number(version, path=name, line=first_number, what="a version number such as 2.1")
+        fps = _parse_number(first_tokens[-2], path=name, line=first_number, what="the frame rate")
+        count = _parse_number(first_tokens[-1], path=name, line=first_number, what="the number of frames")
+        if fps <= 0 or count < 0 or count != int(count):
+            raise FapFormatError(name, first_number, f"header frame rate {fps!r} or count {count!r} is invalid")
+        header_frames = int(count)
+        # the name may hold spaces: it is whatever stands between the version and the last two tokens
+        middle = re.match(r"^\S+\s+(.*?)\s*\S+\s+\S+$", first_line)
+        stream_name = (middle.group(1) if middle else "") or stream_name
+        if version not in ("2.0", "2.1"):
+            warnings.append(f"unknown version {version!r}: read as 2.1")
+        body = lines[1:]
+
+    masks: list[np.ndarray] = []
+    values: list[np.ndarray] = []
+    frame_numbers: list[int] = []
+    integer_values = True
+    wide_masks = 0
+    index = 0
+    while index < len(body):
+        mask_number, mask_line = body[index]
+        tokens = mask_line.split()
+        if not _is_mask_line(tokens):
+            raise FapFormatError(
+                name, mask_number, f"expected a mask line of {N_FAPS} tokens 0/1, found {len(tokens)} tokens "
+                f"starting {' '.join(tokens[:4])!r}"
+            )
+        bits = np.array([token == "1" for token in tokens])
+        if bits.size == N_FAPS + 1:
+            wide_masks += 1
+        if index + 1 >= len(body):
+            raise FapFormatError(name, mask_number, "mask line without a value line: the file ends here")
+        value_number, value_line = body[index + 1]
+        value_tokens = value_line.split()
+        expected = int(bits.sum())
+        if len(value_tokens) != expected + 1:
+            raise FapFormatError(
+                name, value_number, f"expected a frame number and {expected} values (one per FAP set in the "
+                f"mask on line {mask_number}), found {len(value_tokens)} tokens"
+            )
+        frame_number = _parse_number(value_tokens[0], path=name, line=value_number, what="a frame number")
+        if frame_number != int(frame_number):
+            raise FapFormatError(name, value_number, f"frame number {value_tokens[0]!r} is not an integer")
+        numbers = [
+            _parse_number(token, path=name, line=value_number, what="a FAP value") for token in value_tokens[1:]
+        ]
+        integer_values = integer_values and all(re.fullmatch(r"[+-]?\d+", t) for t in value_tokens[1:])
+        row = np.zeros(bits.size)
+        row[bits] = numbers
+        masks.append(bits[:N_FAPS])
+        values.append(row[:N_FAPS])
+        frame_numbers.append(int(frame_number))
+        index += 2
+
+    if wide_masks:
+        warnings.append(f"{wide_masks} mask line(s) with {N_FAPS + 1} tokens (a known Greta writer bug): "
+                        "the extra token was ignored")
+    if frame_numbers:
+        if frame_numbers[0] != 0:
+            warnings.append(f"frame numbers start at {frame_numbers[0]}, not 0: frames renumbered from 0")
+        steps = np.diff(frame_numbers)
+        if np.any(steps != 1):
+            warnings.append("frame numbers are not consecutive: frames taken in file order")
+    if header_frames is not None and header_frames != len(frame_numbers):
+        warnings.append(f"header promises {header_frames} frames but the file holds {len(frame_numbers)}: "
+                        f"all {len(frame_numbers)} were read")
+    if not integer_values:
+        warnings.append("non-integer FAP values (players expect integers)")
+    stream = FapStream(
+        np.array(values).reshape(-1, N_FAPS), np.array(masks, dtype=bool).reshape(-1, N_FAPS), fps, stream_name
+    )
+    return FapFile(stream, name, version, header_frames, frame_numbers[0] if frame_numbers else None,
+                   integer_values, tuple(warnings))
+
+
+def _header_name(name: str) -> str:
+    cleaned = re.sub(r"\s+", "_", name.strip())
+    return cleaned or "stream"
+
+
+def format_fap(stream: FapStream, *, name: str | None = None) -> str:
+    """The text of a .fap file in the interoperable subset (see the module docstring).
+
+    Values are rounded to the nearest integer with :func:`numpy.rint` (halves to even); FAP 1 and 2 are
+    masked off; whitespace in the name becomes ``_``.
+
+    Raises
+    ------
+    FapWriteError
+        For a non-integer frame rate, or a value beyond the 32-bit integer range.
+    """
+    if stream.fps != int(stream.fps):
+        raise FapWriteError(
+            f"frame rate {stream.fps!r} is not an integer: the .fap header carries integer fps; "
+            "resample the stream (FapStream.resampled) to an integer rate first"
+        )
+    mask = stream.mask.copy()
+    mask[:, :2] = False  # FAP 1 and 2 (viseme, expression) need multi-value syntax players disagree on
+    rounded = np.rint(stream.values)
+    if np.any(np.abs(rounded[mask]) > MAX_FAP_VALUE):
+        raise FapWriteError(f"a FAP value exceeds the 32-bit integer range of .fap players ({MAX_FAP_VALUE})")
+    integers = rounded.astype(np.int64)
+    lines = [f"2.1 {_header_name(name if name is not None else stream.name)} {int(stream.fps)} {stream.n_frames}"]
+    for k in range(stream.n_frames):
+        bits = mask[k]
+        lines.append(" ".join("1" if bit else "0" for bit in bits))
+        lines.append(" ".join([str(k), *map(str, integers[k, bits].tolist())]))
+    return "\n".join(lines) + "\n"
+
+
+def write_fap(stream: FapStream, path: str | os.PathLike[str], *, name: str | None = None) -> None:
+    """Write ``stream`` to ``path`` atomically, in the subset of :func:`format_fap`."""
+    text = format_fap(stream, name=name if name is not None else Path(path).stem)
+    with atomic_write(path, newline="\n") as handle:
+        handle.write(text)

@@ -1,0 +1,52 @@
+"""Descriptions of a .fap file: the JSON of ``prosody inspect --json`` and a short human summary."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .fap_table import BY_NUMBER
+from .fapfile import FapFile
+
+
+def _plain(value: float) -> int | float:
+    return int(value) if float(value).is_integer() else float(value)
+
+
+def inspect_json(fap: FapFile) -> dict:
+    """``{"version", "name", "fps", "frames", "faps": {"<n>": [value or None per frame]}}``.
+
+    Every FAP whose mask bit is set in at least one frame is listed, with None where it is masked off.
+    """
+    stream = fap.stream
+    faps = {}
+    for number in stream.active_faps:
+        column = number - 1
+        faps[str(number)] = [
+            _plain(value) if active else None
+            for value, active in zip(stream.values[:, column].tolist(), stream.mask[:, column].tolist())
+        ]
+    return {"version": fap.version, "name": stream.name, "fps": _plain(stream.fps), "frames": stream.n_frames,
+            "faps": faps}
+
+
+def inspect_summary(fap: FapFile) -> str:
+    """A few lines for a person: duration, active FAPs by name, and their ranges in physical units."""
+    stream = fap.stream
+    lines = [
+        f"{fap.path}: MPEG-4 FAP {fap.version or '(no header)'}, name {stream.name!r}",
+        f"  {stream.n_frames} frames at {stream.fps:g} fps = {stream.duration_s:.2f} s",
+        f"  {len(stream.active_faps)} active FAPs",
+    ]
+    physical = stream.to_physical()
+    for number in stream.active_faps:
+        info = BY_NUMBER[number]
+        column = physical[:, number - 1]
+        active = column[~np.isnan(column)]
+        share = active.size / max(1, stream.n_frames)
+        if info.fapu == "AU":
+            low, high, unit = np.degrees(active.min()), np.degrees(active.max()), "deg"
+        else:
+            low, high, unit = active.min(), active.max(), info.physical_unit
+        lines.append(f"  {number:>2} {info.name:<24} {low:+10.4g} .. {high:+10.4g} {unit:<6} "
+                     f"(active in {share:.0%} of frames)")
+    return "\n".join(lines)

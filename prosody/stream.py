@@ -1,0 +1,185 @@
+"""The FAP stream: per-frame values of the 68 MPEG-4 FAPs, with a per-frame mask."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ConfigError
+from .fap_table import BY_NUMBER, N_FAPS
+
+
+def _fap_columns(faps: Iterable[int]) -> np.ndarray:
+    columns = []
+    for fap in faps:
+        if fap not in BY_NUMBER:
+            raise ConfigError(f"FAP {fap!r} does not exist: FAPs are numbered 1..{N_FAPS}")
+        columns.append(fap - 1)
+    return np.array(columns, dtype=int)
+
+
+@dataclass(frozen=True)
+class FapStream:
+    """Frames of MPEG-4 facial animation parameters.
+
+    Parameters
+    ----------
+    values : float array of shape (n_frames, 68)
+        Column ``j`` holds FAP ``j + 1`` in FAP units (AU = 1e-5 rad for rotations, 1/1024 of the
+        reference distance for the rest). Values where the mask is off are ignored and kept at 0.
+    mask : bool array of shape (n_frames, 68)
+        True where the FAP is active in that frame (real files change their mask from frame to frame).
+    fps : float > 0
+        Frames per second; frame ``k`` is at ``k / fps`` seconds.
+    name : str
+        Stream name (written in the .fap header).
+    """
+
+    values: np.ndarray
+    mask: np.ndarray
+    fps: float
+    name: str = "prosody"
+
+    def __post_init__(self) -> None:
+        values = np.array(self.values, dtype=float)
+        mask = np.array(self.mask, dtype=bool)
+        if values.ndim != 2 or values.shape[1] != N_FAPS:
+            raise ConfigError(f"FAP values must have shape (n_frames, {N_FAPS}), got {values.shape!r}")
+        if mask.shape != values.shape:
+            raise ConfigError(f"FAP mask shape {mask.shape!r} differs from the values' {values.shape!r}")
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise ConfigError(f"fps must be a positive number, got {self.fps!r}")
+        if not np.all(np.isfinite(values[mask])):
+            raise ConfigError("active FAP values must be finite")
+        values[~mask] = 0.0
+        values.flags.writeable = False
+        mask.flags.writeable = False
+        object.__setattr__(self, "values", values)
+        object.__setattr__(self, "mask", mask)
+
+    # construction -------------------------------------------------------------------------------------
+    @classmethod
+    def empty(cls, n_frames: int, *, fps: float, name: str = "prosody") -> FapStream:
+        """A stream of ``n_frames`` frames with every FAP masked off."""
+        return cls(np.zeros((n_frames, N_FAPS)), np.zeros((n_frames, N_FAPS), bool), fps, name)
+
+    @classmethod
+    def from_curves(cls, curves: Mapping[int, np.ndarray], *, fps: float, name: str = "prosody",
+                    n_frames: int | None = None) -> FapStream:
+        """A stream whose given FAPs are active in every frame, with the given values (FAP units).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> stream = FapStream.from_curves({48: np.array([0.0, 100.0])}, fps=30)
+        >>> stream.active_faps, stream.curve(48).tolist()
+        ((48,), [0.0, 100.0])
+        """
+        lengths = {np.shape(curve)[0] for curve in curves.values()}
+        if n_frames is not None:
+            lengths.add(n_frames)
+        if len(lengths) > 1:
+            raise ConfigError(f"curves have different lengths {sorted(lengths)!r}")
+        n = lengths.pop() if lengths else 0
+        stream = cls.empty(n, fps=fps, name=name)
+        return stream.with_curves(curves)
+
+    # access -------------------------------------------------------------------------------------------
+    @property
+    def n_frames(self) -> int:
+        return int(self.values.shape[0])
+
+    @property
+    def duration_s(self) -> float:
+        return self.n_frames / self.fps
+
+    @property
+    def times_s(self) -> np.ndarray:
+        return np.arange(self.n_frames) / self.fps
+
+    @property
+    def active_faps(self) -> tuple[int, ...]:
+        """FAP numbers whose mask bit is set in at least one frame, ascending."""
+        return tuple(int(j) + 1 for j in np.flatnonzero(self.mask.any(axis=0)))
+
+    def curve(self, fap: int) -> np.ndarray:
+        """Values of one FAP over all frames (FAP units), 0 where masked off."""
+        return self.values[:, _fap_columns([fap])[0]].copy()
+
+    def curves(self, faps: Iterable[int]) -> np.ndarray:
+        """Values of several FAPs, shape (n_frames, len(faps))."""
+        return self.values[:, _fap_columns(faps)].copy()
+
+    # transformations ----------------------------------------------------------------------------------
+    def with_curves(self, curves: Mapping[int, np.ndarray]) -> FapStream:
+        """A copy in which the given FAPs are set (and active) in every frame."""
+        values = self.values.copy()
+        mask = self.mask.copy()
+        for fap, curve in curves.items():
+            column = _fap_columns([fap])[0]
+            curve = np.asarray(curve, dtype=float)
+            if curve.shape != (self.n_frames,):
+                raise ConfigError(f"FAP {fap} curve has shape {curve.shape!r}, expected ({self.n_frames},)")
+            values[:, column] = curve
+            mask[:, column] = True
+        return FapStream(values, mask, self.fps, self.name)
+
+    def select(self, faps: Iterable[int]) -> FapStream:
+        """A copy in which only the given FAPs keep their mask; every other FAP is masked off."""
+        keep = np.zeros(N_FAPS, bool)
+        keep[_fap_columns(faps)] = True
+        return FapStream(self.values, self.mask & keep, self.fps, self.name)
+
+    def without(self, faps: Iterable[int]) -> FapStream:
+        """A copy with the given FAPs masked off."""
+        drop = np.zeros(N_FAPS, bool)
+        drop[_fap_columns(faps)] = True
+        return FapStream(self.values, self.mask & ~drop, self.fps, self.name)
+
+    def renamed(self, name: str) -> FapStream:
+        return FapStream(self.values, self.mask, self.fps, name)
+
+    def resampled(self, fps: float, *, n_frames: int | None = None) -> FapStream:
+        """The stream on another frame grid: values linearly interpolated, masks from the nearest frame.
+
+        Frames past the end of this stream hold its last frame; ``n_frames`` defaults to the same duration.
+        """
+        if n_frames is None:
+            n_frames = int(round(self.duration_s * fps))
+        if self.n_frames == 0:
+            return FapStream.empty(n_frames, fps=fps, name=self.name)
+        position = np.arange(n_frames) * self.fps / fps
+        nearest = np.clip(np.rint(position).astype(int), 0, self.n_frames - 1)
+        values = np.empty((n_frames, N_FAPS))
+        source = np.arange(self.n_frames)
+        for column in range(N_FAPS):
+            values[:, column] = np.interp(position, source, self.values[:, column])
+        return FapStream(values, self.mask[nearest], fps, self.name)
+
+    def merged_over(self, base: FapStream) -> FapStream:
+        """Carry ``base``'s FAPs (lips, eyes, ...) under this stream's active FAPs.
+
+        The result has this stream's length and rate; ``base`` is resampled onto that grid when its rate
+        differs, and masked off past its own end. Where this stream has a FAP active, its value wins.
+        """
+        if base.fps != self.fps:
+            base = base.resampled(self.fps)
+        n = min(base.n_frames, self.n_frames)
+        values = np.zeros_like(self.values)
+        mask = np.zeros_like(self.mask)
+        values[:n] = base.values[:n]
+        mask[:n] = base.mask[:n]
+        ours = self.mask
+        values[ours] = self.values[ours]
+        mask |= ours
+        return FapStream(values, mask, self.fps, self.name)
+
+    def to_physical(self) -> np.ndarray:
+        """Values in physical units, shape (n_frames, 68): radians for AU FAPs, fractions of the reference
+        distance (ENS0, MNS0, ...) for the rest; NaN where masked off."""
+        scale = np.array([BY_NUMBER[j + 1].to_physical(1.0) for j in range(N_FAPS)])
+        physical = self.values * scale
+        physical[~self.mask] = np.nan
+        return physical

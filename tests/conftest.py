@@ -1,0 +1,52 @@
+"""Shared fixtures: synthetic signals with known answers, and the real data in ../shared/data."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED_DATA = Path(os.environ.get("PROSODY_SHARED_DATA", REPO.parent / "shared" / "data"))
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if SHARED_DATA.is_dir():
+        return
+    skip = pytest.mark.skip(reason=f"real data not found at {SHARED_DATA} (set PROSODY_SHARED_DATA)")
+    for item in items:
+        if "shared_data" in item.keywords:
+            item.add_marker(skip)
+
+
+@pytest.fixture
+def shared_data() -> Path:
+    return SHARED_DATA
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(20051201)
+
+
+def harmonic_tone(f0_hz: float, duration_s: float, sample_rate_hz: int, *, amplitude: float = 0.5,
+                  n_harmonics: int = 5) -> np.ndarray:
+    """A steady voiced-like tone: harmonics of ``f0_hz`` with 1/h amplitudes, peak ``amplitude``."""
+    t = np.arange(int(round(duration_s * sample_rate_hz))) / sample_rate_hz
+    signal = np.zeros_like(t)
+    for h in range(1, n_harmonics + 1):
+        if h * f0_hz < 0.45 * sample_rate_hz:
+            signal += np.sin(2 * np.pi * h * f0_hz * t) / h
+    return amplitude * signal / np.max(np.abs(signal))
+
+
+def sine(frequency_hz: float, duration_s: float, sample_rate_hz: int, *, amplitude: float) -> np.ndarray:
+    t = np.arange(int(round(duration_s * sample_rate_hz))) / sample_rate_hz
+    return amplitude * np.sin(2 * np.pi * frequency_hz * t)
+
+
+def sine_level_db(amplitude: float) -> float:
+    """Level of a sine of peak ``amplitude`` pascals in dB re 2e-5 Pa: mean square A^2/2."""
+    return float(10 * np.log10(amplitude**2 / 2 / (2e-5) ** 2))

@@ -1,0 +1,207 @@
+"""F0, conditioning and energy on synthetic tones with computed answers, and on real speech."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import soundfile
+from conftest import harmonic_tone, sine, sine_level_db
+
+from audio_features import (
+    Audio,
+    F0Track,
+    NoVoicedFramesWarning,
+    ParameterError,
+    Track,
+    condition_f0,
+    extract_features,
+    frame_count,
+    load_audio,
+)
+
+
+def _steady_f0(features, margin_frames: int = 5) -> float:
+    voiced = features.f0.values[margin_frames:-margin_frames]
+    voiced = voiced[~np.isnan(voiced)]
+    assert voiced.size > 10, "a steady tone must be mostly voiced"
+    return float(np.median(voiced))
+
+
+@pytest.mark.parametrize("sample_rate_hz", [8000, 16000, 22050, 44100, 48000])
+@pytest.mark.parametrize("f0_hz", [80.0, 130.0, 207.0, 330.0, 450.0])
+def test_harmonic_tone_f0_within_one_percent(f0_hz: float, sample_rate_hz: int) -> None:
+    audio = Audio(harmonic_tone(f0_hz, 1.0, sample_rate_hz), sample_rate_hz)
+    measured = _steady_f0(extract_features(audio))
+    assert abs(measured / f0_hz - 1) < 0.01
+
+
+@pytest.mark.parametrize(
+    ("subtype", "channels"),
+    [("PCM_U8", 1), ("PCM_16", 1), ("PCM_24", 2), ("PCM_32", 1), ("FLOAT", 2), ("DOUBLE", 1)],
+)
+def test_wav_subtypes_and_channels(tmp_path, subtype: str, channels: int) -> None:
+    tone = harmonic_tone(180.0, 1.0, 16000)
+    data = np.column_stack([tone] * channels) if channels > 1 else tone
+    path = tmp_path / f"tone_{subtype}.wav"
+    soundfile.write(path, data, 16000, subtype=subtype)
+    features = extract_features(path)
+    assert abs(_steady_f0(features) / 180.0 - 1) < 0.01
+    assert features.n_frames == 30
+
+
+def test_flac_and_ogg(tmp_path) -> None:
+    tone = harmonic_tone(150.0, 1.0, 22050)
+    for extension in ("flac", "ogg"):
+        path = tmp_path / f"tone.{extension}"
+        soundfile.write(path, tone, 22050)
+        assert abs(_steady_f0(extract_features(path)) / 150.0 - 1) < 0.01
+
+
+def test_stereo_is_mixed_to_mono(tmp_path) -> None:
+    left = sine(200.0, 1.0, 16000, amplitude=0.4)
+    path = tmp_path / "stereo.wav"
+    soundfile.write(path, np.column_stack([left, np.zeros_like(left)]), 16000, subtype="FLOAT")
+    audio = load_audio(path)
+    np.testing.assert_allclose(audio.samples, left / 2, atol=1e-7)
+
+
+@pytest.mark.parametrize("amplitude", [0.01, 0.1, 0.5, 0.9])
+def test_sine_energy_within_one_db(amplitude: float) -> None:
+    features = extract_features(Audio(sine(440.0, 1.0, 16000, amplitude=amplitude), 16000))
+    middle = features.energy.values[5:-5]
+    np.testing.assert_allclose(middle, sine_level_db(amplitude), atol=1.0)
+
+
+def test_grid_has_one_frame_per_video_frame() -> None:
+    features = extract_features(Audio(harmonic_tone(200, 2.5, 16000), 16000), fps=25)
+    assert features.n_frames == frame_count(2.5, fps=25) == 63
+    assert features.fps == 25
+    np.testing.assert_allclose(features.f0.times_s[:3], [0.0, 0.04, 0.08])
+
+
+def test_gap_is_bridged_smoothly_and_edges_hold() -> None:
+    sr = 16000
+    silence = np.zeros(int(0.3 * sr))
+    gap = np.zeros(int(0.5 * sr))
+    signal = np.concatenate([silence, harmonic_tone(150, 1.0, sr), gap, harmonic_tone(250, 1.0, sr), silence])
+    features = extract_features(Audio(signal, sr))
+    raw, conditioned = features.f0, features.f0_conditioned.values
+    voiced = np.flatnonzero(raw.voiced)
+    first, last = voiced[0], voiced[-1]
+    # leading and trailing unvoiced frames hold the nearest voiced value
+    assert first >= 5 and last <= features.n_frames - 6
+    np.testing.assert_allclose(conditioned[:first], raw.values[first])
+    np.testing.assert_allclose(conditioned[last + 1 :], raw.values[last])
+    # the spline passes through every voiced frame
+    np.testing.assert_allclose(conditioned[voiced], raw.values[voiced])
+    # the gap: the longest run of unvoiced frames between the tones
+    unvoiced = np.flatnonzero(~raw.voiced[first:last + 1]) + first
+    assert unvoiced.size >= 12
+    gap_values = conditioned[unvoiced]
+    assert np.all(gap_values >= 150 * 0.99) and np.all(gap_values <= 250 * 1.01)
+    assert conditioned.max() <= np.nanmax(raw.values)
+    # smooth: no frame-to-frame jump inside the gap larger than the whole step spread over the gap
+    assert np.max(np.abs(np.diff(gap_values))) < 2 * (250 - 150) / 12
+
+
+def test_condition_f0_clips_overshoot_to_voiced_maximum() -> None:
+    raw = np.array([100, 200, np.nan, np.nan, np.nan, np.nan, 200, 100, np.nan, 150])
+    track = F0Track(raw, 30.0, "Hz", "f0", ~np.isnan(raw))
+    conditioned = condition_f0(track).values
+    # a cubic through 100, 200 | gap | 200, 100 bulges above 200 in the gap; it must be clipped there
+    assert conditioned[2:6].max() == pytest.approx(200.0)
+    assert np.all(conditioned <= 200.0) and np.all(conditioned >= 0.0)
+    np.testing.assert_allclose(conditioned[[0, 1, 6, 7, 9]], [100, 200, 200, 100, 150])
+
+
+def test_condition_f0_single_voiced_frame_holds_it() -> None:
+    raw = np.array([np.nan, np.nan, 180.0, np.nan])
+    conditioned = condition_f0(F0Track(raw, 30.0, "Hz", "f0", ~np.isnan(raw))).values
+    np.testing.assert_allclose(conditioned, 180.0)
+
+
+@pytest.mark.parametrize("kind", ["silence", "noise"])
+def test_no_voiced_frame_gives_zero_and_warning(kind: str, rng: np.random.Generator) -> None:
+    sr = 16000
+    signal = np.zeros(sr) if kind == "silence" else 0.1 * rng.standard_normal(sr)
+    with pytest.warns(NoVoicedFramesWarning):
+        features = extract_features(Audio(signal, sr))
+    assert not features.f0.voiced.any()
+    np.testing.assert_array_equal(features.f0_conditioned.values, 0.0)
+
+
+def test_tracks_refuse_mismatched_lengths() -> None:
+    with pytest.raises(ParameterError):
+        F0Track(np.array([100.0, np.nan]), 30.0, "Hz", "f0", np.array([True]))
+    with pytest.raises(ParameterError):
+        F0Track(np.array([100.0, np.nan]), 30.0, "Hz", "f0", np.array([True, True]))
+    with pytest.raises(ParameterError):
+        Track(np.zeros(3), 0.0, "dB", "energy")
+
+
+def test_bad_parameters_are_named() -> None:
+    audio = Audio(harmonic_tone(200, 0.5, 16000), 16000)
+    with pytest.raises(ParameterError, match="f0_floor_hz"):
+        extract_features(audio, f0_floor_hz=600, f0_ceiling_hz=500)
+    with pytest.raises(ParameterError, match="Nyquist"):
+        extract_features(Audio(harmonic_tone(200, 0.5, 8000), 8000), f0_ceiling_hz=4500)
+
+
+def test_chunked_analysis_equals_single_pass() -> None:
+    sr = 16000
+    rng = np.random.default_rng(7)
+    pieces = []
+    for f0 in rng.uniform(100, 300, size=8):
+        pieces += [harmonic_tone(f0, rng.uniform(0.2, 0.6), sr, amplitude=rng.uniform(0.05, 0.8)),
+                   np.zeros(int(rng.uniform(0.05, 0.3) * sr))]
+    audio = Audio(np.concatenate(pieces), sr)
+    whole = extract_features(audio, chunk_s=3600)
+    chunked = extract_features(audio, chunk_s=0.7, margin_s=1.0)
+    np.testing.assert_array_equal(whole.f0.voiced, chunked.f0.voiced)
+    np.testing.assert_allclose(whole.f0.values, chunked.f0.values, rtol=1e-3, equal_nan=True)
+    np.testing.assert_allclose(whole.energy.values, chunked.energy.values, atol=0.01)
+
+
+def test_features_csv_columns(tmp_path) -> None:
+    sr = 16000
+    signal = np.concatenate([harmonic_tone(200, 0.5, sr), np.zeros(sr // 2)])
+    features = extract_features(Audio(signal, sr))
+    out = tmp_path / "features.csv"
+    features.write_csv(out)
+    lines = out.read_text().splitlines()
+    assert lines[0] == "frame,time_s,f0_hz,f0_conditioned_hz,energy_db"
+    assert len(lines) == features.n_frames + 1 == 31
+    last = lines[-1].split(",")
+    assert last[0] == "29" and float(last[1]) == pytest.approx(29 / 30)
+    assert last[2] == ""  # unvoiced: empty
+    assert float(last[3]) == pytest.approx(features.f0_conditioned.values[-1], abs=1e-3)
+
+
+@pytest.mark.shared_data
+@pytest.mark.parametrize(("clip", "low_hz", "high_hz"), [("arctic_a0007", 85, 180), ("arctic_a0009", 150, 260)])
+def test_real_speech_f0_is_plausible(shared_data, clip: str, low_hz: float, high_hz: float) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        features = extract_features(shared_data / "speech" / f"{clip}.wav")
+    median = np.nanmedian(features.f0.values)
+    assert low_hz < median < high_hz
+    assert 0.3 < features.f0.voiced.mean() < 0.9
+    # speech is far above 45 dB when voiced, and the conditioned F0 stays in the voiced range
+    assert np.median(features.energy.values[features.f0.voiced]) > 55
+    assert features.f0_conditioned.values.max() <= np.nanmax(features.f0.values)
+
+
+@pytest.mark.shared_data
+def test_real_speech_float_wav_and_chunk_seams(shared_data) -> None:
+    path = shared_data / "speech" / "beat_2_scott_0_1_1.wav"
+    whole = extract_features(path)
+    chunked = extract_features(path, chunk_s=2.0)
+    assert 80 < np.nanmedian(whole.f0.values) < 200
+    mismatched_voicing = np.sum(whole.f0.voiced != chunked.f0.voiced)
+    assert mismatched_voicing <= 2
+    both = whole.f0.voiced & chunked.f0.voiced
+    np.testing.assert_allclose(whole.f0.values[both], chunked.f0.values[both], rtol=0.01)
+    # chunk and whole file can place Praat's frames up to half a sample apart: 0.1 dB on real speech
+    np.testing.assert_allclose(whole.energy.values, chunked.energy.values, atol=0.1)
