@@ -45,6 +45,27 @@ def _analysis_kwargs(args: argparse.Namespace) -> dict:
     return {"fps": args.fps, "f0_floor_hz": args.f0_floor, "f0_ceiling_hz": args.f0_ceiling}
 
 
+def _add_eyebrow_options(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("eyebrow rule (SPEC section 3; thesis values by default)")
+    group.add_argument("--eyebrow-threshold", type=_positive_float, default=207.0, metavar="HZ",
+                       help="a rising crossing of the conditioned F0 through HZ raises the brows (default 207)")
+    group.add_argument("--eyebrow-semitones", type=float, default=None, metavar="ST",
+                       help="speaker-relative threshold instead: ST semitones above the recording's median F0 "
+                            "(for low or high voices; e.g. 4)")
+    group.add_argument("--energy-threshold", type=float, default=45.0, metavar="DB",
+                       help="after 300 ms the raise lasts while energy >= DB, dB re 2e-5 Pa (default 45)")
+    group.add_argument("--energy-relative", type=float, default=None, metavar="DB",
+                       help="calibrate for recording level instead: threshold = the recording's median voiced "
+                            "energy + DB (e.g. -25)")
+
+
+def _eyebrow_rule(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+    from .eyebrows import EyebrowRule
+
+    return EyebrowRule(threshold_hz=args.eyebrow_threshold, threshold_semitones=args.eyebrow_semitones,
+                       energy_threshold_db=args.energy_threshold, energy_relative_db=args.energy_relative)
+
+
 # commands -----------------------------------------------------------------------------------------------
 def _cmd_features(args: argparse.Namespace) -> int:
     from audio_features import extract_features
@@ -53,6 +74,24 @@ def _cmd_features(args: argparse.Namespace) -> int:
     features.write_csv(args.output)
     print(f"{args.output}: {features.n_frames} frames at {features.fps:g} fps "
           f"({features.duration_s:.2f} s, {int(features.f0.voiced.sum())} voiced)", file=sys.stderr)
+    return EXIT_OK
+
+
+def _cmd_convert(args: argparse.Namespace) -> int:
+    from .pipeline import convert
+
+    stream = convert(args.input, args.output, condition=args.condition, ground_truth=args.ground_truth,
+                     model=args.model, base=args.base, seed=args.seed, eyebrow_rule=_eyebrow_rule(args),
+                     output_format=args.format, **_analysis_kwargs(args))
+    print(f"{args.output}: {stream.n_frames} frames at {stream.fps:g} fps, FAPs "
+          f"{' '.join(map(str, stream.active_faps))}", file=sys.stderr)
+    return EXIT_OK
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    from .training import train
+
+    train(args.data, args.output, cv=args.cv, na=args.na, nb=args.nb, nk=args.nk, ridge=args.ridge, fps=args.fps)
     return EXIT_OK
 
 
@@ -90,6 +129,45 @@ def build_parser() -> argparse.ArgumentParser:
     features.add_argument("-o", "--output", required=True, help="CSV file to write")
     _add_analysis_options(features)
     features.set_defaults(handler=_cmd_features)
+
+    convert = commands.add_parser(
+        "convert", help="turn a speech recording into a FAP stream",
+        description="Compute the prosody FAPs (eyebrows 31-34, head 48-50) of one condition and write them. "
+                    "speech: eyebrows from the F0 rule, head pitch/yaw/roll from the ARX model (the shipped "
+                    "default unless --model); random: Perlin noise; none: all zero; truth: recorded motion.",
+    )
+    convert.add_argument("input", help="speech recording")
+    convert.add_argument("-o", "--output", required=True, help="output file (.fap)")
+    convert.add_argument("--format", default=None, help="output format when the extension does not say it")
+    convert.add_argument("--condition", default="speech", choices=["speech", "random", "none", "truth"],
+                         help="which animation to produce (default speech)")
+    convert.add_argument("--ground-truth", default=None, metavar="FILE",
+                         help="recorded motion for --condition truth: <clip>.head.csv or .fap")
+    convert.add_argument("--model", default=None, metavar="FILE", help="head model from 'prosody train'")
+    convert.add_argument("--seed", type=int, default=0, help="seed of the random condition (default 0)")
+    convert.add_argument("--base", default=None, metavar="FILE.fap",
+                         help="carry this recording's other FAPs (lips, eyes) into the output")
+    _add_analysis_options(convert)
+    _add_eyebrow_options(convert)
+    convert.set_defaults(handler=_cmd_convert)
+
+    train = commands.add_parser(
+        "train", help="train a head-motion model on paired recordings",
+        description="Fit the ARX head model on every <name>.wav in DIR that has a <name>.head.csv (columns "
+                    "frame,time_s,rx_rad,ry_rad,rz_rad at 30 fps) or a <name>.fap beside it. A pair whose "
+                    "durations differ by more than two frames is reported and skipped.",
+    )
+    train.add_argument("--data", required=True, metavar="DIR", help="folder of paired recordings")
+    train.add_argument("-o", "--output", required=True, help="model file to write (.json)")
+    train.add_argument("--cv", action="store_true",
+                       help="choose na, nb, nk and the ridge penalty by leave-one-recording-out "
+                            "cross-validation on free-run error")
+    train.add_argument("--na", type=int, default=1, help="past outputs fed back (default 1)")
+    train.add_argument("--nb", type=int, default=5, help="input lags (default 5)")
+    train.add_argument("--nk", type=int, default=0, help="input delay in frames (default 0)")
+    train.add_argument("--ridge", type=float, default=0.1, help="ridge penalty (default 0.1)")
+    train.add_argument("--fps", type=_positive_float, default=30.0, help="frame rate (default 30)")
+    train.set_defaults(handler=_cmd_train)
 
     inspect = commands.add_parser(
         "inspect", help="describe a .fap file (or print it as JSON)",

@@ -1,0 +1,103 @@
+"""The four conditions of SPEC section 1, each as a FAP stream computed from a recording's features."""
+
+from __future__ import annotations
+
+import enum
+import warnings
+
+import numpy as np
+
+from audio_features import Features
+
+from .errors import ConfigError, GroundTruthError
+from .eyebrows import EyebrowRule, eyebrow_raises
+from .fap_table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
+from .head import ArxHeadModel
+from .perlin import PerlinSettings, perlin_curves
+from .stream import FapStream
+
+
+class Condition(str, enum.Enum):
+    """The four animation conditions compared by the thesis."""
+
+    NO_PROSODY = "NO_PROSODY"
+    RANDOM = "RANDOM"
+    SPEECH_DRIVEN = "SPEECH_DRIVEN"
+    GROUND_TRUTH = "GROUND_TRUTH"
+
+    @classmethod
+    def parse(cls, text: str) -> Condition:
+        """Accept the short CLI names (none, random, speech, truth) and the full names."""
+        key = text.strip().lower()
+        if key in _SHORT_NAMES:
+            return _SHORT_NAMES[key]
+        try:
+            return cls(text.strip().upper())
+        except ValueError:
+            choices = ", ".join([*_SHORT_NAMES, *(c.value for c in cls)])
+            raise ConfigError(f"unknown condition {text!r}; choose one of {choices}") from None
+
+
+_SHORT_NAMES = {"none": Condition.NO_PROSODY, "random": Condition.RANDOM, "speech": Condition.SPEECH_DRIVEN,
+                "truth": Condition.GROUND_TRUTH}
+#: Display order of the conditions (the order of the thesis and of the perceptual-study tables).
+CONDITION_ORDER = (Condition.NO_PROSODY, Condition.RANDOM, Condition.SPEECH_DRIVEN, Condition.GROUND_TRUTH)
+
+
+class MissingEyebrowDataWarning(UserWarning):
+    """Recorded motion has no eyebrow FAPs: the GROUND_TRUTH stream leaves them masked off."""
+
+
+def condition_stream(
+    condition: Condition,
+    features: Features,
+    *,
+    seed: int = 0,
+    model: ArxHeadModel | None = None,
+    ground_truth: FapStream | None = None,
+    eyebrow_rule: EyebrowRule | None = None,
+    perlin: PerlinSettings | None = None,
+    name: str = "prosody",
+) -> FapStream:
+    """The prosody FAPs (31-34, 48-50) of one condition for a recording.
+
+    Parameters
+    ----------
+    condition : Condition
+    features : Features
+        The recording's features; the stream has their frame count and rate.
+    seed : int
+        Seed of the RANDOM condition's noise (same seed, same stream).
+    model : ArxHeadModel, optional
+        Head model for SPEECH_DRIVEN; the shipped default when omitted.
+    ground_truth : FapStream, optional
+        Recorded motion on the features' grid (required for GROUND_TRUTH); see
+        :func:`prosody.ground_truth.fit_to_grid`.
+    eyebrow_rule, perlin : optional
+        Parameters of the eyebrow rule and of the noise.
+    """
+    n, fps = features.n_frames, features.fps
+    if condition is Condition.NO_PROSODY:
+        return FapStream.from_curves({fap: np.zeros(n) for fap in PROSODY_FAPS}, fps=fps, name=name, n_frames=n)
+    if condition is Condition.RANDOM:
+        return FapStream.from_curves(perlin_curves(n, fps=fps, seed=seed, settings=perlin), fps=fps, name=name,
+                                     n_frames=n)
+    if condition is Condition.SPEECH_DRIVEN:
+        if model is None:
+            from .head import default_model
+
+            model = default_model()
+        curves = eyebrow_raises(features, eyebrow_rule).curves()
+        curves.update(model.generate(features))
+        return FapStream.from_curves(curves, fps=fps, name=name, n_frames=n)
+    if ground_truth is None:
+        raise ConfigError("the GROUND_TRUTH condition needs recorded motion (--ground-truth FILE)")
+    if ground_truth.n_frames != n or ground_truth.fps != fps:
+        raise GroundTruthError("recorded motion must be on the features' frame grid (use fit_to_grid)")
+    stream = ground_truth.select(PROSODY_FAPS).renamed(name)
+    if not set(HEAD_FAPS) <= set(stream.active_faps):
+        warnings.warn("recorded motion has no head rotation (FAP 48-50)", MissingEyebrowDataWarning, stacklevel=2)
+    if not set(EYEBROW_FAPS) & set(stream.active_faps):
+        warnings.warn("recorded motion has no eyebrow FAPs (31-34): they stay masked off in GROUND_TRUTH",
+                      MissingEyebrowDataWarning, stacklevel=2)
+    return stream
