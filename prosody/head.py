@@ -187,12 +187,12 @@ class ArxHeadModel:
             raise ConfigError(f"{x.shape[0]} usable frames cannot fit {x.shape[1]} coefficients per axis")
         n_out, n_in = target.shape[1], stacked_u.shape[1]
         ridge = self.ridge
-        gram = x.T @ x
-        cross = x.T @ target
-        penalty = np.eye(x.shape[1])
-        penalty[-1, -1] = 0.0  # the constant is not shrunk
+        penalty = np.eye(x.shape[1])[:-1]  # the constant is not shrunk
         for _ in range(12):
-            theta = np.linalg.solve(gram + ridge * x.shape[0] * penalty, cross)
+            # ridge as extra rows of a least-squares problem: better conditioned than the normal equations
+            shrink = np.sqrt(ridge * x.shape[0]) * penalty
+            theta = np.linalg.lstsq(np.vstack([x, shrink]), np.vstack([target, np.zeros((shrink.shape[0], n_out))]),
+                                    rcond=None)[0]
             a = theta[: self.na * n_out].reshape(self.na, n_out, n_out).transpose(0, 2, 1)
             radius = spectral_radius(a)
             if radius < MAX_SPECTRAL_RADIUS:
@@ -217,6 +217,18 @@ class ArxHeadModel:
             raise ConfigError(f"training recordings have different frame rates {sorted(rates)!r}")
         inputs = [arx_inputs(f, smoothing_s=self.smoothing_s) for f in features]
         return self.fit_arrays(inputs, [np.asarray(m, float) for m in motion_au], fps=rates.pop(), names=names)
+
+    def coefficients_in_units(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(A, B, c)`` of ``y[t] = sum A_i y[t-i] + sum B_j u[t-nk-j] + c`` in the data's own units
+        (shapes (na, k, k), (nb, k, m), (k,)); defined for ``input_normalization="global"`` only."""
+        self._check_fitted()
+        if self.input_normalization != "global":
+            raise ConfigError("raw-unit coefficients exist only for input_normalization='global'")
+        scale = self.output_scale_
+        a = scale[None, :, None] * self.a_ / scale[None, None, :]
+        b = scale[None, :, None] * self.b_ / self.input_std_[None, None, :]
+        c = scale * (self.c_ - sum(bj @ (self.input_mean_ / self.input_std_) for bj in self.b_))
+        return a, b, c
 
     # generation -----------------------------------------------------------------------------------------
     def _exogenous(self, inputs: np.ndarray) -> np.ndarray:

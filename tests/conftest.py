@@ -50,3 +50,32 @@ def sine(frequency_hz: float, duration_s: float, sample_rate_hz: int, *, amplitu
 def sine_level_db(amplitude: float) -> float:
     """Level of a sine of peak ``amplitude`` pascals in dB re 2e-5 Pa: mean square A^2/2."""
     return float(10 * np.log10(amplitude**2 / 2 / (2e-5) ** 2))
+
+
+def gliding_tone(f0_hz: np.ndarray, sample_rate_hz: int, *, amplitude: np.ndarray | float = 0.5) -> np.ndarray:
+    """A harmonic tone whose F0 follows ``f0_hz`` sample by sample (phase-continuous); 0 Hz is silence."""
+    phase = 2 * np.pi * np.cumsum(f0_hz) / sample_rate_hz
+    signal = sum(np.sin(h * phase) / h for h in range(1, 4))
+    signal = signal / 1.5 * amplitude
+    return np.where(f0_hz > 0, signal, 0.0)
+
+
+def segments(sample_rate_hz: int, *parts: tuple[float, float, float]) -> np.ndarray:
+    """Concatenate (duration_s, f0_hz, amplitude) parts into one phase-continuous tone."""
+    f0 = np.concatenate([np.full(int(round(d * sample_rate_hz)), f) for d, f, _ in parts])
+    amplitude = np.concatenate([np.full(int(round(d * sample_rate_hz)), a) for d, _, a in parts])
+    return gliding_tone(f0, sample_rate_hz, amplitude=amplitude)
+
+
+def make_features(f0_conditioned_hz, energy_db, *, fps: float = 30.0):
+    """Features built directly from conditioned F0 and energy arrays (every frame voiced)."""
+    from audio_features import F0Track, Features, Track
+
+    f0 = np.asarray(f0_conditioned_hz, float)
+    return Features(
+        f0=F0Track(f0, fps, "Hz", "f0", np.ones(f0.shape, bool)),
+        f0_conditioned=Track(f0, fps, "Hz", "f0_conditioned"),
+        energy=Track(np.asarray(energy_db, float), fps, "dB", "energy"),
+        duration_s=f0.shape[0] / fps,
+        source="<synthetic>",
+    )

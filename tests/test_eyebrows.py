@@ -1,0 +1,127 @@
+"""The eyebrow rule: events at the frames the rule implies, on synthetic tones and on exact tracks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import make_features, segments
+
+from audio_features import Audio, extract_features
+from prosody.errors import ConfigError
+from prosody.eyebrows import EyebrowRule, eyebrow_raises
+
+SR = 16000
+
+
+def _raises(signal: np.ndarray, rule: EyebrowRule | None = None):
+    return eyebrow_raises(extract_features(Audio(signal, SR)), rule)
+
+
+def test_jump_through_207_raises_at_the_crossing_frame() -> None:
+    result = _raises(segments(SR, (0.5, 150, 0.5), (1.0, 250, 0.5)))
+    assert len(result.events) == 1
+    onset, _ = result.events[0]
+    assert abs(onset - 0.5 * 30) <= 1  # the jump is at 0.5 s = frame 15
+    assert np.all(result.displacement_ens[:onset] == 0)
+    assert np.all(result.displacement_ens[onset:] > 0)  # stays raised: still loud at the end
+
+
+def test_blip_then_silence_holds_nine_frames_then_ramps_over_three() -> None:
+    result = _raises(segments(SR, (0.5, 150, 0.5), (0.1, 250, 0.5), (1.0, 0, 0)))
+    (onset, release), = result.events
+    assert abs(onset - 15) <= 1
+    assert release == onset + 9  # silence well before the 300 ms minimum is over
+    brows = result.displacement_ens
+    assert np.all(brows[onset:release] > 0)
+    last = brows[release - 1]
+    np.testing.assert_allclose(brows[release : release + 3], [last * 2 / 3, last / 3, 0.0])
+    assert np.all(brows[release + 2 :] == 0)
+
+
+def test_loud_low_stretch_after_the_blip_keeps_the_raise() -> None:
+    signal = segments(SR, (0.5, 150, 0.5), (0.1, 250, 0.5), (1.0, 150, 0.5), (0.5, 0, 0))
+    result = _raises(signal)
+    (onset, release), = result.events
+    loud_end = int((0.5 + 0.1 + 1.0) * 30)  # frame 48: silence begins
+    assert abs(onset - 15) <= 1
+    # energy stays far above 45 dB through the 150 Hz stretch; the Praat window smears the edge by < 2 frames
+    assert loud_end - 1 <= release <= loud_end + 2
+    assert np.all(result.displacement_ens[onset:release] > 0)
+
+
+def test_tone_below_threshold_never_raises() -> None:
+    result = _raises(segments(SR, (0.5, 150, 0.5), (0.5, 200, 0.5), (0.5, 180, 0.5)))
+    assert result.events == ()
+    assert np.all(result.displacement_ens == 0)
+
+
+def test_falling_crossing_never_triggers() -> None:
+    result = _raises(segments(SR, (0.6, 250, 0.5), (0.6, 150, 0.5)))
+    assert result.events == ()
+    assert np.all(result.displacement_ens == 0)
+
+
+def test_rule_on_exact_tracks() -> None:
+    f0 = np.full(40, 150.0)
+    f0[5:8] = 250.0  # crossing at frame 5
+    f0[20:] = 230.0  # second crossing at frame 20
+    energy = np.full(40, 60.0)
+    energy[10:18] = 30.0  # quiet from frame 10 to 17
+    rule = EyebrowRule(gain_ens_per_hz=0.1, offset_ens=-5.0)
+    result = eyebrow_raises(make_features(f0, energy), rule)
+    assert result.events == ((5, 14), (20, 40))
+    brows = result.displacement_ens
+    expected = np.maximum(0.1 * f0 - 5, 0)
+    np.testing.assert_allclose(brows[5:14], expected[5:14])  # hold covers the quiet frames 10-13
+    np.testing.assert_allclose(brows[14:17], [expected[13] * 2 / 3, expected[13] / 3, 0])
+    assert np.all(brows[17:20] == 0)
+    curves = result.curves()
+    assert set(curves) == {31, 32, 33, 34}
+    np.testing.assert_array_equal(curves[31], curves[32])
+    np.testing.assert_array_equal(curves[33], curves[34])
+
+
+def test_new_crossing_while_raised_restarts_the_hold() -> None:
+    f0 = np.full(30, 150.0)
+    f0[2] = 250.0
+    f0[8] = 250.0  # rises again at frame 8 while still in the first hold
+    energy = np.full(30, 20.0)  # quiet throughout: only the minimum hold keeps the brows up
+    result = eyebrow_raises(make_features(f0, energy))
+    assert result.events == ((2, 17),)
+
+
+def test_never_negative_even_with_negative_offset() -> None:
+    f0 = np.array([100.0, 210.0, 20.0, 20.0, 20.0])
+    result = eyebrow_raises(make_features(f0, np.full(5, 60.0)), EyebrowRule(offset_ens=-50.0))
+    assert np.all(result.displacement_ens >= 0)
+
+
+def test_speaker_relative_threshold_for_a_low_voice() -> None:
+    # a low voice rising from 100 Hz to 130 Hz: 4.5 semitones, never near 207 Hz
+    signal = segments(SR, (0.6, 100, 0.5), (0.6, 130, 0.5))
+    features = extract_features(Audio(signal, SR))
+    assert eyebrow_raises(features).events == ()
+    relative = EyebrowRule(threshold_semitones=2.0)
+    median = np.median(features.f0.values[features.f0.voiced])
+    result = eyebrow_raises(features, relative)
+    assert result.f0_threshold_hz == pytest.approx(median * 2 ** (2 / 12))
+    assert len(result.events) == 1 and abs(result.events[0][0] - 18) <= 1
+
+
+def test_energy_threshold_relative_to_the_speech_level() -> None:
+    f0 = np.full(30, 150.0)
+    f0[2] = 250.0
+    energy = np.full(30, 30.0)
+    energy[:20] = 40.0  # a quietly recorded voice: below the absolute 45 dB everywhere
+    features = make_features(f0, energy)
+    assert eyebrow_raises(features).events == ((2, 11),)  # released as soon as the hold ends
+    result = eyebrow_raises(features, EyebrowRule(energy_relative_db=-5.0))
+    assert result.energy_threshold_db == pytest.approx(35.0)  # median level 40 dB, minus 5
+    assert result.events == ((2, 20),)
+
+
+def test_rule_parameters_are_checked() -> None:
+    with pytest.raises(ConfigError):
+        EyebrowRule(ramp_frames=0)
+    with pytest.raises(ConfigError):
+        EyebrowRule(threshold_hz=-1)
