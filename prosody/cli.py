@@ -201,10 +201,20 @@ def _run(handler: Callable[[argparse.Namespace], int], args: argparse.Namespace)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    import warnings
+
     parser = build_parser()
     args = parser.parse_args(argv)
+
+    def show(message, category, filename, lineno, file=None, line=None):  # type: ignore[no-untyped-def]
+        # a warning is a note to the user, one line, not a source listing
+        print(f"prosody {args.command}: warning: {message}", file=sys.stderr)
+
     try:
-        return _run(args.handler, args)
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            warnings.showwarning = show
+            return _run(args.handler, args)
     except KeyboardInterrupt:
         print(f"prosody {args.command}: interrupted", file=sys.stderr)
         return 130

@@ -44,8 +44,8 @@ _SHORT_NAMES = {"none": Condition.NO_PROSODY, "random": Condition.RANDOM, "speec
 CONDITION_ORDER = (Condition.NO_PROSODY, Condition.RANDOM, Condition.SPEECH_DRIVEN, Condition.GROUND_TRUTH)
 
 
-class MissingEyebrowDataWarning(UserWarning):
-    """Recorded motion has no eyebrow FAPs: the GROUND_TRUTH stream leaves them masked off."""
+class MissingMotionWarning(UserWarning):
+    """Recorded motion lacks some prosody FAPs (often the eyebrows): GROUND_TRUTH leaves them masked off."""
 
 
 def condition_stream(
@@ -96,8 +96,8 @@ def condition_stream(
         raise GroundTruthError("recorded motion must be on the features' frame grid (use fit_to_grid)")
     stream = ground_truth.select(PROSODY_FAPS).renamed(name)
     if not set(HEAD_FAPS) <= set(stream.active_faps):
-        warnings.warn("recorded motion has no head rotation (FAP 48-50)", MissingEyebrowDataWarning, stacklevel=2)
+        warnings.warn("recorded motion has no head rotation (FAP 48-50)", MissingMotionWarning, stacklevel=2)
     if not set(EYEBROW_FAPS) & set(stream.active_faps):
         warnings.warn("recorded motion has no eyebrow FAPs (31-34): they stay masked off in GROUND_TRUTH",
-                      MissingEyebrowDataWarning, stacklevel=2)
+                      MissingMotionWarning, stacklevel=2)
     return stream
