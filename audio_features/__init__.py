@@ -4,12 +4,13 @@ Everything is returned on a frame grid (frame ``k`` at ``k / fps`` seconds). Thi
 imports :mod:`prosody`.
 """
 
-from .audio import Audio, load_audio
+from .audio import AUDIO_EXTENSIONS, Audio, load_audio
 from .errors import AudioFeaturesError, AudioLoadError, NoVoicedFramesWarning, ParameterError
 from .features import CSV_COLUMNS, Features, condition_f0, extract_features
 from .tracks import F0Track, Track, frame_count
 
 __all__ = [
+    "AUDIO_EXTENSIONS",
     "CSV_COLUMNS",
     "Audio",
     "AudioFeaturesError",

@@ -25,8 +25,12 @@ def atomic_write(path: str | os.PathLike[str], *, mode: str = "w", newline: str 
         # name the file the user asked for, not the temporary one
         raise OSError(error.errno, error.strerror, str(target)) from None
     try:
-        kwargs = {} if "b" in mode else {"encoding": "utf-8", "newline": newline}
-        with os.fdopen(fd, mode, **kwargs) as handle:
+        handle: IO
+        if "b" in mode:
+            handle = os.fdopen(fd, mode)
+        else:
+            handle = os.fdopen(fd, mode, encoding="utf-8", newline=newline)
+        with handle:
             yield handle
             handle.flush()
             os.fsync(handle.fileno())

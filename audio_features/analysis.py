@@ -77,7 +77,7 @@ def _frames_on_steps(xs: np.ndarray, values: np.ndarray, *, dt: float, sample_ra
     misalignment = np.abs(xs - steps * dt).max(initial=0.0)
     if misalignment > 1.01 / sample_rate_hz:  # pragma: no cover - guards the alignment arithmetic
         raise RuntimeError(f"analysis frames missed the grid by {misalignment!r} s")
-    return dict(zip(steps.tolist(), values.tolist()))
+    return dict(zip(steps.tolist(), values.tolist(), strict=False))
 
 
 def analyse_grid(
@@ -169,7 +169,7 @@ def array_reader(samples: np.ndarray) -> SegmentReader:
     return read
 
 
-def sound_file_reader(sound, *, source: str) -> SegmentReader:  # type: ignore[no-untyped-def]
+def sound_file_reader(sound, *, source: str) -> SegmentReader:
     """A :data:`SegmentReader` that seeks in an open ``soundfile.SoundFile`` and mixes to mono."""
     total = sound.frames
 

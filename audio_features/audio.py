@@ -11,6 +11,8 @@ import numpy as np
 
 from .errors import AudioLoadError
 
+#: File name endings taken as audio when a folder is scanned (training pairs, batches).
+AUDIO_EXTENSIONS = (".wav", ".flac", ".ogg", ".oga", ".mp3", ".aif", ".aiff", ".aifc", ".au", ".caf", ".w64")
 #: Lowest sample rate accepted (SPEC section 2: "any sample rate from 8 kHz up").
 MIN_SAMPLE_RATE_HZ = 8000
 
@@ -102,7 +104,7 @@ def _check_riff_truncation(file: Path) -> None:
             offset += 8 + chunk_size + (chunk_size & 1)
 
 
-def open_sound_file(path: str | os.PathLike[str]):  # type: ignore[no-untyped-def]
+def open_sound_file(path: str | os.PathLike[str]):
     """Open ``path`` with soundfile after the checks of :func:`check_readable`; errors become AudioLoadError."""
     import soundfile
 

@@ -70,7 +70,7 @@ class Features:
             writer = csv.writer(handle, lineterminator="\n")
             writer.writerow(CSV_COLUMNS)
             for k, (time_s, f0, f0c, energy) in enumerate(
-                zip(self.f0.times_s, self.f0.values, self.f0_conditioned.values, self.energy.values)
+                zip(self.f0.times_s, self.f0.values, self.f0_conditioned.values, self.energy.values, strict=False)
             ):
                 writer.writerow(
                     [k, f"{time_s:.6f}", "" if np.isnan(f0) else f"{f0:.3f}", f"{f0c:.3f}", f"{energy:.3f}"]
@@ -121,7 +121,7 @@ def condition_f0(f0: F0Track) -> Track:
     return Track(out, f0.fps, "Hz", "f0_conditioned")
 
 
-def _scan_file(sound, *, source: str) -> float:  # type: ignore[no-untyped-def]
+def _scan_file(sound, *, source: str) -> float:
     """Global absolute peak of the mono mix, read in blocks; rejects non-finite samples."""
     peak = 0.0
     offset = 0

@@ -10,7 +10,6 @@ import argparse
 import json
 import sys
 from collections.abc import Callable, Sequence
-from pathlib import Path
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
 
@@ -59,7 +58,7 @@ def _add_eyebrow_options(parser: argparse.ArgumentParser) -> None:
                             "energy + DB (e.g. -25)")
 
 
-def _eyebrow_rule(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+def _eyebrow_rule(args: argparse.Namespace):
     from .eyebrows import EyebrowRule
 
     return EyebrowRule(threshold_hz=args.eyebrow_threshold, threshold_semitones=args.eyebrow_semitones,
@@ -93,6 +92,46 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
     train(args.data, args.output, cv=args.cv, na=args.na, nb=args.nb, nk=args.nk, ridge=args.ridge, fps=args.fps)
     return EXIT_OK
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from .compare import compare, write_comparison
+
+    comparison = compare(args.input, ground_truth=args.ground_truth, model=args.model, seed=args.seed,
+                         normalize=args.normalize, eyebrow_rule=_eyebrow_rule(args), **_analysis_kwargs(args))
+    written = write_comparison(comparison, args.output, plots=not args.no_plots)
+    speech = comparison.metrics["conditions"]["SPEECH_DRIVEN"]
+    line = f"{args.output}: {len(written)} files"
+    if comparison.ground_truth is not None:
+        r = " ".join(f"{speech[str(fap)]['pearson_r'] or 0:+.2f}" for fap in (48, 49, 50))
+        line += f"; SPEECH_DRIVEN head r vs ground truth (pitch yaw roll) {r}"
+    print(line, file=sys.stderr)
+    return EXIT_OK
+
+
+def _cmd_batch(args: argparse.Namespace) -> int:
+    from .batch import BatchOptions, Progress, find_audio_files, run_batch
+
+    conditions = [name for value in args.condition for name in value.split(",") if name.strip()] or None
+    options = BatchOptions(
+        **({"conditions": tuple(conditions)} if conditions else {}), model=args.model, seed=args.seed,
+        normalize=args.normalize, plots=args.plots, **_analysis_kwargs(args))
+    progress = Progress(len(find_audio_files(args.input)))
+
+    def on_outcome(outcome) -> None:
+        if outcome.status == "failed":
+            # failures are always said, on their own line, whatever the progress display does
+            if progress.enabled:
+                sys.stderr.write("\r" + " " * 80 + "\r")
+            print(f"prosody batch: error: {outcome.file}: {outcome.error}", file=sys.stderr)
+        progress.advance(outcome)
+
+    summary = run_batch(args.input, args.output, ground_truth_dir=args.ground_truth_dir, options=options,
+                        jobs=args.jobs, scheduler=args.scheduler, force=args.force, on_outcome=on_outcome)
+    counts = summary["counts"]
+    print(f"{args.output}: {counts['files']} file(s), {counts['done']} processed, {counts['skipped']} already "
+          f"complete, {counts['failed']} failed; summary in summary.md and summary.json", file=sys.stderr)
+    return EXIT_FAILURE if counts["failed"] else EXIT_OK
 
 
 def _cmd_inspect(args: argparse.Namespace) -> int:
@@ -169,6 +208,54 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--fps", type=_positive_float, default=30.0, help="frame rate (default 30)")
     train.set_defaults(handler=_cmd_train)
 
+    compare = commands.add_parser(
+        "compare", help="compare the four conditions on one recording (FAP files, plots, report, metrics)",
+        description="Write OUTDIR/no_prosody.fap, random.fap, speech_driven.fap (and ground_truth.fap with "
+                    "--ground-truth), features.png and head.png, report.md and metrics.json: mean and standard "
+                    "deviation per condition and FAP, Pearson r and RMSE against the ground truth, and canonical "
+                    "correlations (head vs recorded head, audio vs head).",
+    )
+    compare.add_argument("input", help="speech recording")
+    compare.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="output folder (created)")
+    compare.add_argument("--ground-truth", default=None, metavar="FILE",
+                         help="recorded motion: <clip>.head.csv or .fap (enables GROUND_TRUTH and agreement)")
+    compare.add_argument("--model", default=None, metavar="FILE", help="head model from 'prosody train'")
+    compare.add_argument("--seed", type=int, default=0, help="seed of the RANDOM condition (default 0)")
+    compare.add_argument("--normalize", action="store_true",
+                         help="scale and offset RANDOM, SPEECH_DRIVEN and GROUND_TRUTH to the same mean and "
+                              "standard deviation per FAP (the ground truth's where it has the FAP), as the "
+                              "thesis's second experiment did")
+    compare.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    _add_analysis_options(compare)
+    _add_eyebrow_options(compare)
+    compare.set_defaults(handler=_cmd_compare)
+
+    batch = commands.add_parser(
+        "batch", help="convert and compare every audio file of a folder tree",
+        description="Process every audio file under INDIR (recursively) into OUTDIR/<relative folder>/<stem>/ "
+                    "(condition .fap files and metrics.json; figures and report with --plots), comparing with "
+                    "ground truth where <stem>.head.csv or <stem>.fap is found in --ground-truth-dir (same "
+                    "relative path, or its top). Writes OUTDIR/summary.md and summary.json. A broken file is "
+                    "reported and skipped; the exit code is 1 if any failed. Re-running skips complete outputs "
+                    "made with the same settings.",
+    )
+    batch.add_argument("input", metavar="INDIR", help="folder of recordings")
+    batch.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="output folder (created)")
+    batch.add_argument("--ground-truth-dir", default=None, metavar="DIR", help="folder of recorded motion")
+    batch.add_argument("--condition", action="append", default=[], metavar="NAME[,NAME]",
+                       help="conditions to produce: none, random, speech, truth (repeatable; default all, truth "
+                            "only where found)")
+    batch.add_argument("--jobs", type=int, default=1, help="local worker processes (default 1)")
+    batch.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="run on a Dask distributed cluster, e.g. tcp://host:8786 (needs the 'cluster' extra)")
+    batch.add_argument("--model", default=None, metavar="FILE", help="head model from 'prosody train'")
+    batch.add_argument("--seed", type=int, default=0, help="seed of the RANDOM condition (default 0)")
+    batch.add_argument("--normalize", action="store_true", help="normalise as 'prosody compare --normalize'")
+    batch.add_argument("--plots", action="store_true", help="also write figures and a report per file")
+    batch.add_argument("--force", action="store_true", help="redo files whose outputs are already complete")
+    _add_analysis_options(batch)
+    batch.set_defaults(handler=_cmd_batch)
+
     inspect = commands.add_parser(
         "inspect", help="describe a .fap file (or print it as JSON)",
         description="Read a .fap file liberally and describe it; irregularities are reported on stderr.",
@@ -206,7 +293,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
 
-    def show(message, category, filename, lineno, file=None, line=None):  # type: ignore[no-untyped-def]
+    def show(message, category, filename, lineno, file=None, line=None):
         # a warning is a note to the user, one line, not a source listing
         print(f"prosody {args.command}: warning: {message}", file=sys.stderr)
 

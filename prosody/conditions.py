@@ -10,7 +10,7 @@ import numpy as np
 from audio_features import Features
 
 from .errors import ConfigError, GroundTruthError
-from .eyebrows import EyebrowRule, eyebrow_raises
+from .eyebrows import EyebrowRaises, EyebrowRule, eyebrow_raises
 from .fap_table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
 from .head import ArxHeadModel
 from .perlin import PerlinSettings, perlin_curves
@@ -56,6 +56,7 @@ def condition_stream(
     model: ArxHeadModel | None = None,
     ground_truth: FapStream | None = None,
     eyebrow_rule: EyebrowRule | None = None,
+    eyebrows: EyebrowRaises | None = None,
     perlin: PerlinSettings | None = None,
     name: str = "prosody",
 ) -> FapStream:
@@ -75,6 +76,8 @@ def condition_stream(
         :func:`prosody.ground_truth.fit_to_grid`.
     eyebrow_rule, perlin : optional
         Parameters of the eyebrow rule and of the noise.
+    eyebrows : EyebrowRaises, optional
+        The rule's result when the caller already has it (SPEECH_DRIVEN; ``eyebrow_rule`` is then unused).
     """
     n, fps = features.n_frames, features.fps
     if condition is Condition.NO_PROSODY:
@@ -87,7 +90,7 @@ def condition_stream(
             from .head import default_model
 
             model = default_model()
-        curves = eyebrow_raises(features, eyebrow_rule).curves()
+        curves = (eyebrows or eyebrow_raises(features, eyebrow_rule)).curves()
         curves.update(model.generate(features))
         return FapStream.from_curves(curves, fps=fps, name=name, n_frames=n)
     if ground_truth is None:

@@ -164,7 +164,7 @@ class ArxHeadModel:
         self._check_orders()
         if len(inputs) != len(outputs) or not inputs:
             raise ConfigError("need the same, non-zero number of input and output recordings")
-        for u, y in zip(inputs, outputs):
+        for u, y in zip(inputs, outputs, strict=False):
             if u.shape[0] != y.shape[0]:
                 raise ConfigError(f"a recording has {u.shape[0]} input frames but {y.shape[0]} output frames")
         inputs = [self._per_recording(np.asarray(u, float)) for u in inputs]
@@ -175,7 +175,7 @@ class ArxHeadModel:
         self.output_scale_ = np.where(stacked_y.std(axis=0) > 1e-12, stacked_y.std(axis=0), 1.0)
         start = max(self.na, self.nk + self.nb - 1)
         rows, targets = [], []
-        for u, y in zip(inputs, outputs):
+        for u, y in zip(inputs, outputs, strict=False):
             un = (u - self.input_mean_) / self.input_std_
             yn = y / self.output_scale_
             regressors = _lagged(un, yn, na=self.na, nb=self.nb, nk=self.nk)
@@ -206,7 +206,8 @@ class ArxHeadModel:
         self.ridge_ = ridge
         self.fps_ = float(fps)
         names = list(names) if names is not None else [f"recording {i}" for i in range(len(inputs))]
-        self.training_ = [TrainingClip(name, int(u.shape[0]), u.shape[0] / fps) for name, u in zip(names, inputs)]
+        self.training_ = [TrainingClip(name, int(u.shape[0]), u.shape[0] / fps)
+                          for name, u in zip(names, inputs, strict=False)]
         return self
 
     def fit(self, features: Sequence[Features], motion_au: Sequence[np.ndarray],

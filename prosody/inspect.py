@@ -23,7 +23,7 @@ def inspect_json(fap: FapFile) -> dict:
         column = number - 1
         faps[str(number)] = [
             _plain(value) if active else None
-            for value, active in zip(stream.values[:, column].tolist(), stream.mask[:, column].tolist())
+            for value, active in zip(stream.values[:, column].tolist(), stream.mask[:, column].tolist(), strict=False)
         ]
     return {"version": fap.version, "name": stream.name, "fps": _plain(stream.fps), "frames": stream.n_frames,
             "faps": faps}

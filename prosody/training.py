@@ -12,14 +12,14 @@ from pathlib import Path
 
 import numpy as np
 
-from audio_features import extract_features
+from audio_features import AUDIO_EXTENSIONS, extract_features
 
 from .errors import ConfigError, GroundTruthError, ProsodyError
 from .fap_table import HEAD_FAPS
 from .ground_truth import fit_to_grid, read_motion
 from .head import ArxHeadModel, arx_inputs
+from .metrics import pearson
 
-AUDIO_EXTENSIONS = (".wav", ".flac", ".ogg", ".mp3", ".aif", ".aiff")
 #: Orders tried by cross-validation.
 DEFAULT_ORDER_GRID = {"na": (1, 2, 4), "nb": (1, 5, 15), "nk": (0, 5), "ridge": (0.01, 0.1, 1.0)}
 
@@ -78,14 +78,6 @@ def load_training_set(pairs: Iterable[tuple[Path, Path]], *, fps: float = 30.0,
     return data
 
 
-def pearson(a: np.ndarray, b: np.ndarray) -> float | None:
-    """Pearson correlation, None where either side is constant."""
-    a = a - a.mean()
-    b = b - b.mean()
-    denominator = np.sqrt((a * a).sum() * (b * b).sum())
-    return float((a * b).sum() / denominator) if denominator > 1e-12 else None
-
-
 @dataclass(frozen=True)
 class CrossValidation:
     """Leave-one-recording-out scores of one set of orders."""
@@ -119,9 +111,9 @@ def leave_one_out(data: TrainingSet, *, na: int, nb: int, nk: int, ridge: float 
 def select_orders(data: TrainingSet, *, grid: dict[str, Sequence[float]] | None = None,
                   report: Callable[[str], None] | None = None) -> list[CrossValidation]:
     """Score every combination of orders and ridge penalties; best (lowest free-run RMSE) first."""
-    grid = grid or DEFAULT_ORDER_GRID
+    chosen: dict[str, Sequence[float]] = dict(grid or DEFAULT_ORDER_GRID)
     report = report or (lambda message: print(message, file=sys.stderr))
-    combos = list(itertools.product(grid["na"], grid["nb"], grid["nk"], grid["ridge"]))
+    combos = list(itertools.product(chosen["na"], chosen["nb"], chosen["nk"], chosen["ridge"]))
     results = []
     for index, (na, nb, nk, ridge) in enumerate(combos, start=1):
         result = leave_one_out(data, na=int(na), nb=int(nb), nk=int(nk), ridge=float(ridge))

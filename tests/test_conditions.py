@@ -23,7 +23,7 @@ SR = 16000
 
 def _write_head_csv(path: Path, rx, ry, rz) -> Path:
     lines = ["frame,time_s,rx_rad,ry_rad,rz_rad"]
-    for k, (x, y, z) in enumerate(zip(rx, ry, rz)):
+    for k, (x, y, z) in enumerate(zip(rx, ry, rz, strict=False)):
         lines.append(f"{k},{k / 30:.6f},{float(x)!r},{float(y)!r},{float(z)!r}")
     path.write_text("\n".join(lines) + "\n")
     return path

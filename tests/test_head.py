@@ -147,8 +147,9 @@ def test_shipped_default_model() -> None:
 
 @pytest.mark.shared_data
 def test_training_on_real_clips_beats_perlin_left_out(shared_data) -> None:
+    from prosody.metrics import pearson
     from prosody.perlin import perlin_curves
-    from prosody.training import find_pairs, leave_one_out, load_training_set, pearson
+    from prosody.training import find_pairs, leave_one_out, load_training_set
 
     data = load_training_set(find_pairs(shared_data / "talking-heads"), report=lambda message: None)
     assert len(data.names) == 7

@@ -1,0 +1,148 @@
+"""Readable Markdown reports: one recording's comparison, and a batch summary over many recordings."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
+
+from .fap_table import BY_NUMBER, PROSODY_FAPS
+
+if TYPE_CHECKING:
+    from .compare import Comparison
+
+CONDITION_NAMES = ("NO_PROSODY", "RANDOM", "SPEECH_DRIVEN", "GROUND_TRUTH")
+
+
+def _number(value: float | None, digits: int = 0) -> str:
+    if value is None:
+        return "–"
+    return f"{value:.{digits}f}"
+
+
+def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return lines
+
+
+def _unit(fap: int) -> str:
+    return "AU" if BY_NUMBER[fap].fapu == "AU" else BY_NUMBER[fap].fapu
+
+
+def comparison_markdown(comparison: Comparison, *, figures: Mapping[str, str] | None = None) -> str:
+    """The report of one recording: statistics, agreement with ground truth, CCA, eyebrow raises, figures."""
+    metrics = comparison.metrics
+    conditions = metrics["conditions"]
+    fps = metrics["fps"]
+    lines = [
+        f"# Visual prosody: {os.path.basename(comparison.source)}",
+        "",
+        f"- audio: `{comparison.source}`, {metrics['duration_s']:.2f} s, {metrics['frames']} frames at {fps:g} fps",
+        f"- ground truth: `{metrics['ground_truth']}`" if metrics["ground_truth"] else "- ground truth: none given",
+        f"- RANDOM seed {metrics['seed']}; normalisation to a common mean and spread: "
+        + ("on" if metrics["normalized"] else "off"),
+        *(["- note: the head model was trained on this recording, so its agreement here is not a held-out "
+           "figure"] if metrics.get("model_trained_on_this_recording") else []),
+        f"- eyebrow rule: raise above {metrics['eyebrow_threshold_hz']:.0f} Hz, hold while energy >= "
+        f"{metrics['energy_threshold_db']:.0f} dB; {len(metrics['eyebrow_events'])} raise(s)",
+        "",
+        "## Motion statistics (mean ± standard deviation, FAP units)",
+        "",
+    ]
+    header = ["condition", *(f"{fap} {BY_NUMBER[fap].name} ({_unit(fap)})" for fap in PROSODY_FAPS)]
+    rows = []
+    for name, stats in conditions.items():
+        cells = [name]
+        for fap in PROSODY_FAPS:
+            entry = stats[str(fap)]
+            digits = 0 if _unit(fap) == "AU" else 1
+            cells.append("–" if entry["mean"] is None else
+                         f"{_number(entry['mean'], digits)} ± {_number(entry['std'], digits)}")
+        rows.append(cells)
+    lines += _table(header, rows)
+    if comparison.ground_truth is not None:
+        lines += ["", "## Agreement with the ground truth", "",
+                  "Pearson r (and RMSE in FAP units) of each condition against the recorded motion; "
+                  "– where undefined (a still curve, or a FAP the recording lacks).", ""]
+        rows = []
+        for name, stats in conditions.items():
+            cells = [name]
+            for fap in PROSODY_FAPS:
+                entry = stats[str(fap)]
+                cells.append("–" if entry["rmse"] is None else
+                             f"{_number(entry['pearson_r'], 3)} ({_number(entry['rmse'])})")
+            rows.append(cells)
+        lines += _table(header, rows)
+    lines += ["", "## Canonical correlation (first canonical r)", ""]
+    cca = metrics["cca"]
+    lines += _table(["condition", "head (48-50) vs recorded head", "audio (energy, F0) vs head"],
+                    [[name, _number(cca["head_vs_ground_truth"].get(name), 3),
+                      _number(cca["audio_vs_head"].get(name), 3)] for name in conditions])
+    if metrics["eyebrow_events"]:
+        lines += ["", "## Eyebrow raises (SPEECH_DRIVEN)", ""]
+        lines += _table(["raise", "onset (s)", "release (s)"],
+                        [[str(i + 1), f"{onset / fps:.2f}", f"{release / fps:.2f}"]
+                         for i, (onset, release) in enumerate(metrics["eyebrow_events"])])
+    for key, title in (("features", "Acoustics and eyebrow raises"), ("head", "Head rotation per condition")):
+        if figures and key in figures:
+            lines += ["", f"## {title}", "", f"![{title}]({figures[key]})"]
+    return "\n".join(lines) + "\n"
+
+
+def batch_markdown(summary: Mapping) -> str:
+    """The summary report of a batch: counts, a table per file, aggregates over files with ground truth."""
+    counts = summary["counts"]
+    lines = [
+        "# Visual prosody: batch summary",
+        "",
+        f"- input: `{summary['input']}`; output: `{summary['output']}`",
+        f"- {counts['files']} file(s): {counts['done']} processed, {counts['skipped']} already complete, "
+        f"{counts['failed']} failed; {counts['with_ground_truth']} with ground truth",
+        "",
+        "## Files",
+        "",
+        "Head Pearson r against the ground truth (pitch / yaw / roll) for SPEECH_DRIVEN and RANDOM, and the first "
+        "canonical correlation of the three head axes with the recorded ones.",
+        "",
+    ]
+
+    def head_r(metrics: Mapping | None, condition: str) -> str:
+        if not metrics or condition not in metrics["conditions"]:
+            return "–"
+        stats = metrics["conditions"][condition]
+        return " / ".join(_number(stats[str(fap)]["pearson_r"], 2) for fap in (48, 49, 50))
+
+    def cca(metrics: Mapping | None, condition: str) -> str:
+        if not metrics:
+            return "–"
+        return _number(metrics["cca"]["head_vs_ground_truth"].get(condition), 2)
+
+    rows = []
+    for entry in summary["files"]:
+        metrics = entry.get("metrics")
+        status = entry["status"] if not entry.get("error") else f"{entry['status']}: {entry['error']}"
+        duration = _number(metrics["duration_s"], 1) if metrics else "–"
+        seen = "yes (model trained on it)" if metrics and metrics.get("model_trained_on_this_recording") else "yes"
+        rows.append([f"`{entry['file']}`", status.replace("|", "\\|"), duration,
+                     seen if entry.get("ground_truth") else "no", head_r(metrics, "SPEECH_DRIVEN"),
+                     head_r(metrics, "RANDOM"), cca(metrics, "SPEECH_DRIVEN"), cca(metrics, "RANDOM")])
+    lines += _table(["file", "status", "s", "truth", "r speech", "r random", "CCA speech", "CCA random"], rows)
+    aggregate = summary.get("aggregate") or {}
+    if aggregate:
+        lines += ["", "## Aggregates over files with ground truth", "",
+                  "Mean over files (and number of files) of the Pearson r against the recorded motion.", ""]
+        header = ["condition", *(f"{fap} {BY_NUMBER[fap].name}" for fap in PROSODY_FAPS), "CCA head"]
+        rows = []
+        for name in CONDITION_NAMES:
+            if name not in aggregate:
+                continue
+            cells = [name]
+            for fap in PROSODY_FAPS:
+                entry = aggregate[name]["faps"][str(fap)]
+                cells.append("–" if entry["pearson_r"] is None else
+                             f"{entry['pearson_r']:.3f} ({entry['files']})")
+            cells.append(_number(aggregate[name]["cca_head_vs_ground_truth"], 3))
+            rows.append(cells)
+        lines += _table(header, rows)
+    return "\n".join(lines) + "\n"

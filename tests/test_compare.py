@@ -1,0 +1,229 @@
+"""Comparison metrics against hand-computed values, normalisation, `prosody compare` and `prosody batch`."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile
+from conftest import segments
+
+from prosody.batch import BatchOptions, find_audio_files, find_ground_truth, run_batch
+from prosody.cli import main
+from prosody.compare import compare
+from prosody.metrics import (
+    canonical_correlations,
+    fap_statistics,
+    normalization_targets,
+    normalize_stream,
+    pearson,
+    rmse,
+)
+from prosody.stream import FapStream
+
+SR = 16000
+
+
+# metrics on small synthetic streams -----------------------------------------------------------------------
+def test_statistics_against_hand_computed_values() -> None:
+    generated = FapStream.from_curves({48: np.array([1.0, 2.0, 3.0, 4.0]), 31: np.zeros(4)}, fps=30)
+    truth = FapStream.from_curves({48: np.array([2.0, 2.0, 4.0, 4.0])}, fps=30)
+    stats = fap_statistics(generated, truth, faps=(31, 48, 49))
+    # mean 2.5, population std sqrt(1.25); r = cov / (sd sd) = 1 / (sqrt(1.25) * 1) ; rmse sqrt((1+0+1+0)/4)
+    assert stats["48"]["mean"] == pytest.approx(2.5)
+    assert stats["48"]["std"] == pytest.approx(np.sqrt(1.25))
+    assert stats["48"]["pearson_r"] == pytest.approx(1 / np.sqrt(1.25))
+    assert stats["48"]["rmse"] == pytest.approx(np.sqrt(0.5))
+    assert stats["31"] == {"mean": 0.0, "std": 0.0, "pearson_r": None, "rmse": None}  # truth lacks FAP 31
+    assert stats["49"] == {"mean": None, "std": None, "pearson_r": None, "rmse": None}  # not generated
+
+
+def test_pearson_and_rmse_edge_cases() -> None:
+    assert pearson(np.array([1.0, 2.0, 3.0]), np.array([3.0, 2.0, 1.0])) == pytest.approx(-1.0)
+    assert pearson(np.full(5, 7.0), np.arange(5.0)) is None
+    assert rmse(np.array([0.0, 0.0]), np.array([3.0, 4.0])) == pytest.approx(np.sqrt(12.5))
+
+
+def test_canonical_correlation_of_known_mixtures(rng) -> None:
+    n = 5000
+    shared = rng.standard_normal(n)
+    x = np.column_stack([shared + 0.5 * rng.standard_normal(n), rng.standard_normal(n)])
+    y = np.column_stack([rng.standard_normal(n), 2 * shared + rng.standard_normal(n), rng.standard_normal(n)])
+    # the best pair is x0 with y1: corr = 2 / sqrt(1.25 * 5) = 0.8; the second canonical r is near 0
+    values = canonical_correlations(x, y)
+    assert values[0] == pytest.approx(0.8, abs=0.02)
+    assert values[1] < 0.05
+    # invariant to invertible linear maps of either side
+    mixed = canonical_correlations(x @ [[2.0, 1.0], [0.3, -1.0]], y * [1.0, -3.0, 0.5])
+    np.testing.assert_allclose(mixed, values, atol=1e-10)
+    assert canonical_correlations(np.zeros((10, 2)), rng.standard_normal((10, 2))).size == 0
+
+
+def test_normalisation_gives_equal_means_and_spreads(rng) -> None:
+    truth = FapStream.from_curves({48: 500 + 2000 * rng.standard_normal(300)}, fps=30)
+    small = FapStream.from_curves({48: 10 + 3 * rng.standard_normal(300), 31: rng.uniform(0, 5, 300)}, fps=30)
+    large = FapStream.from_curves({48: 9000 * rng.standard_normal(300), 31: rng.uniform(0, 50, 300)}, fps=30)
+    targets = normalization_targets({"a": small, "b": large}, reference=truth, faps=(31, 48))
+    assert targets[48] == pytest.approx((truth.curve(48).mean(), truth.curve(48).std()))
+    # FAP 31 is not in the truth: the average of the streams' own means and spreads
+    expected_31 = (np.mean([small.curve(31).mean(), large.curve(31).mean()]),
+                   np.mean([small.curve(31).std(), large.curve(31).std()]))
+    assert targets[31] == pytest.approx(expected_31)
+    for stream in (small, large):
+        normalised = normalize_stream(stream, targets)
+        for fap in (31, 48):
+            assert normalised.curve(fap).mean() == pytest.approx(targets[fap][0])
+            assert normalised.curve(fap).std() == pytest.approx(targets[fap][1])
+        assert pearson(normalised.curve(48), stream.curve(48)) == pytest.approx(1.0)  # shape kept
+
+
+# prosody compare ------------------------------------------------------------------------------------------
+def _tone_file(path: Path) -> Path:
+    soundfile.write(path, segments(SR, (0.5, 150, 0.5), (0.4, 250, 0.5), (0.6, 160, 0.5), (0.5, 0, 0)), SR)
+    return path
+
+
+def _head_csv(path: Path, n: int, rng) -> Path:
+    angles = np.cumsum(0.002 * rng.standard_normal((n, 3)), axis=0)
+    lines = ["frame,time_s,rx_rad,ry_rad,rz_rad"]
+    lines += [f"{k},{k / 30:.6f},{a!r},{b!r},{c!r}" for k, (a, b, c) in enumerate(angles.tolist())]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_compare_cli_writes_everything_with_the_documented_shape(tmp_path, rng) -> None:
+    audio = _tone_file(tmp_path / "tone.wav")
+    truth = _head_csv(tmp_path / "tone.head.csv", 60, rng)
+    out = tmp_path / "out"
+    assert main(["compare", str(audio), "--ground-truth", str(truth), "-o", str(out), "--seed", "3"]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert names == {"no_prosody.fap", "random.fap", "speech_driven.fap", "ground_truth.fap", "features.png",
+                     "head.png", "report.md", "metrics.json"}
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert list(metrics["conditions"]) == ["NO_PROSODY", "RANDOM", "SPEECH_DRIVEN", "GROUND_TRUTH"]
+    for _condition, per_fap in metrics["conditions"].items():
+        assert list(per_fap) == ["31", "32", "33", "34", "48", "49", "50"]
+        for entry in per_fap.values():
+            assert set(entry) == {"mean", "std", "pearson_r", "rmse"}
+    truth_head = metrics["conditions"]["GROUND_TRUTH"]["48"]
+    assert truth_head["pearson_r"] == pytest.approx(1.0) and truth_head["rmse"] == pytest.approx(0.0)
+    assert metrics["conditions"]["NO_PROSODY"]["48"]["pearson_r"] is None  # a still head: undefined
+    assert metrics["conditions"]["GROUND_TRUTH"]["31"]["mean"] is None  # head.csv has no eyebrows
+    assert metrics["cca"]["head_vs_ground_truth"]["GROUND_TRUTH"] == pytest.approx(1.0)
+    # the rmse of the still condition is the recorded motion's root mean square (hand computed)
+    rx = np.loadtxt(truth, delimiter=",", skiprows=1)[:, 2]
+    recorded_au = (rx - np.median(rx)) * 1e5
+    assert metrics["conditions"]["NO_PROSODY"]["48"]["rmse"] == pytest.approx(np.sqrt(np.mean(recorded_au**2)))
+    assert (out / "features.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "## Agreement with the ground truth" in (out / "report.md").read_text()
+
+
+def test_compare_normalize_matches_the_ground_truth_spread(tmp_path, rng) -> None:
+    audio = _tone_file(tmp_path / "tone.wav")
+    truth = _head_csv(tmp_path / "tone.head.csv", 60, rng)
+    result = compare(audio, ground_truth=truth, normalize=True)
+    stats = result.metrics["conditions"]
+    for fap in ("48", "49", "50"):
+        for condition in ("RANDOM", "SPEECH_DRIVEN"):
+            assert stats[condition][fap]["mean"] == pytest.approx(stats["GROUND_TRUTH"][fap]["mean"], abs=1e-6)
+            assert stats[condition][fap]["std"] == pytest.approx(stats["GROUND_TRUTH"][fap]["std"], rel=1e-9)
+        assert stats["NO_PROSODY"][fap]["std"] == 0
+    brows = [stats[c]["31"]["std"] for c in ("RANDOM", "SPEECH_DRIVEN")]
+    assert brows[0] == pytest.approx(brows[1])  # no recorded brows: a common spread of their own
+
+
+def test_compare_without_ground_truth(tmp_path) -> None:
+    result = compare(_tone_file(tmp_path / "tone.wav"), seed=1)
+    assert list(result.metrics["conditions"]) == ["NO_PROSODY", "RANDOM", "SPEECH_DRIVEN"]
+    assert all(entry["pearson_r"] is None for entry in result.metrics["conditions"]["RANDOM"].values())
+    assert result.metrics["eyebrow_events"][0][0] in (14, 15, 16)
+
+
+# prosody batch --------------------------------------------------------------------------------------------
+@pytest.fixture
+def corpus(tmp_path, rng) -> tuple[Path, Path]:
+    indir = tmp_path / "in"
+    (indir / "day1").mkdir(parents=True)
+    truth = tmp_path / "truth"
+    (truth / "day1").mkdir(parents=True)
+    _tone_file(indir / "a.wav")
+    _tone_file(indir / "day1" / "b.wav")
+    _tone_file(indir / "day1" / "c.flac")
+    (indir / "day1" / "broken.wav").write_text("not audio")
+    (indir / "notes.txt").write_text("ignored")
+    _head_csv(truth / "day1" / "b.head.csv", 60, rng)  # at the same relative path
+    _head_csv(truth / "a.head.csv", 60, rng)  # at the top
+    return indir, truth
+
+
+def test_find_files_and_ground_truth(corpus) -> None:
+    indir, truth = corpus
+    files = find_audio_files(indir)
+    assert [str(f) for f in files] == ["a.wav", "day1/b.wav", "day1/broken.wav", "day1/c.flac"]
+    assert find_ground_truth(Path("day1/b.wav"), truth) == truth / "day1" / "b.head.csv"
+    assert find_ground_truth(Path("a.wav"), truth) == truth / "a.head.csv"
+    assert find_ground_truth(Path("day1/c.flac"), truth) is None
+
+
+def test_batch_cli_mixes_good_broken_and_paired_files(corpus, tmp_path, capsys) -> None:
+    indir, truth = corpus
+    out = tmp_path / "out"
+    code = main(["batch", str(indir), "-o", str(out), "--ground-truth-dir", str(truth)])
+    err = capsys.readouterr().err
+    assert code == 1  # something failed
+    assert "day1/broken.wav" in err and err.count("error:") == 1
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["counts"] == {"done": 3, "skipped": 0, "failed": 1, "files": 4, "with_ground_truth": 2}
+    by_file = {entry["file"]: entry for entry in summary["files"]}
+    assert by_file["day1/broken.wav"]["status"] == "failed"
+    assert "GROUND_TRUTH" in by_file["day1/b.wav"]["metrics"]["conditions"]
+    assert "GROUND_TRUTH" not in by_file["day1/c.flac"]["metrics"]["conditions"]
+    assert (out / "day1" / "b" / "ground_truth.fap").exists()
+    assert (out / "day1" / "c" / "speech_driven.fap").exists()
+    assert not (out / "day1" / "broken").exists() or not (out / "day1" / "broken" / "metrics.json").exists()
+    assert summary["aggregate"]["GROUND_TRUTH"]["faps"]["48"] == {"pearson_r": pytest.approx(1.0), "files": 2}
+    assert "| `day1/broken.wav` | failed" in (out / "summary.md").read_text()
+
+    # a re-run skips complete outputs; --force redoes them; a removed metrics.json makes one incomplete
+    (out / "a" / "metrics.json").unlink()
+    assert main(["batch", str(indir), "-o", str(out), "--ground-truth-dir", str(truth)]) == 1
+    counts = json.loads((out / "summary.json").read_text())["counts"]
+    assert (counts["done"], counts["skipped"]) == (1, 2)
+    assert main(["batch", str(indir), "-o", str(out), "--ground-truth-dir", str(truth), "--force"]) == 1
+    assert json.loads((out / "summary.json").read_text())["counts"]["done"] == 3
+    # other settings are not "complete": a different seed redoes the files
+    assert main(["batch", str(indir), "-o", str(out), "--ground-truth-dir", str(truth), "--seed", "9"]) == 1
+    assert json.loads((out / "summary.json").read_text())["counts"]["done"] == 3
+
+
+def test_batch_condition_subset_and_two_processes(corpus, tmp_path) -> None:
+    indir, truth = corpus
+    shutil.rmtree(indir / "day1")
+    out = tmp_path / "out"
+    summary = run_batch(indir, out, ground_truth_dir=truth, options=BatchOptions(conditions=("none", "random")),
+                        jobs=2)
+    assert summary["counts"]["failed"] == 0
+    assert sorted(p.name for p in (out / "a").iterdir()) == ["metrics.json", "no_prosody.fap", "random.fap"]
+
+
+def test_batch_on_a_local_dask_cluster(corpus, tmp_path) -> None:
+    distributed = pytest.importorskip("distributed")
+    indir, truth = corpus
+    out = tmp_path / "out"
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp",
+                                  dashboard_address=None) as cluster:
+        code = main(["batch", str(indir), "-o", str(out), "--ground-truth-dir", str(truth),
+                     "--scheduler", cluster.scheduler_address])
+    assert code == 1
+    counts = json.loads((out / "summary.json").read_text())["counts"]
+    assert counts["done"] == 3 and counts["failed"] == 1
+
+
+def test_batch_bad_usage(tmp_path, capsys) -> None:
+    assert main(["batch", str(tmp_path / "missing"), "-o", str(tmp_path / "o")]) == 2
+    assert "not a folder" in capsys.readouterr().err
+    assert main(["batch", str(tmp_path), "-o", str(tmp_path / "o"), "--condition", "loud"]) == 2
+    assert "unknown condition" in capsys.readouterr().err
