@@ -134,6 +134,35 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     return EXIT_FAILURE if counts["failed"] else EXIT_OK
 
 
+def _cmd_study_plan(args: argparse.Namespace) -> int:
+    from .study import plan_study, write_plan
+
+    rows = plan_study(args.stimuli.split(","), seed=args.seed)
+    write_plan(rows, args.output)
+    print(f"{args.output}: {len(rows)} presentations", file=sys.stderr)
+    return EXIT_OK
+
+
+def _cmd_study_analyze(args: argparse.Namespace) -> int:
+    from audio_features._atomic import atomic_write
+
+    from .study import analyze_ballots, missing_pairs, read_ballots, study_markdown
+
+    ballots = read_ballots(args.input)
+    notes = missing_pairs(ballots)
+    for note in notes:
+        print(f"prosody study analyze: warning: {args.input}: {note}", file=sys.stderr)
+    results = analyze_ballots(ballots)
+    with atomic_write(args.output, newline="\n") as handle:
+        json.dump(results, handle, indent=1, allow_nan=False)
+        handle.write("\n")
+    if args.report:
+        with atomic_write(args.report, newline="\n") as handle:
+            handle.write(study_markdown(ballots, results, notes=notes))
+    print(f"{args.output}: {len(ballots)} ballots, {len(results['scores'])} stimulus/stimuli", file=sys.stderr)
+    return EXIT_OK
+
+
 def _cmd_inspect(args: argparse.Namespace) -> int:
     from .fapfile import read_fap
     from .inspect import inspect_json, inspect_summary
@@ -255,6 +284,37 @@ def build_parser() -> argparse.ArgumentParser:
     batch.add_argument("--force", action="store_true", help="redo files whose outputs are already complete")
     _add_analysis_options(batch)
     batch.set_defaults(handler=_cmd_batch)
+
+    study = commands.add_parser(
+        "study", help="plan a paired-comparison perceptual study, or analyse its ballots",
+        description="Paired comparisons of the four conditions (SPEC section 7): 'plan' writes the presentation "
+                    "order, 'analyze' scores the ballots and runs paired t-tests.",
+    )
+    study_commands = study.add_subparsers(dest="study_command", required=True, metavar="STEP",
+                                          parser_class=_Parser)
+    plan = study_commands.add_parser(
+        "plan", help="write the randomised presentation order",
+        description="Every ordered pair of NO_PROSODY, RANDOM, SPEECH_DRIVEN, GROUND_TRUTH (16 per stimulus, "
+                    "same-model pairs included, so each condition is left 4 times and right 4 times), in 16 "
+                    "rounds that show one pair of every stimulus in shuffled order. CSV columns: "
+                    "order,stimulus,left,right. The same seed gives the same plan.",
+    )
+    plan.add_argument("--stimuli", required=True, metavar="NAME[,NAME...]", help="stimulus names, comma-separated")
+    plan.add_argument("--seed", type=int, default=0, help="seed of the order (default 0)")
+    plan.add_argument("-o", "--output", required=True, help="plan CSV to write")
+    plan.set_defaults(handler=_cmd_study_plan)
+    analyze = study_commands.add_parser(
+        "analyze", help="score ballots and run paired t-tests",
+        description="BALLOTS.csv has the columns stimulus,subject,left,right,choice (choice: left or right). "
+                    "Writes {\"scores\": {stimulus: {condition: points}}, \"ttests\": [...]}: one paired t-test "
+                    "of per-subject scores (a minus b, 95%% CI, two-tailed p) for each pair of conditions per "
+                    "stimulus. Incomplete, duplicated or unknown-condition rows are reported by line number.",
+    )
+    analyze.add_argument("input", metavar="BALLOTS.csv", help="ballot file")
+    analyze.add_argument("-o", "--output", required=True, metavar="results.json", help="results to write")
+    analyze.add_argument("--report", default=None, metavar="OUT.md",
+                         help="also write a readable report (confusion matrices, scores, tests)")
+    analyze.set_defaults(handler=_cmd_study_analyze)
 
     inspect = commands.add_parser(
         "inspect", help="describe a .fap file (or print it as JSON)",

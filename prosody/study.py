@@ -1,0 +1,262 @@
+"""Paired-comparison perceptual studies (SPEC section 7): plan the presentation order, analyse the ballots.
+
+A plan holds, per stimulus, all 16 ordered pairs of the four conditions (same-model pairs included), so each
+condition is shown 4 times on the left and 4 times on the right of every stimulus. The sequence is built in
+16 rounds, each showing one pair of every stimulus in shuffled order, so a stimulus's pairs are spread evenly
+over the session.
+
+A ballot gives one point to the chosen condition. A condition's score for a stimulus is its points summed
+over all pairs and subjects; per-subject scores give a paired t-test for every pair of conditions.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import itertools
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from audio_features._atomic import atomic_write
+
+from .conditions import CONDITION_ORDER
+from .errors import BallotError, ConfigError
+
+CONDITIONS = tuple(c.value for c in CONDITION_ORDER)
+PLAN_COLUMNS = ("order", "stimulus", "left", "right")
+BALLOT_COLUMNS = ("stimulus", "subject", "left", "right", "choice")
+#: Ballot problems listed in one error message before "and N more".
+_MAX_LISTED = 20
+
+
+def plan_study(stimuli: Sequence[str], *, seed: int = 0) -> list[dict[str, str | int]]:
+    """The presentation order: rows ``{"order", "stimulus", "left", "right"}``, ``order`` from 1.
+
+    Examples
+    --------
+    >>> rows = plan_study(["s1", "s2"], seed=1)
+    >>> len(rows), sorted({row["stimulus"] for row in rows})
+    (32, ['s1', 's2'])
+    """
+    names = [name.strip() for name in stimuli]
+    if not names or any(not name for name in names):
+        raise ConfigError(f"give one or more non-empty stimulus names, got {list(stimuli)!r}")
+    if len(set(names)) != len(names):
+        raise ConfigError(f"stimulus names repeat: {names!r}")
+    generator = np.random.default_rng(seed)
+    pairs = list(itertools.product(CONDITIONS, CONDITIONS))
+    per_stimulus = {name: [pairs[i] for i in generator.permutation(len(pairs))] for name in names}
+    sequence: list[tuple[str, str, str]] = []
+    for round_index in range(len(pairs)):
+        order = [names[i] for i in generator.permutation(len(names))]
+        if sequence and len(order) > 1 and order[0] == sequence[-1][0]:
+            order[0], order[-1] = order[-1], order[0]  # never the same stimulus twice in a row across rounds
+        sequence += [(name, *per_stimulus[name][round_index]) for name in order]
+    return [{"order": k + 1, "stimulus": s, "left": left, "right": right}
+            for k, (s, left, right) in enumerate(sequence)]
+
+
+def write_plan(rows: Sequence[dict], path: str | os.PathLike[str]) -> None:
+    """Write a plan as CSV with the columns ``order,stimulus,left,right`` (atomically)."""
+    with atomic_write(path) as handle:
+        writer = csv.DictWriter(handle, fieldnames=PLAN_COLUMNS, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+@dataclass(frozen=True)
+class Ballot:
+    row: int  # line number in the file (the header is line 1)
+    stimulus: str
+    subject: str
+    left: str
+    right: str
+    choice: str
+
+    @property
+    def chosen(self) -> str:
+        return self.left if self.choice == "left" else self.right
+
+
+def _fail(source: str, problems: list[str]) -> BallotError:
+    listed = problems[:_MAX_LISTED]
+    more = f"; and {len(problems) - _MAX_LISTED} more" if len(problems) > _MAX_LISTED else ""
+    return BallotError(f"{source}: {len(problems)} bad ballot row(s): " + "; ".join(listed) + more)
+
+
+def parse_ballots(text: str, *, source: str = "<ballots>") -> list[Ballot]:
+    """Parse ballot CSV text (columns ``stimulus,subject,left,right,choice``; extra columns are ignored).
+
+    Raises
+    ------
+    BallotError
+        Missing columns, or rows that are incomplete, duplicated (same stimulus, subject and ordered pair),
+        name an unknown condition, or choose neither ``left`` nor ``right``; every bad row is listed by its
+        line number.
+    """
+    reader = csv.reader(io.StringIO(text))
+    header = next(reader, None)
+    if header is None:
+        raise BallotError(f"{source}: the file is empty; expected the header {','.join(BALLOT_COLUMNS)}")
+    columns = [cell.strip().lower() for cell in header]
+    missing = [name for name in BALLOT_COLUMNS if name not in columns]
+    if missing:
+        raise BallotError(f"{source}, line 1: the header lacks {', '.join(missing)}; expected columns "
+                          f"{','.join(BALLOT_COLUMNS)}")
+    index = {name: columns.index(name) for name in BALLOT_COLUMNS}
+    ballots: list[Ballot] = []
+    problems: list[str] = []
+    seen: dict[tuple[str, str, str, str], int] = {}
+    for line, cells in enumerate(reader, start=2):
+        if not any(cell.strip() for cell in cells):
+            continue
+        values = {name: cells[i].strip() if i < len(cells) else "" for name, i in index.items()}
+        empty = [name for name, value in values.items() if not value]
+        if empty:
+            problems.append(f"row {line} is incomplete (no {', '.join(empty)})")
+            continue
+        unknown = [values[side] for side in ("left", "right") if values[side] not in CONDITIONS]
+        if unknown:
+            problems.append(f"row {line} names unknown condition(s) {', '.join(map(repr, unknown))} "
+                            f"(expected {', '.join(CONDITIONS)})")
+            continue
+        choice = values["choice"].lower()
+        if choice not in ("left", "right"):
+            problems.append(f"row {line} has choice {values['choice']!r} (expected left or right)")
+            continue
+        key = (values["stimulus"], values["subject"], values["left"], values["right"])
+        if key in seen:
+            problems.append(f"row {line} duplicates row {seen[key]} ({key[0]}, subject {key[1]}, "
+                            f"{key[2]} vs {key[3]})")
+            continue
+        seen[key] = line
+        ballots.append(Ballot(line, values["stimulus"], values["subject"], values["left"], values["right"], choice))
+    if problems:
+        raise _fail(source, problems)
+    if not ballots:
+        raise BallotError(f"{source}: no ballot rows")
+    return ballots
+
+
+def read_ballots(path: str | os.PathLike[str]) -> list[Ballot]:
+    """Read and check a ballot file (see :func:`parse_ballots`)."""
+    try:
+        with open(path, encoding="utf-8-sig", newline="") as handle:
+            text = handle.read()
+    except FileNotFoundError:
+        raise BallotError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise BallotError(f"{path}: cannot be read as CSV text ({error})") from None
+    return parse_ballots(text, source=str(path))
+
+
+def missing_pairs(ballots: Sequence[Ballot]) -> list[str]:
+    """Subjects who did not judge all 16 ordered pairs of a stimulus, one line each."""
+    judged: dict[tuple[str, str], set[tuple[str, str]]] = {}
+    for ballot in ballots:
+        judged.setdefault((ballot.stimulus, ballot.subject), set()).add((ballot.left, ballot.right))
+    notes = []
+    for (stimulus, subject), pairs in judged.items():
+        if len(pairs) < len(CONDITIONS) ** 2:
+            notes.append(f"subject {subject} judged {len(pairs)} of {len(CONDITIONS) ** 2} pairs of {stimulus}")
+    return notes
+
+
+def _t_quantile_975(df: int) -> float:
+    from scipy import stats
+
+    return float(stats.t.ppf(0.975, df))
+
+
+def paired_t_test(a: np.ndarray, b: np.ndarray) -> dict[str, float | int | None]:
+    """Paired t-test of ``a - b``: mean, sd (n - 1), se, 95% CI, t, df = n - 1, two-tailed p.
+
+    ``t`` and ``p`` (and the CI) are None where undefined: fewer than two subjects, or no spread in the
+    differences.
+    """
+    from scipy import stats
+
+    difference = np.asarray(a, float) - np.asarray(b, float)
+    n = difference.size
+    mean = float(difference.mean())
+    sd = float(difference.std(ddof=1)) if n > 1 else 0.0
+    se = sd / math.sqrt(n) if n > 1 else 0.0
+    result: dict[str, float | int | None] = {"mean": mean, "sd": sd, "se": se, "ci_low": None, "ci_high": None,
+                                             "t": None, "df": n - 1, "p": None}
+    if n > 1 and se > 0:
+        t = mean / se
+        half = _t_quantile_975(n - 1) * se
+        result.update(ci_low=mean - half, ci_high=mean + half, t=t, p=float(2 * stats.t.sf(abs(t), n - 1)))
+    return result
+
+
+def analyze_ballots(ballots: Sequence[Ballot]) -> dict:
+    """Scores per stimulus and condition, and the paired t-tests between conditions per stimulus.
+
+    Returns
+    -------
+    dict
+        ``{"scores": {stimulus: {condition: int}}, "ttests": [{"stimulus", "a", "b", "mean", "sd", "se",
+        "ci_low", "ci_high", "t", "df", "p"}]}``; a comes before b in NO_PROSODY, RANDOM, SPEECH_DRIVEN,
+        GROUND_TRUTH order and the differences are a minus b over the subjects who judged the stimulus.
+    """
+    stimuli = list(dict.fromkeys(ballot.stimulus for ballot in ballots))
+    scores: dict[str, dict[str, int]] = {}
+    tests = []
+    for stimulus in stimuli:
+        mine = [ballot for ballot in ballots if ballot.stimulus == stimulus]
+        subjects = list(dict.fromkeys(ballot.subject for ballot in mine))
+        per_subject = np.zeros((len(subjects), len(CONDITIONS)), dtype=int)
+        for ballot in mine:
+            per_subject[subjects.index(ballot.subject), CONDITIONS.index(ballot.chosen)] += 1
+        scores[stimulus] = {name: int(per_subject[:, i].sum()) for i, name in enumerate(CONDITIONS)}
+        for i, j in itertools.combinations(range(len(CONDITIONS)), 2):
+            tests.append({"stimulus": stimulus, "a": CONDITIONS[i], "b": CONDITIONS[j],
+                          **paired_t_test(per_subject[:, i], per_subject[:, j])})
+    return {"scores": scores, "ttests": tests}
+
+
+def confusion_matrix(ballots: Sequence[Ballot], stimulus: str) -> np.ndarray:
+    """``m[i, j]``: how often condition i was chosen when shown with condition j (either side)."""
+    matrix = np.zeros((len(CONDITIONS), len(CONDITIONS)), dtype=int)
+    for ballot in ballots:
+        if ballot.stimulus != stimulus:
+            continue
+        other = ballot.right if ballot.choice == "left" else ballot.left
+        matrix[CONDITIONS.index(ballot.chosen), CONDITIONS.index(other)] += 1
+    return matrix
+
+
+def study_markdown(ballots: Sequence[Ballot], results: dict, *, notes: Sequence[str] = ()) -> str:
+    """A readable report: per stimulus the confusion matrix, the scores and the t-tests."""
+
+    def number(value: float | None, digits: int = 2) -> str:
+        return "–" if value is None else f"{value:.{digits}f}"
+
+    lines = ["# Paired-comparison study", "",
+             f"{len(ballots)} ballots, {len({b.subject for b in ballots})} subject(s), "
+             f"{len(results['scores'])} stimulus/stimuli."]
+    if notes:
+        lines += ["", "Notes:", *(f"- {note}" for note in notes)]
+    for stimulus, scores in results["scores"].items():
+        lines += ["", f"## {stimulus}", "", "Times the row condition was chosen when shown with the column "
+                  "condition (either side):", "", "| chosen \\ against | " + " | ".join(CONDITIONS) + " |",
+                  "|---" * (len(CONDITIONS) + 1) + "|"]
+        matrix = confusion_matrix(ballots, stimulus)
+        for i, name in enumerate(CONDITIONS):
+            lines.append(f"| {name} | " + " | ".join(str(v) for v in matrix[i]) + " |")
+        lines += ["", "| condition | score |", "|---|---|"]
+        lines += [f"| {name} | {scores[name]} |" for name in CONDITIONS]
+        lines += ["", "| a − b | mean | sd | se | 95% CI | t | df | p |", "|---|---|---|---|---|---|---|---|"]
+        for test in results["ttests"]:
+            if test["stimulus"] != stimulus:
+                continue
+            ci = ("–" if test["ci_low"] is None else f"[{test['ci_low']:.2f}, {test['ci_high']:.2f}]")
+            lines.append(f"| {test['a']} − {test['b']} | {number(test['mean'])} | {number(test['sd'])} | "
+                         f"{number(test['se'])} | {ci} | {number(test['t'])} | {test['df']} | "
+                         f"{number(test['p'], 4)} |")
+    return "\n".join(lines) + "\n"
