@@ -58,7 +58,7 @@ def test_scores_and_t_tests_by_hand() -> None:
         return "left"
 
     pairs = list(itertools.product(CONDITIONS, CONDITIONS))
-    choices = {s: {(l, r): answer(s, l, r) for l, r in pairs} for s in ("s1", "s2", "s3")}
+    choices = {s: {(left, right): answer(s, left, right) for left, right in pairs} for s in ("s1", "s2", "s3")}
     results = analyze_ballots(parse_ballots(_ballots(choices)))
     # Per subject, SPEECH_DRIVEN wins its 7 pairs (6 mixed + 1 self). Of the 9 pairs without it the left
     # one wins, and each other condition is on the left in 3 of them: 3 points each. s3's two flipped
@@ -129,7 +129,7 @@ def test_bad_ballots_are_reported_by_row(tmp_path, capsys) -> None:
 
 def test_analyze_cli_writes_exact_shape_and_report(tmp_path, capsys) -> None:
     pairs = list(itertools.product(CONDITIONS, CONDITIONS))
-    lines = [HEADER] + [f"clip,{s},{l},{r},left\n" for s in ("a", "b") for l, r in pairs]
+    lines = [HEADER] + [f"clip,{s},{left},{right},left\n" for s in ("a", "b") for left, right in pairs]
     lines.append("other,a,RANDOM,GROUND_TRUTH,right\n")  # an incomplete subject: a warning, not an error
     path = tmp_path / "ballots.csv"
     path.write_text("".join(lines))
