@@ -50,15 +50,20 @@ class Audio:
         return self.samples.shape[0] / self.sample_rate_hz
 
 
-def check_samples(samples: np.ndarray, *, source: str, sample_rate_hz: float) -> None:
-    """Raise :class:`AudioLoadError` for audio no analysis can use (empty, non-finite, too low a rate)."""
+def check_shape(n_samples: int, *, source: str, sample_rate_hz: float) -> None:
+    """Raise :class:`AudioLoadError` for a recording with no samples or too low a sample rate."""
     if not sample_rate_hz >= MIN_SAMPLE_RATE_HZ:
         raise AudioLoadError(
             f"{source}: sample rate {sample_rate_hz!r} Hz is below the supported minimum of "
             f"{MIN_SAMPLE_RATE_HZ} Hz; resample the file first"
         )
-    if samples.shape[0] == 0:
+    if n_samples == 0:
         raise AudioLoadError(f"{source}: the recording has no samples (zero length)")
+
+
+def check_samples(samples: np.ndarray, *, source: str, sample_rate_hz: float) -> None:
+    """Raise :class:`AudioLoadError` for audio no analysis can use (empty, non-finite, too low a rate)."""
+    check_shape(samples.shape[0], source=source, sample_rate_hz=sample_rate_hz)
     finite = np.isfinite(samples)
     if not finite.all():
         first = int(np.argmin(finite))

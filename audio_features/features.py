@@ -12,7 +12,7 @@ import numpy as np
 
 from ._atomic import atomic_write
 from .analysis import analyse_grid, array_reader, sound_file_reader
-from .audio import Audio, check_samples, open_sound_file
+from .audio import Audio, check_shape, open_sound_file
 from .errors import AudioLoadError, NoVoicedFramesWarning, ParameterError
 from .tracks import F0Track, Track
 
@@ -200,7 +200,7 @@ def extract_features(
     else:
         name = str(Path(source))
         with open_sound_file(source) as sound:
-            check_samples(np.zeros(sound.frames), source=name, sample_rate_hz=sound.samplerate)
+            check_shape(sound.frames, source=name, sample_rate_hz=sound.samplerate)
             peak = _scan_file(sound, source=name)
             grid = analyse_grid(sound_file_reader(sound, source=name), n_samples=sound.frames,
                                 sample_rate_hz=int(sound.samplerate), global_peak=peak, source=name, **settings)

@@ -79,9 +79,11 @@ def _cmd_features(args: argparse.Namespace) -> int:
 def _cmd_convert(args: argparse.Namespace) -> int:
     from .pipeline import convert
 
+    gains = {"pitch": args.pitch_gain, "yaw": args.yaw_gain, "roll": args.roll_gain, "brows": args.brow_gain}
+    disabled = [name.strip() for value in args.off for name in value.split(",") if name.strip()]
     stream = convert(args.input, args.output, condition=args.condition, ground_truth=args.ground_truth,
                      model=args.model, base=args.base, seed=args.seed, eyebrow_rule=_eyebrow_rule(args),
-                     output_format=args.format, **_analysis_kwargs(args))
+                     output_format=args.format, gains=gains, disabled=disabled, **_analysis_kwargs(args))
     print(f"{args.output}: {stream.n_frames} frames at {stream.fps:g} fps, FAPs "
           f"{' '.join(map(str, stream.active_faps))}", file=sys.stderr)
     return EXIT_OK
@@ -205,8 +207,13 @@ def build_parser() -> argparse.ArgumentParser:
                     "default unless --model); random: Perlin noise; none: all zero; truth: recorded motion.",
     )
     convert.add_argument("input", help="speech recording")
-    convert.add_argument("-o", "--output", required=True, help="output file (.fap)")
-    convert.add_argument("--format", default=None, help="output format when the extension does not say it")
+    convert.add_argument("-o", "--output", required=True,
+                         help="output file; the format follows the ending: .fap (MPEG-4), .csv (FAP units), "
+                              ".json, .bvh (head joint, degrees), .livelink.csv (Live Link Face style)")
+    convert.add_argument("--format", default=None,
+                         choices=["fap", "csv", "csv-physical", "json", "bvh", "livelink"],
+                         help="output format, overriding the ending (csv-physical: radians and fractions of "
+                              "the reference distances)")
     convert.add_argument("--condition", default="speech", choices=["speech", "random", "none", "truth"],
                          help="which animation to produce (default speech)")
     convert.add_argument("--ground-truth", default=None, metavar="FILE",
@@ -215,6 +222,13 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("--seed", type=int, default=0, help="seed of the random condition (default 0)")
     convert.add_argument("--base", default=None, metavar="FILE.fap",
                          help="carry this recording's other FAPs (lips, eyes) into the output")
+    controls = convert.add_argument_group("intensity (1 keeps the motion as computed, 0.5 halves it)")
+    for channel, what in (("pitch", "head nods (FAP 48)"), ("yaw", "head turns (FAP 49)"),
+                          ("roll", "head tilts (FAP 50)"), ("brow", "eyebrow raises (FAP 31-34)")):
+        controls.add_argument(f"--{channel}-gain", type=float, default=1.0, metavar="G",
+                              help=f"scale the {what} by G (default 1)")
+    controls.add_argument("--off", action="append", default=[], metavar="CHANNEL[,CHANNEL]",
+                          help="leave channels out of the output: pitch, yaw, roll, brows (repeatable)")
     _add_analysis_options(convert)
     _add_eyebrow_options(convert)
     convert.set_defaults(handler=_cmd_convert)

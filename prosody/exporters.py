@@ -1,15 +1,58 @@
-"""Writers of FAP streams, chosen by name or file extension in one registry (stream in, file out)."""
+"""Writers of FAP streams, chosen by name or file extension in one registry (stream in, file out).
+
+Formats and their mapping from FAP units (SPEC section 1; AU = 1e-5 rad, ENS = eye-nose separation / 1024):
+
+- ``fap``: MPEG-4 FAP text (:mod:`prosody.fapfile`).
+- ``csv``: ``frame,time_s`` then one column per active FAP, named ``fap<N>_<name>_<unit>``, in FAP units
+  (``au``, ``ens``, ...), or with ``physical=True`` in radians (``rad``) and fractions of the reference
+  distance (``ens0``, ...). A cell is empty where the FAP is masked off in that frame.
+- ``json``: ``{"format": "visual-prosody-faps", "version": 1, "name", "fps", "frames", "faps": [{"fap", "name",
+  "unit", "values": [value or null per frame]}]}`` in FAP units.
+- ``bvh``: one ``Head`` joint (BVH's Y-up, character facing +Z, X to the character's left) with channels
+  ``Zrotation Yrotation Xrotation`` in degrees: Xrotation = head pitch (FAP 48, + bows down), Yrotation = head
+  yaw (FAP 49, + turns to the character's left), Zrotation = head roll (FAP 50, + tilts to the character's
+  right); the order composes R = Rz Ry Rx like the recordings of SPEC section 9. Brows are not in BVH.
+- ``livelink``: Live Link Face style CSV (``*.livelink.csv``): ``Timecode,BlendShapeCount`` then the 52 ARKit
+  blendshape columns and ``HeadYaw,HeadPitch,HeadRoll`` plus the six eye angles. Head angles in radians with
+  the FAPs' signs (HeadYaw + to the character's left, HeadPitch + down, HeadRoll + to its right); BrowInnerUp is
+  the mean of FAP 31/32 and BrowOuterUpLeft/Right are FAP 35/36 (or the middle brows 33/34 when the outer ones
+  are absent), divided by ``BROW_FULL_SCALE_ENS`` and clipped to [0, 1]. Every other column is 0.
+"""
 
 from __future__ import annotations
 
+import csv
+import json
 import os
 from collections.abc import Callable
 from pathlib import Path
 
-from .errors import ConfigError
+import numpy as np
+
+from audio_features._atomic import atomic_write
+
+from .errors import ConfigError, FapWriteError
+from .fap_table import BY_NUMBER, RADIANS_PER_AU
 from .stream import FapStream
 
 Writer = Callable[[FapStream, "str | os.PathLike[str]"], None]
+
+#: Brow raise (ENS) written as a full blendshape weight of 1 in Live Link Face CSV: about the largest raise
+#: the eyebrow rule makes with its default gain (0.1 ENS/Hz x 450 Hz - 5 = 40 ENS).
+BROW_FULL_SCALE_ENS = 40.0
+ARKIT_BLENDSHAPES = (
+    "EyeBlinkLeft", "EyeLookDownLeft", "EyeLookInLeft", "EyeLookOutLeft", "EyeLookUpLeft", "EyeSquintLeft",
+    "EyeWideLeft", "EyeBlinkRight", "EyeLookDownRight", "EyeLookInRight", "EyeLookOutRight", "EyeLookUpRight",
+    "EyeSquintRight", "EyeWideRight", "JawForward", "JawRight", "JawLeft", "JawOpen", "MouthClose",
+    "MouthFunnel", "MouthPucker", "MouthRight", "MouthLeft", "MouthSmileLeft", "MouthSmileRight",
+    "MouthFrownLeft", "MouthFrownRight", "MouthDimpleLeft", "MouthDimpleRight", "MouthStretchLeft",
+    "MouthStretchRight", "MouthRollLower", "MouthRollUpper", "MouthShrugLower", "MouthShrugUpper",
+    "MouthPressLeft", "MouthPressRight", "MouthLowerDownLeft", "MouthLowerDownRight", "MouthUpperUpLeft",
+    "MouthUpperUpRight", "BrowDownLeft", "BrowDownRight", "BrowInnerUp", "BrowOuterUpLeft", "BrowOuterUpRight",
+    "CheekPuff", "CheekSquintLeft", "CheekSquintRight", "NoseSneerLeft", "NoseSneerRight", "TongueOut",
+)
+LIVELINK_ROTATIONS = ("HeadYaw", "HeadPitch", "HeadRoll", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll",
+                      "RightEyeYaw", "RightEyePitch", "RightEyeRoll")
 
 
 def _write_fap(stream: FapStream, path: str | os.PathLike[str]) -> None:
@@ -18,9 +61,111 @@ def _write_fap(stream: FapStream, path: str | os.PathLike[str]) -> None:
     write_fap(stream, path)
 
 
-#: format name -> (writer, file extensions)
+def _number(value: float) -> str:
+    return f"{value:.6g}"
+
+
+def csv_columns(stream: FapStream, *, physical: bool = False) -> list[str]:
+    """Column names of the CSV export: ``frame,time_s,fap<N>_<name>_<unit>...``."""
+    names = ["frame", "time_s"]
+    for fap in stream.active_faps:
+        info = BY_NUMBER[fap]
+        unit = info.physical_unit if physical else info.fapu
+        names.append(f"fap{fap}_{info.name}_{unit.lower()}")
+    return names
+
+
+def write_csv(stream: FapStream, path: str | os.PathLike[str], *, physical: bool = False) -> None:
+    """One row per frame: frame, time in s, and each active FAP (empty where masked off)."""
+    active = stream.active_faps
+    values = stream.to_physical() if physical else np.where(stream.mask, stream.values, np.nan)
+    with atomic_write(path) as handle:
+        writer = csv.writer(handle, lineterminator="\n")
+        writer.writerow(csv_columns(stream, physical=physical))
+        for k in range(stream.n_frames):
+            row = [str(k), f"{k / stream.fps:.6f}"]
+            row += ["" if np.isnan(values[k, fap - 1]) else _number(values[k, fap - 1]) for fap in active]
+            writer.writerow(row)
+
+
+def _write_physical_csv(stream: FapStream, path: str | os.PathLike[str]) -> None:
+    write_csv(stream, path, physical=True)
+
+
+def write_json(stream: FapStream, path: str | os.PathLike[str]) -> None:
+    """Frames, fps, and per active FAP its number, name, unit and values (null where masked off)."""
+    faps = []
+    for fap in stream.active_faps:
+        column = stream.values[:, fap - 1]
+        active = stream.mask[:, fap - 1]
+        faps.append({"fap": fap, "name": BY_NUMBER[fap].name, "unit": BY_NUMBER[fap].fapu,
+                     "values": [float(v) if on else None for v, on in zip(column.tolist(), active.tolist(),
+                                                                        strict=True)]})
+    payload = {"format": "visual-prosody-faps", "version": 1, "name": stream.name, "fps": stream.fps,
+               "frames": stream.n_frames, "faps": faps}
+    with atomic_write(path, newline="\n") as handle:
+        json.dump(payload, handle, allow_nan=False)
+        handle.write("\n")
+
+
+def _degrees(stream: FapStream, fap: int) -> np.ndarray:
+    return np.degrees(stream.curve(fap) * RADIANS_PER_AU)
+
+
+def write_bvh(stream: FapStream, path: str | os.PathLike[str]) -> None:
+    """A one-joint BVH: the head's rotation in degrees (see the module docstring for axes and signs)."""
+    if not any(stream.mask[:, fap - 1].any() for fap in (48, 49, 50)):
+        raise FapWriteError("the stream has no head rotation (FAP 48-50) to write as BVH")
+    pitch, yaw, roll = (_degrees(stream, fap) for fap in (48, 49, 50))
+    lines = ["HIERARCHY", "ROOT Head", "{", "\tOFFSET 0.0 0.0 0.0",
+             "\tCHANNELS 3 Zrotation Yrotation Xrotation", "\tEnd Site", "\t{", "\t\tOFFSET 0.0 20.0 0.0", "\t}",
+             "}", "MOTION", f"Frames: {stream.n_frames}", f"Frame Time: {1 / stream.fps:.8f}"]
+    lines += [f"{z:.5f} {y:.5f} {x:.5f}" for z, y, x in zip(roll, yaw, pitch, strict=True)]
+    with atomic_write(path, newline="\n") as handle:
+        handle.write("\n".join(lines) + "\n")
+
+
+def livelink_timecode(frame: int, fps: float) -> str:
+    """``HH:MM:SS:FF.mmm`` of a frame (FF the frame within the second, .mmm its fraction)."""
+    seconds, within = divmod(frame, fps)
+    hours, rest = divmod(int(seconds), 3600)
+    minutes, secs = divmod(rest, 60)
+    whole = int(within)
+    return f"{hours:02d}:{minutes:02d}:{secs:02d}:{whole:02d}.{int(round((within - whole) * 1000)):03d}"
+
+
+def write_livelink(stream: FapStream, path: str | os.PathLike[str]) -> None:
+    """Live Link Face style CSV (see the module docstring for the mapping)."""
+    n = stream.n_frames
+    columns = {name: np.zeros(n) for name in (*ARKIT_BLENDSHAPES, *LIVELINK_ROTATIONS)}
+
+    def brow(faps: tuple[int, ...]) -> np.ndarray:
+        present = [fap for fap in faps if stream.mask[:, fap - 1].any()]
+        if not present:
+            return np.zeros(n)
+        return np.clip(np.mean([stream.curve(fap) for fap in present], axis=0) / BROW_FULL_SCALE_ENS, 0.0, 1.0)
+
+    columns["BrowInnerUp"] = brow((31, 32))
+    columns["BrowOuterUpLeft"] = brow((35,)) if stream.mask[:, 34].any() else brow((33,))
+    columns["BrowOuterUpRight"] = brow((36,)) if stream.mask[:, 35].any() else brow((34,))
+    for name, fap in (("HeadYaw", 49), ("HeadPitch", 48), ("HeadRoll", 50)):
+        columns[name] = stream.curve(fap) * RADIANS_PER_AU
+    with atomic_write(path) as handle:
+        writer = csv.writer(handle, lineterminator="\n")
+        writer.writerow(["Timecode", "BlendShapeCount", *columns])
+        for k in range(n):
+            writer.writerow([livelink_timecode(k, stream.fps), len(columns),
+                             *(_number(values[k]) for values in columns.values())])
+
+
+#: format name -> (writer, file name endings); longer endings are matched first.
 WRITERS: dict[str, tuple[Writer, tuple[str, ...]]] = {
     "fap": (_write_fap, (".fap",)),
+    "livelink": (write_livelink, (".livelink.csv",)),
+    "csv-physical": (_write_physical_csv, ()),
+    "csv": (write_csv, (".csv",)),
+    "json": (write_json, (".json",)),
+    "bvh": (write_bvh, (".bvh",)),
 }
 
 
@@ -31,10 +176,12 @@ def format_for(path: str | os.PathLike[str], format_name: str | None = None) -> 
             raise ConfigError(f"unknown output format {format_name!r}; choose one of {', '.join(WRITERS)}")
         return format_name
     name = str(path).lower()
-    for candidate, (_, extensions) in WRITERS.items():
-        if any(name.endswith(extension) for extension in extensions):
+    endings = sorted(((ending, fmt) for fmt, (_, ends) in WRITERS.items() for ending in ends),
+                     key=lambda item: -len(item[0]))
+    for ending, candidate in endings:
+        if name.endswith(ending):
             return candidate
-    known = ", ".join(ext for _, exts in WRITERS.values() for ext in exts)
+    known = ", ".join(ending for ending, _ in endings)
     raise ConfigError(f"cannot tell the output format of {str(path)!r} from its extension ({known}); "
                       "give --format")
 

@@ -3,17 +3,35 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from audio_features import Features, extract_features
 
 from .conditions import Condition, condition_stream
+from .errors import ConfigError
 from .eyebrows import EyebrowRule
 from .fapfile import read_fap
 from .ground_truth import fit_to_grid, read_motion
 from .head import ArxHeadModel
 from .perlin import PerlinSettings
 from .stream import FapStream
+
+#: Channels of the intensity controls and the FAPs each one drives.
+CHANNELS = {"pitch": (48,), "yaw": (49,), "roll": (50,), "brows": (31, 32, 33, 34)}
+
+
+def apply_controls(stream: FapStream, *, gains: Mapping[str, float] | None = None,
+                   disabled: Iterable[str] = ()) -> FapStream:
+    """Per-channel intensity: multiply each channel (pitch, yaw, roll, brows) by its gain, and mask the
+    ``disabled`` channels off entirely (they are then absent from the output, not zero)."""
+    gains = dict(gains or {})
+    disabled = list(disabled)
+    unknown = [name for name in [*gains, *disabled] if name not in CHANNELS]
+    if unknown:
+        raise ConfigError(f"unknown channel(s) {', '.join(map(repr, unknown))}; choose from {', '.join(CHANNELS)}")
+    stream = stream.scaled({fap: gain for name, gain in gains.items() for fap in CHANNELS[name]})
+    return stream.without([fap for name in disabled for fap in CHANNELS[name]])
 
 
 def load_ground_truth(path: str | os.PathLike[str], features: Features) -> FapStream:
@@ -36,6 +54,8 @@ def convert(
     eyebrow_rule: EyebrowRule | None = None,
     perlin: PerlinSettings | None = None,
     output_format: str | None = None,
+    gains: Mapping[str, float] | None = None,
+    disabled: Iterable[str] = (),
     features: Features | None = None,
 ) -> FapStream:
     """Convert a speech recording into the FAP stream of one condition, and write it if ``output`` is given.
@@ -58,6 +78,12 @@ def convert(
         Seed of the ``random`` condition.
     fps : float > 0
         Frame rate of the output.
+    output_format : str, optional
+        A name of :data:`prosody.exporters.WRITERS` (fap, csv, csv-physical, json, bvh, livelink).
+    gains : mapping, optional
+        Intensity per channel (``pitch``, ``yaw``, ``roll``, ``brows``): 1 leaves it, 0.5 halves it.
+    disabled : iterable of str
+        Channels to leave out of the output.
     features : Features, optional
         Already extracted features of ``audio`` (skips the analysis).
 
@@ -74,6 +100,7 @@ def convert(
     name = Path(output).stem if output is not None else Path(str(audio)).stem
     stream = condition_stream(chosen, features, seed=seed, model=model, ground_truth=truth,
                               eyebrow_rule=eyebrow_rule, perlin=perlin, name=name)
+    stream = apply_controls(stream, gains=gains, disabled=disabled)
     if base is not None:
         stream = stream.merged_over(read_fap(base).stream)
     if output is not None:

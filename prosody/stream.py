@@ -138,6 +138,15 @@ class FapStream:
         drop[_fap_columns(faps)] = True
         return FapStream(self.values, self.mask & ~drop, self.fps, self.name)
 
+    def scaled(self, gains: Mapping[int, float]) -> FapStream:
+        """A copy with the given FAPs multiplied by their gain (intensity controls; 0 keeps them, still)."""
+        values = self.values.copy()
+        for fap, gain in gains.items():
+            if not np.isfinite(gain):
+                raise ConfigError(f"gain of FAP {fap} must be a finite number, got {gain!r}")
+            values[:, _fap_columns([fap])[0]] *= gain
+        return FapStream(values, self.mask, self.fps, self.name)
+
     def renamed(self, name: str) -> FapStream:
         return FapStream(self.values, self.mask, self.fps, name)
 
