@@ -1,0 +1,175 @@
+"""Benchmark (``make bench``): stage times on 10 minutes of real speech, the whole ``prosody convert`` as a
+ratio to Praat's pitch and intensity alone (both measured here, side by side, start-up included), the
+real-time factor, peak memory, and batch throughput at 1 and 2 jobs.
+
+The speech is built from the recordings in ../shared/data (or ``PROSODY_SHARED_DATA``), repeated to 10
+minutes and written as 16 kHz WAV to a temporary folder.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+DURATION_S = 600.0
+SAMPLE_RATE_HZ = 16000
+_PEAK_SNIPPET = ("import resource, sys; from {module} import {function}; code = {function}({args!r}); "
+                 "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr); sys.exit(code or 0)")
+
+
+def shared_data() -> Path:
+    return Path(os.environ.get("PROSODY_SHARED_DATA", REPO.parent / "shared" / "data"))
+
+
+def build_speech(path: Path, *, duration_s: float = DURATION_S) -> Path:
+    """Concatenate the shared recordings (resampled to 16 kHz) until ``duration_s`` and write a WAV."""
+    import soundfile
+    from scipy.signal import resample_poly
+
+    sources = sorted((shared_data() / "talking-heads").glob("*.wav")) + sorted(
+        (shared_data() / "speech").glob("*.wav"))
+    if not sources:
+        raise SystemExit(f"no recordings found under {shared_data()} (set PROSODY_SHARED_DATA)")
+    pieces = []
+    for source in sources:
+        data, rate = soundfile.read(source, dtype="float64", always_2d=True)
+        mono = data.mean(axis=1)
+        if rate != SAMPLE_RATE_HZ:
+            mono = resample_poly(mono, SAMPLE_RATE_HZ, rate)
+        pieces.append(mono)
+    speech = np.concatenate(pieces)
+    repeats = int(np.ceil(duration_s * SAMPLE_RATE_HZ / speech.size))
+    signal = np.tile(speech, repeats)[: int(duration_s * SAMPLE_RATE_HZ)]
+    soundfile.write(path, signal, SAMPLE_RATE_HZ, subtype="PCM_16")
+    return path
+
+
+def _timed(function: Callable[[], object]) -> tuple[float, object]:
+    started = time.perf_counter()
+    result = function()
+    return time.perf_counter() - started, result
+
+
+def _run_measured(module: str, function: str, args: list[str]) -> tuple[float, float]:
+    """Run ``module.function(args)`` in a fresh interpreter: (wall seconds, peak resident MB)."""
+    code = _PEAK_SNIPPET.format(module=module, function=function, args=args)
+    started = time.perf_counter()
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    seconds = time.perf_counter() - started
+    if done.returncode != 0:
+        raise SystemExit(f"{module}.{function} failed: {done.stderr.strip()}")
+    peak_kb = int(done.stderr.strip().splitlines()[-1])
+    return seconds, peak_kb / 1024
+
+
+def praat_only(args: list[str]) -> int:
+    """Praat's pitch and intensity of a file at the tool's analysis step, nothing else (the reference)."""
+    import parselmouth
+
+    sound = parselmouth.Sound(args[0])
+    sound.to_pitch_ac(time_step=1 / 120, pitch_floor=75.0, pitch_ceiling=500.0)
+    sound.to_intensity(minimum_pitch=100.0, time_step=1 / 120, subtract_mean=False)
+    return 0
+
+
+def stage_times(path: Path, out: Path) -> dict[str, float]:
+    """Seconds per stage of a conversion, run in this process."""
+    import parselmouth
+
+    from audio_features import F0Track, condition_f0, extract_features, load_audio
+    from prosody.eyebrows import eyebrow_raises
+    from prosody.fapfile import write_fap
+    from prosody.head import default_model
+    from prosody.perlin import perlin_curves
+    from prosody.stream import FapStream
+
+    times: dict[str, float] = {}
+    times["load"], audio = _timed(lambda: load_audio(path))
+    sound = parselmouth.Sound(audio.samples, sampling_frequency=audio.sample_rate_hz)
+    times["F0 (Praat pitch)"], _ = _timed(lambda: sound.to_pitch_ac(time_step=1 / 120, pitch_floor=75.0,
+                                                                     pitch_ceiling=500.0))
+    times["energy (Praat intensity)"], _ = _timed(lambda: sound.to_intensity(minimum_pitch=100.0, time_step=1 / 120,
+                                                                             subtract_mean=False))
+    times["features on the grid (chunked, all of the above)"], features = _timed(lambda: extract_features(path))
+    raw = F0Track(features.f0.values, features.fps, "Hz", "f0", features.f0.voiced)
+    times["conditioning (spline)"], _ = _timed(lambda: condition_f0(raw))
+    times["eyebrow rule"], raises = _timed(lambda: eyebrow_raises(features))
+    model = default_model()
+    times["ARX head (free run)"], head = _timed(lambda: model.generate(features))
+    times["Perlin"], _ = _timed(lambda: perlin_curves(features.n_frames, fps=features.fps, seed=0))
+    stream = FapStream.from_curves({**raises.curves(), **head}, fps=features.fps)  # type: ignore[union-attr]
+    times["writing .fap"], _ = _timed(lambda: write_fap(stream, out))
+    return times
+
+
+def batch_throughput(path: Path, folder: Path, *, files: int = 6, clip_s: float = 20.0) -> dict[int, float]:
+    """Files per second of ``run_batch`` at 1 and 2 jobs on ``files`` clips of ``clip_s`` seconds."""
+    import soundfile
+
+    from prosody.batch import run_batch
+
+    data, rate = soundfile.read(path, frames=int(clip_s * SAMPLE_RATE_HZ))
+    indir = folder / "batch-in"
+    indir.mkdir()
+    for index in range(files):
+        soundfile.write(indir / f"clip{index}.wav", np.roll(data, index * 1000), rate)
+    rates = {}
+    for jobs in (1, 2):
+        outdir = folder / f"batch-out-{jobs}"
+        started = time.perf_counter()
+        summary = run_batch(indir, outdir, jobs=jobs)
+        seconds = time.perf_counter() - started
+        assert summary["counts"]["done"] == files
+        rates[jobs] = files / seconds
+    return rates
+
+
+def main() -> int:
+    folder = Path(tempfile.mkdtemp(prefix="prosody-bench-"))
+    try:
+        speech = build_speech(folder / "speech-10min.wav")
+        print(f"benchmark input: {DURATION_S / 60:.0f} min of real speech at {SAMPLE_RATE_HZ} Hz "
+              f"({speech.stat().st_size / 1e6:.1f} MB), {os.cpu_count()} cores")
+        stages = stage_times(speech, folder / "stages.fap")
+        print("\nstage times (in one process):")
+        for name, seconds in stages.items():
+            print(f"  {name:<52} {seconds:8.3f} s")
+        # side by side, each in a fresh interpreter so start-up and imports are counted
+        praat_s, praat_mb = _run_measured("prosody.bench", "praat_only", [str(speech)])
+        convert_s, convert_mb = _run_measured("prosody.cli", "main",
+                                              ["convert", str(speech), "-o", str(folder / "convert.fap")])
+        import_s, _ = _run_measured("prosody.bench", "praat_only_import", [])
+        print("\nwhole runs in fresh interpreters (start-up included):")
+        print(f"  Praat pitch + intensity alone      {praat_s:7.2f} s   peak {praat_mb:6.0f} MB")
+        print(f"  prosody convert (speech-driven)    {convert_s:7.2f} s   peak {convert_mb:6.0f} MB")
+        print(f"  python start-up + parselmouth import {import_s:5.2f} s")
+        print(f"  ratio convert / Praat alone        {convert_s / praat_s:7.2f} x   (aim: <= 1.5 x)")
+        print(f"  real-time factor of convert        {DURATION_S / convert_s:7.0f} x faster than real time")
+        rates = batch_throughput(speech, folder)
+        print("\nbatch throughput (6 clips of 20 s, all conditions, no plots):")
+        for jobs, rate in rates.items():
+            print(f"  --jobs {jobs}: {rate:5.2f} files/s")
+        print(f"  speed-up 2 jobs / 1 job: {rates[2] / rates[1]:.2f} x")
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    return 0
+
+
+def praat_only_import(args: list[str]) -> int:
+    """Only the interpreter start-up and the parselmouth import (the fixed cost inside both runs)."""
+    import parselmouth  # noqa: F401
+
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
