@@ -108,6 +108,7 @@ def test_head_csv_maps_rx_ry_rz_to_fap_48_49_50_minus_median(tmp_path) -> None:
     np.testing.assert_allclose(stream.curve(50), [-50, 50, -150, 150])
 
 
+@pytest.mark.shared_data
 def test_real_head_csv_first_frame(shared_data) -> None:
     path = shared_data / "talking-heads" / "Obama_clip1.head.csv"
     if not path.exists():

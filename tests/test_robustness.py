@@ -1,0 +1,122 @@
+"""Hard inputs handled as documented, and a bounded fuzz pass over the .fap, ballot and model parsers."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+import soundfile
+from conftest import harmonic_tone
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from audio_features import NoVoicedFramesWarning, extract_features
+from prosody.cli import main
+from prosody.errors import BallotError, FapFormatError, ModelError
+from prosody.fapfile import read_fap
+from prosody.head import DEFAULT_MODEL_PATH, ArxHeadModel
+from prosody.study import parse_ballots
+
+
+@pytest.mark.parametrize("sample_rate_hz", [8000, 192000])
+def test_extreme_sample_rates(tmp_path, sample_rate_hz) -> None:
+    path = tmp_path / "tone.wav"
+    soundfile.write(path, harmonic_tone(220, 1.0, sample_rate_hz), sample_rate_hz)
+    features = extract_features(path)
+    voiced = features.f0.values[features.f0.voiced]
+    assert features.n_frames == 30 and np.all(np.abs(1200 * np.log2(voiced / 220)) < 17)  # within 1%
+
+
+def test_one_sample_dc_and_long_silence_convert_without_crashing(tmp_path, capsys) -> None:
+    cases = {"one_sample.wav": np.array([0.1]), "dc.wav": np.full(16000, 0.5),
+             "silence.wav": np.zeros(16000 * 30)}
+    for name, samples in cases.items():
+        soundfile.write(tmp_path / name, samples, 16000)
+        out = tmp_path / f"{name}.fap"
+        assert main(["convert", str(tmp_path / name), "-o", str(out)]) == 0, capsys.readouterr().err
+        err = capsys.readouterr().err
+        assert "warning: no voiced frame" in err  # no F0 anywhere: brows still, said once
+        stream = read_fap(out).stream
+        assert np.all(stream.curve(31) == 0)
+
+
+def test_clipped_speech_like_tone_still_tracks(tmp_path) -> None:
+    loud = np.clip(4.0 * harmonic_tone(180, 1.0, 16000), -1, 1)  # hard clipped at full scale
+    path = tmp_path / "clipped.wav"
+    soundfile.write(path, loud, 16000)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", NoVoicedFramesWarning)
+        features = extract_features(path)
+    assert abs(np.nanmedian(features.f0.values) - 180) < 1.8
+
+
+def test_unsupported_format_is_one_line(tmp_path, capsys) -> None:
+    path = tmp_path / "movie.mp4"
+    path.write_bytes(b"\x00\x00\x00\x18ftypmp42" + bytes(200))
+    assert main(["convert", str(path), "-o", str(tmp_path / "x.fap")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "movie.mp4" in err and not (tmp_path / "x.fap").exists()
+
+
+def test_interrupted_write_leaves_nothing(tmp_path, monkeypatch) -> None:
+    from prosody import fapfile
+    from prosody.stream import FapStream
+
+    stream = FapStream.from_curves({48: np.arange(100.0)}, fps=30)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(fapfile, "format_fap", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        fapfile.write_fap(stream, tmp_path / "x.fap")
+    assert list(tmp_path.iterdir()) == []
+
+
+# fuzzing: any text gives a result or the package's own error, never another exception or a hang ----------
+FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+_fap_tokens = st.sampled_from(["2.1", "2.0", "name", "25", "3", "0", "1", "-7", "1.5", "#", "x", "\t", " "])
+_fap_lines = st.lists(st.lists(_fap_tokens, max_size=70).map(" ".join), max_size=8).map("\n".join)
+
+
+@FUZZ
+@given(text=st.one_of(_fap_lines, st.text(max_size=400)))
+def test_fuzz_fap_reader(tmp_path, text) -> None:
+    path = tmp_path / "fuzz.fap"
+    path.write_text(text, encoding="latin-1", errors="replace")
+    try:
+        fap = read_fap(path)
+    except FapFormatError as error:
+        assert str(path) in str(error)
+    else:
+        assert fap.stream.values.shape[1] == 68
+
+
+@FUZZ
+@given(text=st.text(alphabet=st.sampled_from(list("stimulus,subjectleftrightchoiceNO_PROSODYRANDOM\n\"")),
+                    max_size=300))
+def test_fuzz_ballot_parser(text) -> None:
+    try:
+        ballots = parse_ballots("stimulus,subject,left,right,choice\n" + text)
+    except BallotError:
+        return
+    assert all(b.choice in ("left", "right") for b in ballots)
+
+
+@FUZZ
+@given(data=st.data())
+def test_fuzz_model_loader(tmp_path, data) -> None:
+    payload = json.loads(DEFAULT_MODEL_PATH.read_text())
+    key = data.draw(st.sampled_from(sorted(payload)))
+    payload[key] = data.draw(st.one_of(st.none(), st.integers(), st.floats(allow_nan=True), st.text(max_size=5),
+                                       st.lists(st.floats(allow_nan=False, allow_infinity=False), max_size=4)))
+    path = tmp_path / "model.json"
+    path.write_text(json.dumps(payload))
+    try:
+        model = ArxHeadModel.load(path)
+    except ModelError as error:
+        assert str(path) in str(error)
+    else:
+        assert model.spectral_radius_ < 1
