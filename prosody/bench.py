@@ -16,12 +16,14 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 DURATION_S = 600.0
 SAMPLE_RATE_HZ = 16000
+T = TypeVar("T")
 _PEAK_SNIPPET = ("import resource, sys; from {module} import {function}; code = {function}({args!r}); "
                  "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr); sys.exit(code or 0)")
 
@@ -53,7 +55,7 @@ def build_speech(path: Path, *, duration_s: float = DURATION_S) -> Path:
     return path
 
 
-def _timed(function: Callable[[], object]) -> tuple[float, object]:
+def _timed(function: Callable[[], T]) -> tuple[float, T]:
     started = time.perf_counter()
     result = function()
     return time.perf_counter() - started, result
@@ -106,7 +108,7 @@ def stage_times(path: Path, out: Path) -> dict[str, float]:
     model = default_model()
     times["ARX head (free run)"], head = _timed(lambda: model.generate(features))
     times["Perlin"], _ = _timed(lambda: perlin_curves(features.n_frames, fps=features.fps, seed=0))
-    stream = FapStream.from_curves({**raises.curves(), **head}, fps=features.fps)  # type: ignore[union-attr]
+    stream = FapStream.from_curves({**raises.curves(), **head}, fps=features.fps)
     times["writing .fap"], _ = _timed(lambda: write_fap(stream, out))
     return times
 

@@ -7,6 +7,7 @@ Heavy libraries are imported inside each command, so a command pays only for wha
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from collections.abc import Callable, Sequence
@@ -115,9 +116,10 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     from .batch import BatchOptions, Progress, find_audio_files, run_batch
 
     conditions = [name for value in args.condition for name in value.split(",") if name.strip()] or None
-    options = BatchOptions(
-        **({"conditions": tuple(conditions)} if conditions else {}), model=args.model, seed=args.seed,
-        normalize=args.normalize, plots=args.plots, **_analysis_kwargs(args))
+    options = BatchOptions(model=args.model, seed=args.seed, normalize=args.normalize, plots=args.plots,
+                           **_analysis_kwargs(args))
+    if conditions:
+        options = dataclasses.replace(options, conditions=tuple(conditions))
     progress = Progress(len(find_audio_files(args.input)))
 
     def on_outcome(outcome) -> None:

@@ -4,6 +4,7 @@ canonical correlation, and the thesis's mean/spread normalisation."""
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -105,7 +106,7 @@ def fap_statistics(stream: FapStream, truth: FapStream | None, faps=PROSODY_FAPS
     return result
 
 
-def normalization_targets(streams: Mapping[str, FapStream], *, reference: FapStream | None = None,
+def normalization_targets(streams: Mapping[Any, FapStream], *, reference: FapStream | None = None,
                           given: Mapping[int, tuple[float, float]] | None = None,
                           faps=PROSODY_FAPS) -> dict[int, tuple[float, float]]:
     """Target ``(mean, std)`` per FAP: the reference's (ground truth) where it carries the FAP, else the
