@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -207,17 +208,8 @@ def _header_name(name: str) -> str:
     return cleaned or "stream"
 
 
-def format_fap(stream: FapStream, *, name: str | None = None) -> str:
-    """The text of a .fap file in the interoperable subset (see the module docstring).
-
-    Values are rounded to the nearest integer with :func:`numpy.rint` (halves to even); FAP 1 and 2 are
-    masked off; whitespace in the name becomes ``_``.
-
-    Raises
-    ------
-    FapWriteError
-        For a non-integer frame rate, or a value beyond the 32-bit integer range.
-    """
+def _fap_lines(stream: FapStream, *, name: str | None = None) -> Iterator[str]:
+    """The lines of :func:`format_fap`, each with its newline, produced one frame at a time."""
     if stream.fps != int(stream.fps):
         raise FapWriteError(
             f"frame rate {stream.fps!r} is not an integer: the .fap header carries integer fps; "
@@ -229,16 +221,31 @@ def format_fap(stream: FapStream, *, name: str | None = None) -> str:
     if np.any(np.abs(rounded[mask]) > MAX_FAP_VALUE):
         raise FapWriteError(f"a FAP value exceeds the 32-bit integer range of .fap players ({MAX_FAP_VALUE})")
     integers = rounded.astype(np.int64)
-    lines = [f"2.1 {_header_name(name if name is not None else stream.name)} {int(stream.fps)} {stream.n_frames}"]
+    yield f"2.1 {_header_name(name if name is not None else stream.name)} {int(stream.fps)} {stream.n_frames}\n"
     for k in range(stream.n_frames):
         bits = mask[k]
-        lines.append(" ".join("1" if bit else "0" for bit in bits))
-        lines.append(" ".join([str(k), *map(str, integers[k, bits].tolist())]))
-    return "\n".join(lines) + "\n"
+        yield " ".join("1" if bit else "0" for bit in bits) + "\n"
+        yield " ".join([str(k), *map(str, integers[k, bits].tolist())]) + "\n"
+
+
+def format_fap(stream: FapStream, *, name: str | None = None) -> str:
+    """The text of a .fap file in the interoperable subset (see the module docstring).
+
+    Values are rounded to the nearest integer with :func:`numpy.rint` (halves to even); FAP 1 and 2 are
+    masked off; whitespace in the name becomes ``_``.
+
+    Raises
+    ------
+    FapWriteError
+        For a non-integer frame rate, or a value beyond the 32-bit integer range.
+    """
+    return "".join(_fap_lines(stream, name=name))
 
 
 def write_fap(stream: FapStream, path: str | os.PathLike[str], *, name: str | None = None) -> None:
     """Write ``stream`` to ``path`` atomically, in the subset of :func:`format_fap`."""
-    text = format_fap(stream, name=name if name is not None else Path(path).stem)
+    lines = _fap_lines(stream, name=name if name is not None else Path(path).stem)
+    first = next(lines)  # a stream that cannot be written fails before any file is opened
     with atomic_write(path, newline="\n") as handle:
-        handle.write(text)
+        handle.write(first)
+        handle.writelines(lines)  # frame by frame: hours of frames never sit in memory as one text

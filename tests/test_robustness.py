@@ -67,9 +67,11 @@ def test_interrupted_write_leaves_nothing(tmp_path, monkeypatch) -> None:
     stream = FapStream.from_curves({48: np.arange(100.0)}, fps=30)
 
     def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
+        yield "2.1 x 30 100\n"
+        yield "0 " * 68 + "\n"
+        raise KeyboardInterrupt  # Ctrl-C half-way through the frames
 
-    monkeypatch.setattr(fapfile, "format_fap", interrupted)
+    monkeypatch.setattr(fapfile, "_fap_lines", interrupted)
     with pytest.raises(KeyboardInterrupt):
         fapfile.write_fap(stream, tmp_path / "x.fap")
     assert list(tmp_path.iterdir()) == []
