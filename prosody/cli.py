@@ -41,6 +41,11 @@ def _add_analysis_options(parser: argparse.ArgumentParser) -> None:
                         help="highest F0 the pitch tracker looks for, in Hz (default 500)")
 
 
+def _add_generator_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--model", default=None, metavar="FILE", help="head model from 'prosody train'")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the RANDOM condition (default 0)")
+
+
 def _analysis_kwargs(args: argparse.Namespace) -> dict:
     return {"fps": args.fps, "f0_floor_hz": args.f0_floor, "f0_ceiling_hz": args.f0_ceiling}
 
@@ -220,8 +225,7 @@ def build_parser() -> argparse.ArgumentParser:
                          help="which animation to produce (default speech)")
     convert.add_argument("--ground-truth", default=None, metavar="FILE",
                          help="recorded motion for --condition truth: <clip>.head.csv or .fap")
-    convert.add_argument("--model", default=None, metavar="FILE", help="head model from 'prosody train'")
-    convert.add_argument("--seed", type=int, default=0, help="seed of the random condition (default 0)")
+    _add_generator_options(convert)
     convert.add_argument("--base", default=None, metavar="FILE.fap",
                          help="carry this recording's other FAPs (lips, eyes) into the output")
     controls = convert.add_argument_group("intensity (1 keeps the motion as computed, 0.5 halves it)")
@@ -264,8 +268,7 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="output folder (created)")
     compare.add_argument("--ground-truth", default=None, metavar="FILE",
                          help="recorded motion: <clip>.head.csv or .fap (enables GROUND_TRUTH and agreement)")
-    compare.add_argument("--model", default=None, metavar="FILE", help="head model from 'prosody train'")
-    compare.add_argument("--seed", type=int, default=0, help="seed of the RANDOM condition (default 0)")
+    _add_generator_options(compare)
     compare.add_argument("--normalize", action="store_true",
                          help="scale and offset RANDOM, SPEECH_DRIVEN and GROUND_TRUTH to the same mean and "
                               "standard deviation per FAP (the ground truth's where it has the FAP), as the "
@@ -293,8 +296,7 @@ def build_parser() -> argparse.ArgumentParser:
     batch.add_argument("--jobs", type=int, default=1, help="local worker processes (default 1)")
     batch.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="run on a Dask distributed cluster, e.g. tcp://host:8786 (needs the 'cluster' extra)")
-    batch.add_argument("--model", default=None, metavar="FILE", help="head model from 'prosody train'")
-    batch.add_argument("--seed", type=int, default=0, help="seed of the RANDOM condition (default 0)")
+    _add_generator_options(batch)
     batch.add_argument("--normalize", action="store_true", help="normalise as 'prosody compare --normalize'")
     batch.add_argument("--plots", action="store_true", help="also write figures and a report per file")
     batch.add_argument("--force", action="store_true", help="redo files whose outputs are already complete")
