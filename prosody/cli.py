@@ -46,6 +46,22 @@ def _add_generator_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the RANDOM condition (default 0)")
 
 
+def _add_motion_options(parser: argparse.ArgumentParser) -> None:
+    """Condition, generator and intensity options of the commands that make one stream (convert, preview)."""
+    parser.add_argument("--condition", default="speech", choices=["speech", "random", "none", "truth"],
+                        help="which animation to produce (default speech)")
+    parser.add_argument("--ground-truth", default=None, metavar="FILE",
+                        help="recorded motion for --condition truth: <clip>.head.csv or .fap")
+    _add_generator_options(parser)
+    controls = parser.add_argument_group("intensity (1 keeps the motion as computed, 0.5 halves it)")
+    for channel, what in (("pitch", "head nods (FAP 48)"), ("yaw", "head turns (FAP 49)"),
+                          ("roll", "head tilts (FAP 50)"), ("brow", "eyebrow raises (FAP 31-34)")):
+        controls.add_argument(f"--{channel}-gain", type=float, default=1.0, metavar="G",
+                              help=f"scale the {what} by G (default 1)")
+    controls.add_argument("--off", action="append", default=[], metavar="CHANNEL[,CHANNEL]",
+                          help="leave channels out of the output: pitch, yaw, roll, brows (repeatable)")
+
+
 def _analysis_kwargs(args: argparse.Namespace) -> dict:
     return {"fps": args.fps, "f0_floor_hz": args.f0_floor, "f0_ceiling_hz": args.f0_ceiling}
 
@@ -82,16 +98,44 @@ def _cmd_features(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _motion_kwargs(args: argparse.Namespace) -> dict:
+    """The keyword arguments of :func:`prosody.pipeline.convert` set by :func:`_add_motion_options`."""
+    gains = {"pitch": args.pitch_gain, "yaw": args.yaw_gain, "roll": args.roll_gain, "brows": args.brow_gain}
+    disabled = [name.strip() for value in args.off for name in value.split(",") if name.strip()]
+    return {"condition": args.condition, "ground_truth": args.ground_truth, "model": args.model, "seed": args.seed,
+            "eyebrow_rule": _eyebrow_rule(args), "gains": gains, "disabled": disabled, **_analysis_kwargs(args)}
+
+
 def _cmd_convert(args: argparse.Namespace) -> int:
     from .pipeline import convert
 
-    gains = {"pitch": args.pitch_gain, "yaw": args.yaw_gain, "roll": args.roll_gain, "brows": args.brow_gain}
-    disabled = [name.strip() for value in args.off for name in value.split(",") if name.strip()]
-    stream = convert(args.input, args.output, condition=args.condition, ground_truth=args.ground_truth,
-                     model=args.model, base=args.base, seed=args.seed, eyebrow_rule=_eyebrow_rule(args),
-                     output_format=args.format, gains=gains, disabled=disabled, **_analysis_kwargs(args))
+    stream = convert(args.input, args.output, base=args.base, output_format=args.format, **_motion_kwargs(args))
     print(f"{args.output}: {stream.n_frames} frames at {stream.fps:g} fps, FAPs "
           f"{' '.join(map(str, stream.active_faps))}", file=sys.stderr)
+    return EXIT_OK
+
+
+def _cmd_preview(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .preview import write_preview
+
+    audio = args.audio
+    if Path(args.input).suffix.lower() == ".fap":
+        from .fapfile import read_fap
+
+        stream = read_fap(args.input).stream
+    else:
+        from .pipeline import convert
+
+        stream = convert(args.input, None, **_motion_kwargs(args))
+        audio = audio or args.input
+    if args.no_audio:
+        audio = None
+    write_preview(stream, args.output, audio=audio, width=args.width, exaggerate=args.exaggerate,
+                  start_s=args.start, duration_s=args.duration)
+    sound = " with sound" if audio is not None and Path(args.output).suffix.lower() == ".mp4" else ""
+    print(f"{args.output}: preview of {stream.name} ({stream.duration_s:.2f} s){sound}", file=sys.stderr)
     return EXIT_OK
 
 
@@ -221,23 +265,38 @@ def build_parser() -> argparse.ArgumentParser:
                          choices=["fap", "csv", "csv-physical", "json", "bvh", "livelink"],
                          help="output format, overriding the ending (csv-physical: radians and fractions of "
                               "the reference distances)")
-    convert.add_argument("--condition", default="speech", choices=["speech", "random", "none", "truth"],
-                         help="which animation to produce (default speech)")
-    convert.add_argument("--ground-truth", default=None, metavar="FILE",
-                         help="recorded motion for --condition truth: <clip>.head.csv or .fap")
-    _add_generator_options(convert)
+    _add_motion_options(convert)
     convert.add_argument("--base", default=None, metavar="FILE.fap",
                          help="carry this recording's other FAPs (lips, eyes) into the output")
-    controls = convert.add_argument_group("intensity (1 keeps the motion as computed, 0.5 halves it)")
-    for channel, what in (("pitch", "head nods (FAP 48)"), ("yaw", "head turns (FAP 49)"),
-                          ("roll", "head tilts (FAP 50)"), ("brow", "eyebrow raises (FAP 31-34)")):
-        controls.add_argument(f"--{channel}-gain", type=float, default=1.0, metavar="G",
-                              help=f"scale the {what} by G (default 1)")
-    controls.add_argument("--off", action="append", default=[], metavar="CHANNEL[,CHANNEL]",
-                          help="leave channels out of the output: pitch, yaw, roll, brows (repeatable)")
     _add_analysis_options(convert)
     _add_eyebrow_options(convert)
     convert.set_defaults(handler=_cmd_convert)
+
+    preview = commands.add_parser(
+        "preview", help="draw the motion on a simple face, as an MP4 (with the audio) or a GIF",
+        description="Animate a drawn face from one condition's stream (as 'prosody convert' makes it) or from "
+                    "a .fap file: the head outline turns and tilts (FAP 48-50), the brows rise (FAP 31-36), at "
+                    "true scale unless --exaggerate; a strip below plots the brow and head curves around the "
+                    "current frame. .mp4 (H.264, with the recording's audio) needs ffmpeg on PATH or the "
+                    "imageio-ffmpeg package; .gif (no sound, at most 2 minutes at 30 fps) always works.",
+    )
+    preview.add_argument("input", help="speech recording, or a .fap file to show as it is")
+    preview.add_argument("-o", "--output", required=True, metavar="OUT.mp4|OUT.gif", help="video to write")
+    preview.add_argument("--audio", default=None, metavar="FILE",
+                         help="sound for the MP4 when INPUT is a .fap file (default: INPUT itself if audio)")
+    preview.add_argument("--no-audio", action="store_true", help="write the MP4 without sound")
+    preview.add_argument("--width", type=int, default=480, metavar="PX",
+                         help="frame width in pixels (default 480; the height is 5/4 of it)")
+    preview.add_argument("--exaggerate", type=_positive_float, default=1.0, metavar="X",
+                         help="draw head angles and brow raises X times larger (default 1: true scale; "
+                              "the thesis-sized brow raises are a few pixels at true scale)")
+    preview.add_argument("--start", type=float, default=0.0, metavar="S", help="first second shown (default 0)")
+    preview.add_argument("--duration", type=_positive_float, default=None, metavar="S",
+                         help="seconds shown (default: to the end)")
+    _add_motion_options(preview)
+    _add_analysis_options(preview)
+    _add_eyebrow_options(preview)
+    preview.set_defaults(handler=_cmd_preview)
 
     train = commands.add_parser(
         "train", help="train a head-motion model on paired recordings",

@@ -77,6 +77,24 @@ def test_interrupted_write_leaves_nothing(tmp_path, monkeypatch) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
+def test_written_files_get_the_usual_permissions(tmp_path) -> None:
+    import os
+
+    from prosody.fapfile import write_fap
+    from prosody.stream import FapStream
+
+    old_umask = os.umask(0o022)
+    try:
+        write_fap(FapStream.from_curves({48: np.zeros(3)}, fps=30), tmp_path / "x.fap")
+        os.umask(0o077)
+        write_fap(FapStream.from_curves({48: np.zeros(3)}, fps=30), tmp_path / "private.fap")
+    finally:
+        os.umask(old_umask)
+    # what open() would have made, not the temporary file's 0600
+    assert (tmp_path / "x.fap").stat().st_mode & 0o777 == 0o644
+    assert (tmp_path / "private.fap").stat().st_mode & 0o777 == 0o600
+
+
 # fuzzing: any text gives a result or the package's own error, never another exception or a hang ----------
 FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 _fap_tokens = st.sampled_from(["2.1", "2.0", "name", "25", "3", "0", "1", "-7", "1.5", "#", "x", "\t", " "])

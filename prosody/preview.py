@@ -1,0 +1,453 @@
+"""A drawn face animated from a FAP stream: head outline turning and tilting, brows rising (``prosody preview``).
+
+The face is a small 3D model drawn in orthographic projection: an ellipsoid head that turns about a pivot at
+the top of the neck, with eyes, nose, mouth and three points per eyebrow on its front. Angles and distances
+are applied in FAP units at true scale (SPEC section 1): FAP 48-50 rotate the head (R = Rz(roll) Ry(yaw)
+Rx(pitch), the signs of the .fap conventions: + pitch bows down, + yaw turns to the character's left, + roll
+tilts to its right), and FAP 31-36 raise the inner, middle and outer brow points by ``value / 1024`` of the
+model's eye-nose separation (ENS0). ``exaggerate`` multiplies both for viewing; the caption says so.
+
+A strip under the face plots the brow and head curves over a window around the current frame.
+
+Writers: ``.gif`` with Pillow (no sound, for short excerpts), ``.mp4`` (H.264 + AAC) through an ffmpeg
+executable, found on PATH or from the ``imageio-ffmpeg`` package, with the recording's audio muxed in.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import shutil
+import subprocess
+import tempfile
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from audio_features._atomic import atomic_path, atomic_write
+
+from .errors import ConfigError, ProsodyError
+from .fap_table import RADIANS_PER_AU
+from .stream import FapStream
+
+#: Longest GIF written, in frames (Pillow keeps every GIF frame in memory); longer previews need MP4.
+MAX_GIF_FRAMES = 3600
+#: Seconds of curve shown on each side of the current frame in the strip under the face.
+STRIP_WINDOW_S = 3.0
+#: Drawing is done at this multiple of the output size and scaled down, for smooth edges.
+SUPERSAMPLE = 2
+
+_BACKGROUND = (236, 238, 242)
+_SKIN = (236, 200, 170)
+_SKIN_EDGE = (150, 110, 85)
+_SHOULDERS = (70, 90, 120)
+_EYE_WHITE = (250, 250, 250)
+_PUPIL = (40, 50, 70)
+_NOSE = (185, 135, 105)
+_MOUTH = (170, 70, 70)
+#: Brow colour; kept apart from every other colour of the face so that tests can find the brows' pixels.
+BROW_COLOR = (20, 120, 30)
+_CURVE_COLORS = {"brows": BROW_COLOR, "pitch": (200, 60, 40), "yaw": (40, 90, 200), "roll": (150, 80, 170)}
+
+
+class PreviewError(ProsodyError):
+    """The preview could not be written (no ffmpeg for MP4, ffmpeg failed, a GIF too long)."""
+
+
+@dataclass(frozen=True)
+class FaceModel:
+    """Geometry of the drawn face, in head units (head half-height = 1): x toward the character's left
+    (the viewer's right), y up, z toward the viewer. The head is an ellipsoid of semi-axes
+    ``head_radii`` centred at the origin; it rotates about ``pivot`` (the top of the neck)."""
+
+    head_radii: tuple[float, float, float] = (0.78, 1.0, 0.85)
+    pivot: tuple[float, float, float] = (0.0, -0.85, -0.1)
+    eye_x: float = 0.30
+    eye_y: float = 0.10
+    eye_radius: float = 0.10
+    nose_bottom_y: float = -0.30
+    nose_depth: float = 0.16
+    mouth_y: float = -0.52
+    mouth_half_width: float = 0.24
+    #: Eyebrow points (inner, middle, outer) of the character's left brow; the right one mirrors it.
+    brow_x: tuple[float, float, float] = (0.13, 0.30, 0.46)
+    brow_y: tuple[float, float, float] = (0.30, 0.35, 0.30)
+
+    @property
+    def ens0(self) -> float:
+        """Eye-nose separation (the ENS reference distance): eye line to the bottom of the nose."""
+        return self.eye_y - self.nose_bottom_y
+
+    def surface_z(self, x: float, y: float) -> float:
+        """Depth of the head's front surface at (x, y)."""
+        a, b, c = self.head_radii
+        return c * math.sqrt(max(0.0, 1.0 - (x / a) ** 2 - (y / b) ** 2))
+
+
+@dataclass(frozen=True)
+class FacePose:
+    """What one frame shows: head angles in radians and brow raises in ENS units (FAP units)."""
+
+    pitch_rad: float = 0.0
+    yaw_rad: float = 0.0
+    roll_rad: float = 0.0
+    #: Raise of (inner, middle, outer) for the character's left brow (FAP 31, 33, 35) and right (32, 34, 36).
+    left_brow_ens: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    right_brow_ens: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+def rotation(pitch_rad: float, yaw_rad: float, roll_rad: float) -> np.ndarray:
+    """R = Rz(roll) Ry(yaw) Rx(pitch) in the face model's axes, with the FAP signs (see the module doc)."""
+    cx, sx = math.cos(pitch_rad), math.sin(pitch_rad)
+    cy, sy = math.cos(yaw_rad), math.sin(yaw_rad)
+    cz, sz = math.cos(roll_rad), math.sin(roll_rad)
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def poses(stream: FapStream, *, exaggerate: float = 1.0) -> list[FacePose]:
+    """One pose per frame of ``stream``; FAPs masked off count as 0 (neutral)."""
+
+    def curve(fap: int, fallback: int | None = None) -> np.ndarray:
+        if fallback is not None and not stream.mask[:, fap - 1].any():
+            fap = fallback
+        return np.where(stream.mask[:, fap - 1], stream.values[:, fap - 1], 0.0) * exaggerate
+
+    head = [curve(fap) * RADIANS_PER_AU for fap in (48, 49, 50)]
+    # outer brows follow the middle ones when a stream has no FAP 35/36, as in the Live Link export
+    left = [curve(31), curve(33), curve(35, fallback=33)]
+    right = [curve(32), curve(34), curve(36, fallback=34)]
+    return [FacePose(float(head[0][k]), float(head[1][k]), float(head[2][k]),
+                     (float(left[0][k]), float(left[1][k]), float(left[2][k])),
+                     (float(right[0][k]), float(right[1][k]), float(right[2][k])))
+            for k in range(stream.n_frames)]
+
+
+class FaceRenderer:
+    """Draws frames of ``width`` x ``height`` pixels (both even, for H.264): the face in the top square,
+    the curve strip below it.
+
+    Parameters
+    ----------
+    width : int >= 64
+        Frame width in pixels; the height is ``width * 5 / 4`` rounded to an even number.
+    model : FaceModel, optional
+        Face geometry.
+    """
+
+    def __init__(self, width: int = 480, *, model: FaceModel | None = None) -> None:
+        if width < 64:
+            raise ConfigError(f"preview width must be at least 64 pixels, got {width!r}")
+        self.width = width + width % 2
+        self.face_height = self.width
+        self.height = self.width + 2 * round(self.width / 8)
+        self.model = model or FaceModel()
+        # head units -> pixels: the head (half-height 1) takes about 60 % of the face square
+        self.scale = 0.30 * self.face_height
+        self.center = (self.width / 2, self.face_height * 0.47)
+
+    @property
+    def ens_pixels(self) -> float:
+        """Pixels per ENS0 (so a brow raise of ``v`` ENS units moves ``v / 1024 * ens_pixels`` pixels)."""
+        return self.model.ens0 * self.scale
+
+    def to_pixels(self, points: np.ndarray) -> np.ndarray:
+        """Head-unit points (n, 3) in camera axes -> pixel (u, v), v pointing down."""
+        u = self.center[0] + self.scale * points[:, 0]
+        v = self.center[1] - self.scale * points[:, 1]
+        return np.column_stack([u, v])
+
+    # geometry -----------------------------------------------------------------------------------------
+    def _posed(self, pose: FacePose, points: np.ndarray) -> np.ndarray:
+        pivot = np.array(self.model.pivot)
+        return pivot + (points - pivot) @ rotation(pose.pitch_rad, pose.yaw_rad, pose.roll_rad).T
+
+    def head_outline(self, pose: FacePose, n_points: int = 96) -> np.ndarray:
+        """The rotated head's silhouette in pixels, (n_points, 2): the orthographic outline of an ellipsoid
+        is the ellipse of the Schur complement of its quadric over the depth axis."""
+        a, b, c = self.model.head_radii
+        r = rotation(pose.pitch_rad, pose.yaw_rad, pose.roll_rad)
+        quadric = r @ np.diag([a ** -2, b ** -2, c ** -2]) @ r.T
+        outline = quadric[:2, :2] - np.outer(quadric[:2, 2], quadric[2, :2]) / quadric[2, 2]
+        eigenvalues, eigenvectors = np.linalg.eigh(outline)
+        t = np.linspace(0.0, 2.0 * np.pi, n_points, endpoint=False)
+        unit = np.column_stack([np.cos(t), np.sin(t)]) / np.sqrt(eigenvalues)
+        center = self._posed(pose, np.zeros((1, 3)))[0]
+        points = np.column_stack([center[0] + unit @ eigenvectors[0], center[1] + unit @ eigenvectors[1],
+                                  np.zeros(n_points)])
+        return self.to_pixels(points)
+
+    def brow_points(self, pose: FacePose) -> dict[str, np.ndarray]:
+        """Pixel polylines (inner, middle, outer) of the ``left`` and ``right`` brow (the character's)."""
+        model, unit = self.model, self.model.ens0 / 1024.0
+        brows = {}
+        for side, sign, raises in (("left", 1.0, pose.left_brow_ens), ("right", -1.0, pose.right_brow_ens)):
+            points = np.array([(sign * x, y + raise_ens * unit, model.surface_z(x, y) + 0.01)
+                               for x, y, raise_ens in zip(model.brow_x, model.brow_y, raises, strict=True)])
+            brows[side] = self.to_pixels(self._posed(pose, points))
+        return brows
+
+    def _feature(self, pose: FacePose, points: np.ndarray) -> np.ndarray | None:
+        """Posed pixel points of a front feature, or None when it has turned away from the viewer."""
+        posed = self._posed(pose, points)
+        normal = rotation(pose.pitch_rad, pose.yaw_rad, pose.roll_rad)[2, 2]
+        return self.to_pixels(posed) if normal > 0.05 else None
+
+    def _circle(self, x: float, y: float, radius: float, n_points: int = 24) -> np.ndarray:
+        t = np.linspace(0.0, 2.0 * np.pi, n_points, endpoint=False)
+        z = self.model.surface_z(x, y) + 0.005
+        return np.column_stack([x + radius * np.cos(t), y + radius * np.sin(t), np.full(n_points, z)])
+
+    # drawing ------------------------------------------------------------------------------------------
+    def render(self, pose: FacePose, *, strip: np.ndarray | None = None, caption: str = "") -> np.ndarray:
+        """One RGB frame (height, width, 3) uint8 of ``pose``; ``strip`` is a prepared strip image."""
+        from PIL import Image, ImageDraw
+
+        s = SUPERSAMPLE
+        image = Image.new("RGB", (self.width * s, self.face_height * s), _BACKGROUND)
+        draw = ImageDraw.Draw(image)
+
+        def flat(points: np.ndarray) -> list[tuple[float, float]]:
+            return [(float(u) * s, float(v) * s) for u, v in points]
+
+        w, fh = self.width, self.face_height
+        # shoulders and neck stay still: they show how far the head moves
+        draw.ellipse([w * 0.12 * s, fh * 0.86 * s, w * 0.88 * s, fh * 1.35 * s], fill=_SHOULDERS)
+        neck_top = self.to_pixels(np.array([[-0.32, -0.6, 0.0], [0.32, -0.6, 0.0]]))
+        draw.rectangle([neck_top[0, 0] * s, neck_top[0, 1] * s, neck_top[1, 0] * s, fh * 0.92 * s], fill=_SKIN)
+        draw.polygon(flat(self.head_outline(pose)), fill=_SKIN, outline=_SKIN_EDGE, width=2 * s)
+
+        m = self.model
+        for sign in (1.0, -1.0):
+            eye = self._feature(pose, self._circle(sign * m.eye_x, m.eye_y, m.eye_radius))
+            pupil = self._feature(pose, self._circle(sign * m.eye_x, m.eye_y - 0.01, m.eye_radius * 0.45))
+            if eye is not None and pupil is not None:
+                draw.polygon(flat(eye), fill=_EYE_WHITE, outline=_SKIN_EDGE, width=s)
+                draw.polygon(flat(pupil), fill=_PUPIL)
+        bridge_z, base_z = m.surface_z(0.0, m.eye_y - 0.05), m.surface_z(0.0, m.nose_bottom_y)
+        nose = self._feature(pose, np.array([
+            [0.0, m.eye_y - 0.05, bridge_z], [0.0, m.nose_bottom_y + 0.04, base_z + m.nose_depth],
+            [-0.07, m.nose_bottom_y, base_z + 0.02], [0.07, m.nose_bottom_y, base_z + 0.02],
+            [0.0, m.nose_bottom_y + 0.04, base_z + m.nose_depth]]))
+        if nose is not None:
+            draw.line(flat(nose), fill=_NOSE, width=3 * s, joint="curve")
+        t = np.linspace(-1.0, 1.0, 9)
+        mouth_points = np.array([(m.mouth_half_width * x, m.mouth_y - 0.04 * (1 - x * x),
+                                  m.surface_z(m.mouth_half_width * x, m.mouth_y) + 0.005) for x in t])
+        mouth = self._feature(pose, mouth_points)
+        if mouth is not None:
+            draw.line(flat(mouth), fill=_MOUTH, width=4 * s, joint="curve")
+        if self._feature(pose, np.zeros((1, 3))) is not None:
+            for points in self.brow_points(pose).values():
+                draw.line(flat(points), fill=BROW_COLOR, width=5 * s, joint="curve")
+
+        face = image.reduce(s)  # box average of s x s pixels
+        frame = Image.new("RGB", (w, self.height), _BACKGROUND)
+        frame.paste(face, (0, 0))
+        if strip is not None:
+            frame.paste(Image.fromarray(strip), (0, fh))
+        if caption:
+            ImageDraw.Draw(frame).text((6, 4), caption, fill=(60, 60, 60))
+        return np.asarray(frame)
+
+
+class CurveStrip:
+    """The strip under the face: brow raise and head angles over +-``STRIP_WINDOW_S`` around the frame."""
+
+    def __init__(self, stream: FapStream, *, width: int, height: int) -> None:
+        self.width, self.height, self.fps = width, height, stream.fps
+        self.half_window = max(1, round(STRIP_WINDOW_S * stream.fps))
+
+        def curve(fap: int) -> np.ndarray:
+            return np.where(stream.mask[:, fap - 1], stream.values[:, fap - 1], 0.0)
+
+        brows = curve(31)
+        head = np.column_stack([curve(fap) for fap in (48, 49, 50)])
+        # each group on its own scale (its largest magnitude), so both fill the strip
+        brow_scale = max(float(np.max(np.abs(brows), initial=0.0)), 1.0)
+        head_scale = max(float(np.max(np.abs(head), initial=0.0)), 1.0)
+        self.curves = {"brows": brows / brow_scale, "pitch": head[:, 0] / head_scale,
+                       "yaw": head[:, 1] / head_scale, "roll": head[:, 2] / head_scale}
+        self.labels = (f"brows (max {brow_scale:.0f} ENS)",
+                       f"head pitch/yaw/roll (max {math.degrees(head_scale * RADIANS_PER_AU):.1f} deg)")
+
+    def render(self, frame: int) -> np.ndarray:
+        from PIL import Image, ImageDraw
+
+        image = Image.new("RGB", (self.width, self.height), (250, 250, 252))
+        draw = ImageDraw.Draw(image)
+        w, h = self.width, self.height
+        middle = h * 0.55
+        draw.line([(0, middle), (w, middle)], fill=(215, 215, 220))
+        first = frame - self.half_window
+        span = 2 * self.half_window
+        for name, values in self.curves.items():
+            lo, hi = max(first, 0), min(frame + self.half_window + 1, len(values))
+            if hi - lo < 2:
+                continue
+            x = (np.arange(lo, hi) - first) * (w - 1) / span
+            y = middle - values[lo:hi] * h * 0.38
+            draw.line(list(zip(x.tolist(), y.tolist(), strict=True)), fill=_CURVE_COLORS[name], width=2)
+        draw.line([(w / 2, 0), (w / 2, h)], fill=(90, 90, 90))
+        draw.text((4, 2), self.labels[0], fill=BROW_COLOR)
+        draw.text((w / 2 + 4, 2), self.labels[1], fill=(70, 70, 70))
+        return np.asarray(image)
+
+
+def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.0,
+                  first_frame: int = 0, n_frames: int | None = None, strip: bool = True) -> Iterator[np.ndarray]:
+    """Frames of the preview of ``stream``, one RGB array (height, width, 3) uint8 per stream frame.
+
+    Parameters
+    ----------
+    stream : FapStream
+        Head (FAP 48-50) and brow (FAP 31-36) motion; other FAPs are not drawn.
+    width : int >= 64
+        Frame width in pixels (height = 5/4 of it, even).
+    exaggerate : float > 0
+        Multiplies head angles and brow raises as drawn (1 = true scale).
+    first_frame, n_frames : int
+        The excerpt to draw (default: the whole stream).
+    strip : bool
+        Draw the curve strip under the face.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> stream = FapStream.from_curves({31: np.array([0.0, 400.0])}, fps=30)
+    >>> [frame.shape for frame in render_frames(stream, width=64, strip=False)]
+    [(80, 64, 3), (80, 64, 3)]
+    """
+    if not exaggerate > 0:
+        raise ConfigError(f"exaggerate must be a positive number, got {exaggerate!r}")
+    renderer = FaceRenderer(width)
+    curves = CurveStrip(stream, width=renderer.width, height=renderer.height - renderer.face_height)
+    last = stream.n_frames if n_frames is None else min(stream.n_frames, first_frame + n_frames)
+    excerpt = FapStream(stream.values[first_frame:last], stream.mask[first_frame:last], stream.fps, stream.name)
+    note = f"  x{exaggerate:g}" if exaggerate != 1 else ""
+    for offset, pose in enumerate(poses(excerpt, exaggerate=exaggerate)):
+        frame = first_frame + offset
+        caption = f"{stream.name}  {frame / stream.fps:7.2f} s{note}"
+        yield renderer.render(pose, strip=curves.render(frame) if strip else None, caption=caption)
+
+
+def find_ffmpeg() -> str | None:
+    """An ffmpeg executable: ``ffmpeg`` on PATH, else the one the ``imageio-ffmpeg`` package ships, else None."""
+    on_path = shutil.which("ffmpeg")
+    if on_path:
+        return on_path
+    try:
+        import imageio_ffmpeg
+    except ImportError:
+        return None
+    try:
+        return str(imageio_ffmpeg.get_ffmpeg_exe())
+    except RuntimeError:
+        return None
+
+
+def _write_gif(frames: Iterator[np.ndarray], path: Path, *, fps: float, n_frames: int) -> None:
+    from PIL import Image
+
+    if n_frames > MAX_GIF_FRAMES:
+        raise PreviewError(f"{path}: a GIF of {n_frames} frames is too long (at most {MAX_GIF_FRAMES}, "
+                           f"{MAX_GIF_FRAMES / fps:.0f} s at {fps:g} fps); write .mp4, or choose an excerpt "
+                           "with --start and --duration")
+    images = [Image.fromarray(frame).quantize(colors=64, method=Image.Quantize.MEDIANCUT) for frame in frames]
+    if not images:
+        raise PreviewError(f"{path}: nothing to draw (the excerpt has no frames)")
+    # GIF delays are whole centiseconds: round the cumulative time so that the animation keeps pace with fps
+    ends = np.round(np.arange(1, len(images) + 1) * 100.0 / fps) * 10
+    durations = np.diff(np.concatenate([[0.0], ends])).astype(int).tolist()
+    with atomic_write(path, mode="wb") as handle:
+        images[0].save(handle, format="GIF", save_all=True, append_images=images[1:], duration=durations,
+                       loop=0, disposal=1, optimize=False)
+
+
+def _write_mp4(frames: Iterator[np.ndarray], path: Path, *, fps: float, width: int, height: int,
+               ffmpeg: str, audio: Path | None, start_s: float, duration_s: float) -> None:
+    command = [ffmpeg, "-hide_banner", "-loglevel", "error", "-y",
+               "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-framerate", f"{fps:.12g}",
+               "-i", "pipe:0"]
+    if audio is not None:
+        command += ["-ss", f"{start_s:.6f}", "-t", f"{duration_s:.6f}", "-i", str(audio),
+                    "-map", "0:v:0", "-map", "1:a:0?", "-c:a", "aac", "-b:a", "128k"]
+    command += ["-c:v", "libx264", "-preset", "veryfast", "-crf", "20", "-pix_fmt", "yuv420p",
+                "-movflags", "+faststart", "-f", "mp4"]
+    with atomic_path(path) as partial, tempfile.TemporaryFile() as errors:
+        process = subprocess.Popen([*command, str(partial)], stdin=subprocess.PIPE, stderr=errors)
+        assert process.stdin is not None
+        try:
+            for frame in frames:
+                process.stdin.write(np.ascontiguousarray(frame).tobytes())
+            process.stdin.close()
+        except BrokenPipeError:
+            pass  # ffmpeg stopped reading: its exit code and message say why
+        except BaseException:
+            process.kill()
+            process.wait()
+            raise
+        finally:
+            with contextlib.suppress(BrokenPipeError):
+                process.stdin.close()
+        if process.wait() != 0:
+            errors.seek(0)
+            detail = errors.read().decode("utf-8", "replace").strip().splitlines()
+            raise PreviewError(f"{path}: ffmpeg failed ({detail[-1] if detail else f'exit {process.returncode}'})")
+
+
+def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: str | os.PathLike[str] | None = None,
+                  width: int = 480, exaggerate: float = 1.0, start_s: float = 0.0, duration_s: float | None = None,
+                  ffmpeg: str | None = "auto") -> Path:
+    """Write the drawn-face preview of ``stream`` to ``output`` (``.mp4`` or ``.gif``).
+
+    Parameters
+    ----------
+    stream : FapStream
+        The motion to show (FAP 48-50 and 31-36).
+    output : path ending in .mp4 or .gif
+        File to write, atomically.
+    audio : path, optional
+        The recording, muxed into an MP4 (over the same excerpt); GIFs have no sound.
+    width : int >= 64
+        Frame width in pixels.
+    exaggerate : float > 0
+        Multiplies the drawn motion (1 = true scale).
+    start_s, duration_s : float >= 0
+        The excerpt to show, in seconds (default: all of it).
+    ffmpeg : str or None
+        ffmpeg executable for MP4; ``"auto"`` looks it up with :func:`find_ffmpeg`.
+
+    Returns
+    -------
+    Path of the written file.
+    """
+    path = Path(output)
+    kind = path.suffix.lower()
+    if kind not in (".mp4", ".gif"):
+        raise ConfigError(f"{path}: the preview is written as .mp4 or .gif, not {kind or 'a file with no ending'!r}")
+    if not start_s >= 0 or (duration_s is not None and not duration_s > 0):
+        raise ConfigError(f"the excerpt needs start >= 0 and duration > 0, got {start_s!r} and {duration_s!r}")
+    first = round(start_s * stream.fps)
+    if first >= stream.n_frames:
+        raise ConfigError(f"start {start_s:g} s is past the end of the stream ({stream.duration_s:.2f} s)")
+    count = stream.n_frames - first if duration_s is None else min(stream.n_frames - first,
+                                                                    max(1, round(duration_s * stream.fps)))
+    frames = render_frames(stream, width=width, exaggerate=exaggerate, first_frame=first, n_frames=count)
+    if kind == ".gif":
+        _write_gif(frames, path, fps=stream.fps, n_frames=count)
+        return path
+    executable = find_ffmpeg() if ffmpeg == "auto" else ffmpeg
+    if executable is None:
+        raise PreviewError(f"{path}: MP4 needs ffmpeg; install it (or `pip install imageio-ffmpeg`), "
+                           "or write a .gif")
+    renderer = FaceRenderer(width)
+    _write_mp4(frames, path, fps=stream.fps, width=renderer.width, height=renderer.height, ffmpeg=executable,
+               audio=Path(audio) if audio is not None else None, start_s=first / stream.fps,
+               duration_s=count / stream.fps)
+    return path

@@ -1,0 +1,205 @@
+"""The drawn-face preview: brow height follows FAP 31-36, head angles move the face with the FAP signs, and
+the GIF and MP4 writers produce complete files (or none)."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile
+
+from prosody.cli import main
+from prosody.errors import ConfigError
+from prosody.preview import (
+    BROW_COLOR,
+    MAX_GIF_FRAMES,
+    FaceRenderer,
+    PreviewError,
+    find_ffmpeg,
+    render_frames,
+    write_preview,
+)
+from prosody.stream import FapStream
+
+WIDTH = 320
+
+
+def _color_mask(frame: np.ndarray, color: tuple[int, int, int], *, tolerance: int = 30) -> np.ndarray:
+    return np.abs(frame.astype(int) - np.array(color)).max(axis=2) <= tolerance
+
+
+def _centroid(mask: np.ndarray) -> tuple[float, float]:
+    rows, columns = np.nonzero(mask)
+    assert rows.size > 0, "nothing of that colour was drawn"
+    return float(columns.mean()), float(rows.mean())
+
+
+def _brows(frame: np.ndarray, renderer: FaceRenderer) -> tuple[np.ndarray, np.ndarray]:
+    """Brow pixels of the character's left brow (viewer's right half) and right brow, in the face area."""
+    mask = _color_mask(frame[: renderer.face_height], BROW_COLOR)
+    half = renderer.width // 2
+    left, right = mask.copy(), mask.copy()
+    left[:, :half] = False
+    right[:, half:] = False
+    return left, right
+
+
+def _frames(curves: dict[int, np.ndarray]) -> list[np.ndarray]:
+    return list(render_frames(FapStream.from_curves(curves, fps=30), width=WIDTH, strip=False))
+
+
+def test_brow_height_follows_fap_31_to_36_at_true_scale() -> None:
+    raises = np.array([0.0, 100.0, 250.0, 500.0, 1000.0])
+    frames = _frames({fap: raises for fap in (31, 32, 33, 34, 35, 36)})
+    renderer = FaceRenderer(WIDTH)
+    expected_px = raises / 1024 * renderer.ens_pixels  # FAPU: ENS = ENS0 / 1024
+    for side in (0, 1):
+        heights = np.array([_centroid(_brows(frame, renderer)[side])[1] for frame in frames])
+        np.testing.assert_allclose(heights[0] - heights, expected_px, atol=0.5)
+    assert expected_px[-1] > 10  # the test moves the brows far enough to mean something
+
+
+def test_fap_31_raises_the_inner_end_of_the_characters_left_brow_only() -> None:
+    from prosody.preview import FacePose
+
+    width = 640
+    renderer = FaceRenderer(width)
+    frames = list(render_frames(FapStream.from_curves({31: np.array([0.0, 800.0]), 32: np.zeros(2)}, fps=30),
+                                width=width, strip=False))
+    rise_px = 800 / 1024 * renderer.ens_pixels
+    inner_x, middle_x, outer_x = renderer.brow_points(FacePose())["left"][:, 0]
+    neutral_left, neutral_right = _brows(frames[0], renderer)
+    raised_left, raised_right = _brows(frames[1], renderer)
+
+    def top_row(mask: np.ndarray, x: float) -> int:
+        return int(np.nonzero(mask[:, round(x)])[0].min())
+
+    # the inner end moves by the whole raise; along the brow the raise fades linearly to the middle point
+    near_inner = inner_x + 2
+    expected = rise_px * (1 - (near_inner - inner_x) / (middle_x - inner_x))
+    assert top_row(neutral_left, near_inner) - top_row(raised_left, near_inner) == pytest.approx(expected, abs=1.5)
+    assert top_row(neutral_left, outer_x - 2) == top_row(raised_left, outer_x - 2)
+    assert np.array_equal(neutral_right, raised_right)
+    assert rise_px > 20
+
+
+@pytest.mark.parametrize(("fap", "axis", "sign"), [
+    (48, 1, +1),   # + pitch bows the head: the nose goes down (image rows grow downward)
+    (49, 0, +1),   # + yaw turns to the character's left, the viewer's right
+])
+def test_head_angles_move_the_nose_with_the_fap_signs(fap: int, axis: int, sign: int) -> None:
+    nose_color = (185, 135, 105)
+    frames = _frames({fap: np.array([0.0, 10000.0])})  # 0.1 rad
+    before = _centroid(_color_mask(frames[0], nose_color, tolerance=12))
+    after = _centroid(_color_mask(frames[1], nose_color, tolerance=12))
+    assert sign * (after[axis] - before[axis]) > 3
+
+
+def test_positive_roll_tilts_the_head_to_the_characters_right() -> None:
+    renderer = FaceRenderer(WIDTH)
+    frames = _frames({50: np.array([0.0, 10000.0])})
+    heights = []
+    for frame in frames:
+        left, right = _brows(frame, renderer)
+        heights.append(_centroid(left)[1] - _centroid(right)[1])
+    # the character's left brow (viewer's right) rises above the right one as the head tips to its right
+    assert heights[1] - heights[0] < -3
+
+
+def test_head_outline_is_the_ellipse_of_the_rotated_head() -> None:
+    renderer = FaceRenderer(WIDTH)
+    from prosody.preview import FacePose
+
+    still = renderer.head_outline(FacePose())
+    a, b, _ = renderer.model.head_radii
+    width_px, height_px = np.ptp(still[:, 0]), np.ptp(still[:, 1])
+    assert width_px == pytest.approx(2 * a * renderer.scale, rel=1e-3)
+    assert height_px == pytest.approx(2 * b * renderer.scale, rel=1e-3)
+    turned = renderer.head_outline(FacePose(roll_rad=np.pi / 2))  # on its side: width and height swap
+    assert np.ptp(turned[:, 0]) == pytest.approx(height_px, rel=1e-3)
+
+
+def test_gif_has_one_frame_per_stream_frame_and_keeps_time(tmp_path: Path) -> None:
+    from PIL import Image
+
+    n_frames = 20
+    stream = FapStream.from_curves({31: np.linspace(0, 300, n_frames), 48: np.linspace(0, 3000, n_frames)}, fps=30)
+    path = write_preview(stream, tmp_path / "face.gif", width=96)
+    with Image.open(path) as image:
+        durations = []
+        for index in range(image.n_frames):
+            image.seek(index)
+            durations.append(image.info["duration"])
+        assert image.n_frames == n_frames
+        assert image.size == (96, 120)
+    # GIF delays are whole centiseconds: 30 fps alternates 30 and 40 ms and ends on time
+    assert set(durations) <= {30, 40}
+    assert sum(durations) == pytest.approx(n_frames / 30 * 1000, abs=10)
+
+
+def test_excerpt_and_bad_requests(tmp_path: Path) -> None:
+    from PIL import Image
+
+    stream = FapStream.from_curves({31: np.linspace(0.0, 900.0, 90)}, fps=30)
+    path = write_preview(stream, tmp_path / "part.gif", width=64, start_s=1.0, duration_s=0.5)
+    with Image.open(path) as image:
+        total_ms = 0
+        for index in range(image.n_frames):
+            image.seek(index)
+            total_ms += image.info["duration"]
+    assert total_ms == 500
+    with pytest.raises(ConfigError, match="mp4 or .gif"):
+        write_preview(stream, tmp_path / "face.avi")
+    with pytest.raises(ConfigError, match="past the end"):
+        write_preview(stream, tmp_path / "late.gif", start_s=5.0)
+    long_stream = FapStream.from_curves({31: np.zeros(MAX_GIF_FRAMES + 1)}, fps=30)
+    with pytest.raises(PreviewError, match="too long"):
+        write_preview(long_stream, tmp_path / "long.gif", width=64)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["part.gif"]
+
+
+def test_mp4_without_ffmpeg_says_so_and_writes_nothing(tmp_path: Path) -> None:
+    stream = FapStream.from_curves({31: np.zeros(5)}, fps=30)
+    with pytest.raises(PreviewError, match="needs ffmpeg"):
+        write_preview(stream, tmp_path / "face.mp4", ffmpeg=None)
+    with pytest.raises(PreviewError, match="ffmpeg failed"):
+        write_preview(stream, tmp_path / "face.mp4", width=64, ffmpeg="false")
+    assert list(tmp_path.iterdir()) == []
+
+
+def _probe(ffmpeg: str, path: Path) -> str:
+    result = subprocess.run([ffmpeg, "-hide_banner", "-i", str(path), "-map", "0", "-f", "null", "-"],
+                            capture_output=True, text=True, check=True)
+    return result.stderr
+
+
+@pytest.mark.skipif(find_ffmpeg() is None, reason="no ffmpeg on PATH and imageio-ffmpeg not installed")
+def test_mp4_has_every_frame_and_the_audio(tmp_path: Path) -> None:
+    ffmpeg = find_ffmpeg()
+    assert ffmpeg is not None
+    rate = 16000
+    t = np.arange(int(rate * 1.0)) / rate
+    soundfile.write(tmp_path / "tone.wav", 0.3 * np.sin(2 * np.pi * 220 * t), rate)
+    stream = FapStream.from_curves({31: np.linspace(0, 300, 30), 49: np.linspace(0, 5000, 30)}, fps=30)
+    path = write_preview(stream, tmp_path / "face.mp4", audio=tmp_path / "tone.wav", width=96)
+    report = _probe(ffmpeg, path)
+    assert "Video: h264" in report and "96x120" in report
+    assert "Audio: aac" in report
+    frames = [line for line in report.replace("\r", "\n").splitlines() if line.startswith("frame=")]
+    assert frames and int(frames[-1].split("=")[1].split()[0]) == 30
+
+
+@pytest.mark.skipif(find_ffmpeg() is None, reason="no ffmpeg on PATH and imageio-ffmpeg not installed")
+def test_cli_preview_of_a_recording_and_of_a_fap_file(tmp_path: Path) -> None:
+    from conftest import harmonic_tone
+
+    tone_wav = tmp_path / "tone.wav"
+    soundfile.write(tone_wav, harmonic_tone(240.0, 1.5, 16000), 16000)
+    assert main(["preview", str(tone_wav), "-o", str(tmp_path / "tone.mp4"), "--width", "96"]) == 0
+    assert main(["convert", str(tone_wav), "-o", str(tmp_path / "tone.fap")]) == 0
+    assert main(["preview", str(tmp_path / "tone.fap"), "-o", str(tmp_path / "fap.gif"), "--width", "64",
+                 "--exaggerate", "5"]) == 0
+    assert main(["preview", str(tone_wav), "-o", str(tmp_path / "tone.webm")]) == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fap.gif", "tone.fap", "tone.mp4", "tone.wav"]
