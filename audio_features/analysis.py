@@ -178,13 +178,19 @@ def sound_file_reader(sound, *, source: str) -> SegmentReader:
         lo, hi = max(0, start), min(total, start + length)
         if hi > lo:
             sound.seek(lo)
-            block = sound.read(hi - lo, dtype="float64", always_2d=True).mean(axis=1)
-            if block.shape[0] != hi - lo:
-                raise AudioLoadError(f"{source}: could only read {block.shape[0]} of {hi - lo} samples at {lo}")
-            if not np.all(np.isfinite(block)):
-                bad = lo + int(np.argmin(np.isfinite(block)))
+            target = out[lo - start : hi - start]
+            if sound.channels == 1:
+                got = sound.read(hi - lo, dtype="float64", out=target).shape[0]  # no intermediate copy
+            else:
+                block = sound.read(hi - lo, dtype="float64", always_2d=True)
+                got = block.shape[0]
+                target[:got] = block.mean(axis=1)
+            if got != hi - lo:
+                raise AudioLoadError(f"{source}: could only read {got} of {hi - lo} samples at {lo}")
+            finite = np.isfinite(target)
+            if not finite.all():
+                bad = lo + int(np.argmin(finite))
                 raise AudioLoadError(f"{source}: sample {bad} is not finite; audio must have no NaN or infinity")
-            out[lo - start : hi - start] = block
         return out
 
     return read

@@ -215,16 +215,26 @@ def _fap_lines(stream: FapStream, *, name: str | None = None) -> Iterator[str]:
             f"frame rate {stream.fps!r} is not an integer: the .fap header carries integer fps; "
             "resample the stream (FapStream.resampled) to an integer rate first"
         )
-    mask = stream.mask.copy()
-    mask[:, :2] = False  # FAP 1 and 2 (viseme, expression) need multi-value syntax players disagree on
-    rounded = np.rint(stream.values)
+    # only the FAPs active somewhere are touched: a 2-hour stream is 117 MB a copy at 68 columns
+    columns = np.flatnonzero(stream.mask.any(axis=0))
+    columns = columns[columns >= 2]  # FAP 1 and 2 (viseme, expression) need multi-value syntax players disagree on
+    mask = stream.mask[:, columns]
+    rounded = np.rint(stream.values[:, columns])
     if np.any(np.abs(rounded[mask]) > MAX_FAP_VALUE):
         raise FapWriteError(f"a FAP value exceeds the 32-bit integer range of .fap players ({MAX_FAP_VALUE})")
     integers = rounded.astype(np.int64)
     yield f"2.1 {_header_name(name if name is not None else stream.name)} {int(stream.fps)} {stream.n_frames}\n"
+    mask_lines: dict[bytes, str] = {}  # streams keep one mask for long stretches: format each mask once
     for k in range(stream.n_frames):
         bits = mask[k]
-        yield " ".join("1" if bit else "0" for bit in bits) + "\n"
+        key = bits.tobytes()
+        mask_line = mask_lines.get(key)
+        if mask_line is None:
+            tokens = ["0"] * N_FAPS
+            for column in columns[bits]:
+                tokens[column] = "1"
+            mask_line = mask_lines[key] = " ".join(tokens) + "\n"
+        yield mask_line
         yield " ".join([str(k), *map(str, integers[k, bits].tolist())]) + "\n"
 
 

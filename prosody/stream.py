@@ -43,27 +43,42 @@ class FapStream:
     name: str = "prosody"
 
     def __post_init__(self) -> None:
-        values = np.array(self.values, dtype=float)
-        mask = np.array(self.mask, dtype=bool)
+        # copies: the caller may go on changing the arrays it passed
+        self._freeze(np.array(self.values, dtype=float), np.array(self.mask, dtype=bool))
+
+    def _freeze(self, values: np.ndarray, mask: np.ndarray) -> None:
+        """Check ``values`` and ``mask``, zero the values where masked off (in place) and make both the
+        stream's own, read-only arrays."""
         if values.ndim != 2 or values.shape[1] != N_FAPS:
             raise ConfigError(f"FAP values must have shape (n_frames, {N_FAPS}), got {values.shape!r}")
         if mask.shape != values.shape:
             raise ConfigError(f"FAP mask shape {mask.shape!r} differs from the values' {values.shape!r}")
         if not (np.isfinite(self.fps) and self.fps > 0):
             raise ConfigError(f"fps must be a positive number, got {self.fps!r}")
-        if not np.all(np.isfinite(values[mask])):
+        if not np.all(np.isfinite(values) | ~mask):
             raise ConfigError("active FAP values must be finite")
-        values[~mask] = 0.0
+        if values.flags.writeable:  # read-only arrays are another stream's, zeroed already
+            np.copyto(values, 0.0, where=~mask)
         values.flags.writeable = False
         mask.flags.writeable = False
         object.__setattr__(self, "values", values)
         object.__setattr__(self, "mask", mask)
 
+    @classmethod
+    def _adopt(cls, values: np.ndarray, mask: np.ndarray, fps: float, name: str) -> FapStream:
+        """A stream that takes over arrays made for it (float64 values, bool mask), without copying them:
+        long streams (216 000 frames x 68 FAPs for 2 hours) are 117 MB a copy."""
+        stream = object.__new__(cls)
+        object.__setattr__(stream, "fps", fps)
+        object.__setattr__(stream, "name", name)
+        stream._freeze(values, mask)
+        return stream
+
     # construction -------------------------------------------------------------------------------------
     @classmethod
     def empty(cls, n_frames: int, *, fps: float, name: str = "prosody") -> FapStream:
         """A stream of ``n_frames`` frames with every FAP masked off."""
-        return cls(np.zeros((n_frames, N_FAPS)), np.zeros((n_frames, N_FAPS), bool), fps, name)
+        return cls._adopt(np.zeros((n_frames, N_FAPS)), np.zeros((n_frames, N_FAPS), bool), fps, name)
 
     @classmethod
     def from_curves(cls, curves: Mapping[int, np.ndarray], *, fps: float, name: str = "prosody",
@@ -83,8 +98,7 @@ class FapStream:
         if len(lengths) > 1:
             raise ConfigError(f"curves have different lengths {sorted(lengths)!r}")
         n = lengths.pop() if lengths else 0
-        stream = cls.empty(n, fps=fps, name=name)
-        return stream.with_curves(curves)
+        return cls._set_curves(np.zeros((n, N_FAPS)), np.zeros((n, N_FAPS), bool), curves, fps=fps, name=name)
 
     # access -------------------------------------------------------------------------------------------
     @property
@@ -115,40 +129,58 @@ class FapStream:
     # transformations ----------------------------------------------------------------------------------
     def with_curves(self, curves: Mapping[int, np.ndarray]) -> FapStream:
         """A copy in which the given FAPs are set (and active) in every frame."""
-        values = self.values.copy()
-        mask = self.mask.copy()
+        return self._set_curves(self.values.copy(), self.mask.copy(), curves, fps=self.fps, name=self.name)
+
+    @classmethod
+    def _set_curves(cls, values: np.ndarray, mask: np.ndarray, curves: Mapping[int, np.ndarray], *, fps: float,
+                    name: str) -> FapStream:
+        n_frames = values.shape[0]
         for fap, curve in curves.items():
             column = _fap_columns([fap])[0]
             curve = np.asarray(curve, dtype=float)
-            if curve.shape != (self.n_frames,):
-                raise ConfigError(f"FAP {fap} curve has shape {curve.shape!r}, expected ({self.n_frames},)")
+            if curve.shape != (n_frames,):
+                raise ConfigError(f"FAP {fap} curve has shape {curve.shape!r}, expected ({n_frames},)")
             values[:, column] = curve
             mask[:, column] = True
-        return FapStream(values, mask, self.fps, self.name)
+        return cls._adopt(values, mask, fps, name)
 
     def select(self, faps: Iterable[int]) -> FapStream:
         """A copy in which only the given FAPs keep their mask; every other FAP is masked off."""
         keep = np.zeros(N_FAPS, bool)
         keep[_fap_columns(faps)] = True
-        return FapStream(self.values, self.mask & keep, self.fps, self.name)
+        return self._masked_off(np.flatnonzero(~keep))
 
     def without(self, faps: Iterable[int]) -> FapStream:
         """A copy with the given FAPs masked off."""
-        drop = np.zeros(N_FAPS, bool)
-        drop[_fap_columns(faps)] = True
-        return FapStream(self.values, self.mask & ~drop, self.fps, self.name)
+        return self._masked_off(_fap_columns(faps))
+
+    def _masked_off(self, columns: np.ndarray) -> FapStream:
+        columns = columns[self.mask[:, columns].any(axis=0)]
+        if columns.size == 0:
+            return self
+        mask = self.mask.copy()
+        mask[:, columns] = False
+        # the values are shared unless the dropped FAPs have values to zero
+        values = self.values.copy() if np.any(self.values[:, columns]) else self.values
+        if values is not self.values:
+            values[:, columns] = 0.0
+        return FapStream._adopt(values, mask, self.fps, self.name)
 
     def scaled(self, gains: Mapping[int, float]) -> FapStream:
         """A copy with the given FAPs multiplied by their gain (intensity controls; 0 keeps them, still)."""
-        values = self.values.copy()
         for fap, gain in gains.items():
             if not np.isfinite(gain):
                 raise ConfigError(f"gain of FAP {fap} must be a finite number, got {gain!r}")
+        changing = {fap: gain for fap, gain in gains.items() if gain != 1}
+        if not changing:
+            return self
+        values = self.values.copy()
+        for fap, gain in changing.items():
             values[:, _fap_columns([fap])[0]] *= gain
-        return FapStream(values, self.mask, self.fps, self.name)
+        return FapStream._adopt(values, self.mask.copy(), self.fps, self.name)
 
     def renamed(self, name: str) -> FapStream:
-        return FapStream(self.values, self.mask, self.fps, name)
+        return FapStream._adopt(self.values, self.mask, self.fps, name)
 
     def resampled(self, fps: float, *, n_frames: int | None = None) -> FapStream:
         """The stream on another frame grid: values linearly interpolated, masks from the nearest frame.
