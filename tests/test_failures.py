@@ -58,7 +58,12 @@ def test_bad_audio_gives_one_line_exit_1_and_no_output(tmp_path, capsys) -> None
         assert not list(tmp_path.glob(f".{out.name}*")), "a temporary file was left behind"
 
 
-def test_bad_audio_raises_value_error_subclass_in_python(tmp_path) -> None:
+@pytest.mark.parametrize("reading", ["at once", "streamed"])
+def test_bad_audio_raises_value_error_subclass_in_python(tmp_path, monkeypatch, reading) -> None:
+    from audio_features import features as features_module
+
+    if reading == "streamed":  # the path of long files: a peak scan, then chunked reads
+        monkeypatch.setattr(features_module, "IN_MEMORY_SAMPLES", 0)
     for name in _bad_inputs(tmp_path):
         with pytest.raises(AudioLoadError) as caught:
             extract_features(tmp_path / name)
