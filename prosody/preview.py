@@ -271,10 +271,17 @@ class CurveStrip:
         # each group on its own scale (its largest magnitude), so both fill the strip
         brow_scale = max(float(np.max(np.abs(brows), initial=0.0)), 1.0)
         head_scale = max(float(np.max(np.abs(head), initial=0.0)), 1.0)
-        self.curves = {"brows": brows / brow_scale, "pitch": head[:, 0] / head_scale,
-                       "yaw": head[:, 1] / head_scale, "roll": head[:, 2] / head_scale}
-        self.labels = (f"brows (max {brow_scale:.0f} ENS)",
-                       f"head pitch/yaw/roll (max {math.degrees(head_scale * RADIANS_PER_AU):.1f} deg)")
+        has_brows = bool(stream.mask[:, 30].any())
+        has_head = bool(stream.mask[:, 47:50].any())
+        self.curves = {}
+        if has_brows:
+            self.curves["brows"] = brows / brow_scale
+        if has_head:
+            self.curves.update(pitch=head[:, 0] / head_scale, yaw=head[:, 1] / head_scale,
+                               roll=head[:, 2] / head_scale)
+        self.labels = (f"brows (max {brow_scale:.0f} ENS)" if has_brows else "brows: not in this stream",
+                       f"head, max {math.degrees(head_scale * RADIANS_PER_AU):.1f} deg:"
+                       if has_head else "head: not in this stream")
 
     def render(self, frame: int) -> np.ndarray:
         from PIL import Image, ImageDraw
@@ -295,7 +302,13 @@ class CurveStrip:
             draw.line(list(zip(x.tolist(), y.tolist(), strict=True)), fill=_CURVE_COLORS[name], width=2)
         draw.line([(w / 2, 0), (w / 2, h)], fill=(90, 90, 90))
         draw.text((4, 2), self.labels[0], fill=BROW_COLOR)
-        draw.text((w / 2 + 4, 2), self.labels[1], fill=(70, 70, 70))
+        label_x = w / 2 + 4
+        draw.text((label_x, 2), self.labels[1], fill=(70, 70, 70))
+        label_x += draw.textlength(self.labels[1])
+        if "pitch" in self.curves:
+            for name in ("pitch", "yaw", "roll"):  # the legend of the head curves, in their colours
+                draw.text((label_x + 5, 2), name, fill=_CURVE_COLORS[name])
+                label_x += draw.textlength(name) + 5
         return np.asarray(image)
 
 
