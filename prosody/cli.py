@@ -115,6 +115,27 @@ def _cmd_convert(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _frame_progress(output: str) -> Callable[[int, int], None] | None:
+    """A once-a-second 'frames drawn' line on a terminal; nothing in pipes or CI."""
+    import os
+    import time
+
+    if not sys.stderr.isatty() or os.environ.get("CI"):
+        return None
+    last = [0.0]
+
+    def show(done: int, total: int) -> None:
+        now = time.monotonic()
+        if now - last[0] >= 1.0 or done == total:
+            last[0] = now
+            sys.stderr.write(f"\r{output}: {done}/{total} frames drawn ({100 * done // max(total, 1)}%)")
+            if done == total:
+                sys.stderr.write("\n")
+            sys.stderr.flush()
+
+    return show
+
+
 def _cmd_preview(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -133,7 +154,7 @@ def _cmd_preview(args: argparse.Namespace) -> int:
     if args.no_audio:
         audio = None
     write_preview(stream, args.output, audio=audio, width=args.width, exaggerate=args.exaggerate,
-                  start_s=args.start, duration_s=args.duration)
+                  start_s=args.start, duration_s=args.duration, progress=_frame_progress(args.output))
     sound = " with sound" if audio is not None and Path(args.output).suffix.lower() == ".mp4" else ""
     print(f"{args.output}: preview of {stream.name} ({stream.duration_s:.2f} s){sound}", file=sys.stderr)
     return EXIT_OK

@@ -21,7 +21,7 @@ import os
 import shutil
 import subprocess
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -414,9 +414,16 @@ def _write_mp4(frames: Iterator[np.ndarray], path: Path, *, fps: float, width: i
             raise PreviewError(f"{path}: ffmpeg failed ({detail[-1] if detail else f'exit {process.returncode}'})")
 
 
+def _reporting(frames: Iterator[np.ndarray], progress: Callable[[int, int], None],
+               total: int) -> Iterator[np.ndarray]:
+    for done, frame in enumerate(frames, start=1):
+        yield frame
+        progress(done, total)
+
+
 def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: str | os.PathLike[str] | None = None,
                   width: int = 480, exaggerate: float = 1.0, start_s: float = 0.0, duration_s: float | None = None,
-                  ffmpeg: str | None = "auto") -> Path:
+                  ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None) -> Path:
     """Write the drawn-face preview of ``stream`` to ``output`` (``.mp4`` or ``.gif``).
 
     Parameters
@@ -435,6 +442,8 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
         The excerpt to show, in seconds (default: all of it).
     ffmpeg : str or None
         ffmpeg executable for MP4; ``"auto"`` looks it up with :func:`find_ffmpeg`.
+    progress : callable, optional
+        Called as ``progress(frames_drawn, frames_total)`` after every frame.
 
     Returns
     -------
@@ -452,6 +461,8 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
     count = stream.n_frames - first if duration_s is None else min(stream.n_frames - first,
                                                                     max(1, round(duration_s * stream.fps)))
     frames = render_frames(stream, width=width, exaggerate=exaggerate, first_frame=first, n_frames=count)
+    if progress is not None:
+        frames = _reporting(frames, progress, count)
     if kind == ".gif":
         _write_gif(frames, path, fps=stream.fps, n_frames=count)
         return path

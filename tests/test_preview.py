@@ -126,7 +126,9 @@ def test_gif_has_one_frame_per_stream_frame_and_keeps_time(tmp_path: Path) -> No
 
     n_frames = 20
     stream = FapStream.from_curves({31: np.linspace(0, 300, n_frames), 48: np.linspace(0, 3000, n_frames)}, fps=30)
-    path = write_preview(stream, tmp_path / "face.gif", width=96)
+    reported: list[tuple[int, int]] = []
+    path = write_preview(stream, tmp_path / "face.gif", width=96, progress=lambda *done: reported.append(done))
+    assert reported == [(k, n_frames) for k in range(1, n_frames + 1)]
     with Image.open(path) as image:
         durations = []
         for index in range(image.n_frames):
