@@ -177,7 +177,7 @@ class FapStream:
         values = self.values.copy()
         for fap, gain in changing.items():
             values[:, _fap_columns([fap])[0]] *= gain
-        return FapStream._adopt(values, self.mask.copy(), self.fps, self.name)
+        return FapStream._adopt(values, self.mask, self.fps, self.name)
 
     def renamed(self, name: str) -> FapStream:
         return FapStream._adopt(self.values, self.mask, self.fps, name)

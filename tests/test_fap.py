@@ -56,6 +56,28 @@ def test_stream_resample_and_merge_across_rates() -> None:
     np.testing.assert_allclose(merged.curve(3)[:5], np.arange(5) * 25 / 30)
 
 
+def test_stream_copies_only_what_changes() -> None:
+    stream = FapStream.from_curves({48: np.array([1.0, 2.0]), 31: np.array([3.0, 4.0])}, fps=30)
+    # identity operations give the same stream; a rename or dropping a FAP shares the values
+    assert stream.scaled({48: 1.0}) is stream and stream.without([49]) is stream
+    assert np.shares_memory(stream.renamed("other").values, stream.values)
+    halved = stream.scaled({48: 0.5})
+    np.testing.assert_array_equal(halved.curve(48), [0.5, 1.0])
+    np.testing.assert_array_equal(stream.curve(48), [1.0, 2.0])  # the original is untouched
+    dropped = stream.without([48])
+    assert dropped.active_faps == (31,) and not np.any(dropped.values[:, 47])  # masked off means 0
+    np.testing.assert_array_equal(stream.curve(48), [1.0, 2.0])
+    # a stream owns its arrays: changing the caller's array later changes nothing
+    values, mask = np.zeros((2, 68)), np.zeros((2, 68), bool)
+    mask[:, 47] = True
+    values[:, 47] = 5.0
+    owned = FapStream(values, mask, 30)
+    values[:, 47] = 9.0
+    np.testing.assert_array_equal(owned.curve(48), [5.0, 5.0])
+    with pytest.raises(ValueError):
+        owned.values[0, 47] = 1.0  # read-only
+
+
 def test_stream_refuses_bad_shapes() -> None:
     with pytest.raises(ConfigError):
         FapStream(np.zeros((3, 67)), np.zeros((3, 67), bool), 30)
