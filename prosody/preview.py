@@ -116,7 +116,7 @@ def poses(stream: FapStream, *, exaggerate: float = 1.0) -> list[FacePose]:
     def curve(fap: int, fallback: int | None = None) -> np.ndarray:
         if fallback is not None and not stream.mask[:, fap - 1].any():
             fap = fallback
-        return np.where(stream.mask[:, fap - 1], stream.values[:, fap - 1], 0.0) * exaggerate
+        return stream.curve(fap) * exaggerate  # 0 where masked off: neutral
 
     head = [curve(fap) * RADIANS_PER_AU for fap in (48, 49, 50)]
     # outer brows follow the middle ones when a stream has no FAP 35/36, as in the Live Link export
@@ -263,11 +263,8 @@ class CurveStrip:
         self.width, self.height, self.fps = width, height, stream.fps
         self.half_window = max(1, round(STRIP_WINDOW_S * stream.fps))
 
-        def curve(fap: int) -> np.ndarray:
-            return np.where(stream.mask[:, fap - 1], stream.values[:, fap - 1], 0.0)
-
-        brows = curve(31)
-        head = np.column_stack([curve(fap) for fap in (48, 49, 50)])
+        brows = stream.curve(31)  # 0 where masked off
+        head = stream.curves((48, 49, 50))
         # each group on its own scale (its largest magnitude), so both fill the strip
         brow_scale = max(float(np.max(np.abs(brows), initial=0.0)), 1.0)
         head_scale = max(float(np.max(np.abs(head), initial=0.0)), 1.0)

@@ -160,9 +160,9 @@ class FapStream:
             return self
         mask = self.mask.copy()
         mask[:, columns] = False
-        # the values are shared unless the dropped FAPs have values to zero
-        values = self.values.copy() if np.any(self.values[:, columns]) else self.values
-        if values is not self.values:
+        values = self.values
+        if np.any(values[:, columns]):  # copy only when the dropped FAPs have values to zero
+            values = values.copy()
             values[:, columns] = 0.0
         return FapStream._adopt(values, mask, self.fps, self.name)
 
