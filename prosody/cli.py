@@ -32,6 +32,16 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if not 0 <= value < 2**63:
+        raise argparse.ArgumentTypeError(f"expected a whole number from 0 to 2**63-1, got {text!r}")
+    return value
+
+
 def _add_analysis_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fps", type=_positive_float, default=30.0,
                         help="frames per second of the output grid (default 30; frame k is at k/fps s)")
@@ -42,8 +52,13 @@ def _add_analysis_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _add_generator_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--model", default=None, metavar="FILE", help="head model from 'prosody train'")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the RANDOM condition (default 0)")
+    parser.add_argument("--model", default=None, metavar="NAME|FILE",
+                        help="head model for the speech-driven condition: 'prosodic' (the default: motion of a "
+                             "person's size timed by the speech), 'arx' (the thesis's linear model), or a file "
+                             "from 'prosody train'")
+    parser.add_argument("--seed", type=_seed, default=0,
+                        help="seed of the random condition and of the speech-driven head's motion (a whole "
+                             "number >= 0, default 0: the same seed gives the same stream)")
 
 
 def _add_motion_options(parser: argparse.ArgumentParser) -> None:
@@ -161,9 +176,17 @@ def _cmd_preview(args: argparse.Namespace) -> int:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    from .errors import ConfigError
     from .training import train
 
-    train(args.data, args.output, cv=args.cv, na=args.na, nb=args.nb, nk=args.nk, ridge=args.ridge, fps=args.fps)
+    orders = {"na": args.na, "nb": args.nb, "nk": args.nk, "ridge": args.ridge}
+    if args.kind != "arx":
+        given = [f"--{name}" for name, value in orders.items() if value is not None]
+        if given:
+            raise ConfigError(f"{', '.join(given)} set(s) the ARX model's orders: add --kind arx")
+    defaults = {"na": 1, "nb": 5, "nk": 0, "ridge": 0.1}
+    orders = {name: defaults[name] if value is None else value for name, value in orders.items()}
+    train(args.data, args.output, kind=args.kind, cv=args.cv, fps=args.fps, **orders)
     return EXIT_OK
 
 
@@ -275,8 +298,9 @@ def build_parser() -> argparse.ArgumentParser:
     convert = commands.add_parser(
         "convert", help="turn a speech recording into a FAP stream",
         description="Compute the prosody FAPs (eyebrows 31-34, head 48-50) of one condition and write them. "
-                    "speech: eyebrows from the F0 rule, head pitch/yaw/roll from the ARX model (the shipped "
-                    "default unless --model); random: Perlin noise; none: all zero; truth: recorded motion.",
+                    "speech: eyebrows from the F0 rule, head pitch/yaw/roll from the shipped prosodic head model "
+                    "(or --model arx for the thesis's ARX model, or a trained file); random: Perlin noise; "
+                    "none: all zero; truth: recorded motion.",
     )
     convert.add_argument("input", help="speech recording")
     convert.add_argument("-o", "--output", required=True,
@@ -321,19 +345,27 @@ def build_parser() -> argparse.ArgumentParser:
 
     train = commands.add_parser(
         "train", help="train a head-motion model on paired recordings",
-        description="Fit the ARX head model on every <name>.wav in DIR that has a <name>.head.csv (columns "
+        description="Fit a head model on every <name>.wav in DIR that has a <name>.head.csv (columns "
                     "frame,time_s,rx_rad,ry_rad,rz_rad at 30 fps) or a <name>.fap beside it. A pair whose "
-                    "durations differ by more than two frames is reported and skipped.",
+                    "durations differ by more than two frames is reported and skipped. --kind prosodic (the "
+                    "default) learns how much the head moves and how it nods from the speech, and the size and "
+                    "tempo of the recorded motion; --kind arx fits the thesis's linear ARX model. Use the file "
+                    "with --model in convert, compare, batch and preview.",
     )
     train.add_argument("--data", required=True, metavar="DIR", help="folder of paired recordings")
     train.add_argument("-o", "--output", required=True, help="model file to write (.json)")
+    train.add_argument("--kind", default="prosodic", choices=["prosodic", "arx"],
+                       help="which model to fit (default prosodic)")
     train.add_argument("--cv", action="store_true",
-                       help="choose na, nb, nk and the ridge penalty by leave-one-recording-out "
-                            "cross-validation on free-run error")
-    train.add_argument("--na", type=int, default=1, help="past outputs fed back (default 1)")
-    train.add_argument("--nb", type=int, default=5, help="input lags (default 5)")
-    train.add_argument("--nk", type=int, default=0, help="input delay in frames (default 0)")
-    train.add_argument("--ridge", type=float, default=0.1, help="ridge penalty (default 0.1)")
+                       help="leave-one-recording-out cross-validation: for prosodic, choose its settings by the "
+                            "held-out speed-envelope and pitch correlations above the mismatched-audio control "
+                            "and store those figures in the model file; for arx, choose na, nb, nk and the "
+                            "ridge penalty by free-run error (the head measures are reported beside it)")
+    arx = train.add_argument_group("ARX orders (--kind arx only)")
+    arx.add_argument("--na", type=int, default=None, help="past outputs fed back (default 1)")
+    arx.add_argument("--nb", type=int, default=None, help="input lags (default 5)")
+    arx.add_argument("--nk", type=int, default=None, help="input delay in frames (default 0)")
+    arx.add_argument("--ridge", type=float, default=None, help="ridge penalty (default 0.1)")
     train.add_argument("--fps", type=_positive_float, default=30.0, help="frame rate (default 30)")
     train.set_defaults(handler=_cmd_train)
 

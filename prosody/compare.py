@@ -19,22 +19,27 @@ from audio_features import Features, extract_features
 from audio_features._atomic import atomic_write
 
 from .conditions import CONDITION_ORDER, Condition, MissingMotionWarning, condition_stream
+from .controls import shift_offsets, shifted_features
 from .errors import ConfigError
 from .eyebrows import EyebrowRaises, EyebrowRule, eyebrow_raises
 from .fap_table import HEAD_FAPS
 from .ground_truth import fit_to_grid, read_motion
-from .head import ArxHeadModel
+from .head_models import HeadModel, is_stochastic, resolve_head_model
 from .metrics import (
     fap_statistics,
     first_canonical_correlation,
     head_matrix,
+    head_metrics,
     normalization_targets,
     normalize_stream,
 )
 from .stream import FapStream
 
-#: Version of the metrics.json layout.
-METRICS_VERSION = 1
+#: Version of the metrics.json layout (2: head measures per condition, controls, seeds).
+METRICS_VERSION = 2
+#: Seeds over which the measures of a stochastic condition (RANDOM, the prosodic SPEECH_DRIVEN head) are
+#: averaged: seed, seed + 1, ... (the written streams use the first).
+SUMMARY_SEEDS = 10
 #: Conditions scaled by ``normalize`` (NO_PROSODY stays still: SPEC section 6).
 NORMALIZED_CONDITIONS = (Condition.RANDOM, Condition.SPEECH_DRIVEN, Condition.GROUND_TRUTH)
 
@@ -68,6 +73,27 @@ class Comparison:
         return self.streams.get(Condition.GROUND_TRUTH)
 
 
+def _average_head(rows: list[dict]) -> dict:
+    """The mean of head-measure dicts, None where every value is None."""
+
+    def mean(values: list) -> float | None:
+        present = [v for v in values if v is not None]
+        return float(np.mean(present)) if present else None
+
+    if not rows:
+        return empty_head_metrics()
+    keys = ("speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db", "yaw_r", "roll_r")
+    result: dict = {key: mean([row[key] for row in rows]) for key in keys}
+    result["std_ratio"] = {axis: mean([row["std_ratio"][axis] for row in rows]) for axis in ("48", "49", "50")}
+    return result
+
+
+def empty_head_metrics() -> dict:
+    """The head block where it is undefined (no recorded head to compare with)."""
+    return {"speed_envelope_r": None, "pitch_r": None, "std_ratio": {"48": None, "49": None, "50": None},
+            "velocity_spectrum_distance_db": None, "yaw_r": None, "roll_r": None}
+
+
 def comparison_metrics(streams: Mapping[Condition, FapStream], features: Features) -> dict:
     """Statistics per condition and FAP, agreement with ground truth and canonical correlations.
 
@@ -98,8 +124,9 @@ def compare(
     audio: str | os.PathLike[str],
     *,
     ground_truth: str | os.PathLike[str] | FapStream | None = None,
-    model: ArxHeadModel | str | os.PathLike[str] | None = None,
+    model: HeadModel | str | os.PathLike[str] | None = None,
     seed: int = 0,
+    seeds: int = SUMMARY_SEEDS,
     normalize: bool = False,
     targets: Mapping[int, tuple[float, float]] | None = None,
     conditions: Iterable[Condition | str] | None = None,
@@ -117,10 +144,14 @@ def compare(
         Speech recording.
     ground_truth : path or FapStream, optional
         Recorded motion (``<clip>.head.csv`` or ``.fap``); enables GROUND_TRUTH and the agreement metrics.
-    model : ArxHeadModel or path, optional
-        Head model for SPEECH_DRIVEN (the shipped default when omitted).
-    seed : int
-        Seed of the RANDOM condition.
+    model : head model, shipped name or path, optional
+        Head model for SPEECH_DRIVEN: the shipped prosodic generator when omitted, ``"arx"`` for the
+        thesis's model, or a file from ``prosody train``.
+    seed : int >= 0
+        Seed of the RANDOM condition and of the prosodic head (the written streams use it).
+    seeds : int >= 1
+        Number of seeds (``seed``, ``seed + 1``, ...) over which the head measures of the stochastic
+        conditions and of the mismatched-audio control are averaged.
     normalize : bool
         Scale and offset the RANDOM, SPEECH_DRIVEN and GROUND_TRUTH prosody FAPs to one mean and standard
         deviation per FAP: the ground truth's where it has the FAP, else ``targets``, else the average of the
@@ -146,13 +177,11 @@ def compare(
         wanted = [c for c in wanted if c is not Condition.GROUND_TRUTH]
     if features is None:
         features = extract_features(audio, fps=fps, f0_floor_hz=f0_floor_hz, f0_ceiling_hz=f0_ceiling_hz)
-    if model is None and Condition.SPEECH_DRIVEN in wanted:
-        from .head import default_model
-
-        model = default_model()
-    elif model is not None and not isinstance(model, ArxHeadModel):
-        model = ArxHeadModel.load(model)
-    assert model is None or isinstance(model, ArxHeadModel)
+    head_model = resolve_head_model(model) if Condition.SPEECH_DRIVEN in wanted else None
+    if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
+        raise ConfigError(f"seed must be a whole number >= 0, got {seed!r}")
+    if not (isinstance(seeds, (int, np.integer)) and 1 <= seeds <= 1000):
+        raise ConfigError(f"seeds must be a whole number from 1 to 1000, got {seeds!r}")
     truth = None
     if ground_truth is not None:
         recorded = ground_truth if isinstance(ground_truth, FapStream) else read_motion(ground_truth)
@@ -161,19 +190,50 @@ def compare(
     eyebrows = eyebrow_raises(features, rule)
     stem = Path(str(audio)).stem
     streams: dict[Condition, FapStream] = {}
-    for condition in CONDITION_ORDER:
-        if condition not in wanted:
-            continue
+
+    def make(condition: Condition, run_seed: int, source: Features = features) -> FapStream:
         with warnings.catch_warnings():
             # the report says which FAPs the recording lacks; no warning per condition
             warnings.simplefilter("ignore", MissingMotionWarning)
-            streams[condition] = condition_stream(condition, features, seed=seed, model=model, ground_truth=truth,
-                                                  eyebrows=eyebrows, name=f"{stem}_{condition.value.lower()}")
+            return condition_stream(condition, source, seed=run_seed, model=head_model, ground_truth=truth,
+                                    eyebrows=eyebrows if source is features else None, eyebrow_rule=rule,
+                                    name=f"{stem}_{condition.value.lower()}")
+
+    for condition in CONDITION_ORDER:
+        if condition in wanted:
+            streams[condition] = make(condition, seed)
+    chosen_targets: dict[int, tuple[float, float]] = {}
     if normalize:
         reference = streams.get(Condition.GROUND_TRUTH)
         scaled = {c: s for c, s in streams.items() if c in NORMALIZED_CONDITIONS}
-        chosen = normalization_targets(scaled, reference=reference, given=targets)
-        streams = {c: normalize_stream(s, chosen) if c in NORMALIZED_CONDITIONS else s for c, s in streams.items()}
+        chosen_targets = normalization_targets(scaled, reference=reference, given=targets)
+        streams = {c: normalize_stream(s, chosen_targets) if c in NORMALIZED_CONDITIONS else s
+                   for c, s in streams.items()}
+
+    def finished(condition: Condition, stream: FapStream) -> FapStream:
+        return normalize_stream(stream, chosen_targets) if normalize and condition in NORMALIZED_CONDITIONS else stream
+
+    # head measures against the recording, stochastic conditions over several seeds, and the control
+    truth_head = (head_matrix(truth) if truth is not None and all(truth.mask[:, fap - 1].all() for fap in HEAD_FAPS)
+                  else None)
+    stochastic = {Condition.RANDOM} | ({Condition.SPEECH_DRIVEN} if head_model is not None
+                                       and is_stochastic(head_model) else set())
+    head_blocks: dict[str, dict] = {}
+    control = empty_head_metrics()
+    if truth_head is not None:
+        for condition, stream in streams.items():
+            runs = [stream] + ([finished(condition, make(condition, seed + k)) for k in range(1, seeds)]
+                               if condition in stochastic else [])
+            head_blocks[condition.value] = _average_head(
+                [head_metrics(head_matrix(run), truth_head, fps=features.fps) for run in runs])
+        if Condition.SPEECH_DRIVEN in streams:
+            run_seeds = range(seed, seed + seeds) if Condition.SPEECH_DRIVEN in stochastic else [seed]
+            control = _average_head([
+                head_metrics(head_matrix(finished(Condition.SPEECH_DRIVEN,
+                                                  make(Condition.SPEECH_DRIVEN, run_seed,
+                                                       shifted_features(features, offset)))),
+                             truth_head, fps=features.fps)
+                for run_seed in run_seeds for offset in shift_offsets(features.n_frames, fps=features.fps)])
     metrics = {
         "version": METRICS_VERSION,
         "source": str(audio),
@@ -186,11 +246,16 @@ def compare(
         "energy_threshold_db": eyebrows.energy_threshold_db,
         "eyebrow_events": [list(event) for event in eyebrows.events],
         "seed": seed,
+        "seeds": seeds,
+        "head_model": None if head_model is None else head_model.kind,
         # agreement on a recording the model was trained on is not a held-out figure
-        "model_trained_on_this_recording": (model is not None and
-                                            stem in {clip.name for clip in model.training_}),
+        "model_trained_on_this_recording": (head_model is not None and
+                                            stem in {clip.name for clip in head_model.training_}),
         **comparison_metrics(streams, features),
     }
+    for name, block in metrics["conditions"].items():
+        block["head"] = head_blocks.get(name, empty_head_metrics())
+    metrics["controls"] = {"mismatched_audio": control}
     return Comparison(str(audio), features, eyebrows, streams, metrics)
 
 

@@ -12,7 +12,7 @@ from audio_features import Features
 from .errors import ConfigError, GroundTruthError
 from .eyebrows import EyebrowRaises, EyebrowRule, eyebrow_raises
 from .fap_table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
-from .head import ArxHeadModel
+from .head_models import HeadModel, resolve_head_model
 from .perlin import PerlinSettings, perlin_curves
 from .stream import FapStream
 
@@ -53,7 +53,7 @@ def condition_stream(
     features: Features,
     *,
     seed: int = 0,
-    model: ArxHeadModel | None = None,
+    model: HeadModel | None = None,
     ground_truth: FapStream | None = None,
     eyebrow_rule: EyebrowRule | None = None,
     eyebrows: EyebrowRaises | None = None,
@@ -67,10 +67,11 @@ def condition_stream(
     condition : Condition
     features : Features
         The recording's features; the stream has their frame count and rate.
-    seed : int
-        Seed of the RANDOM condition's noise (same seed, same stream).
-    model : ArxHeadModel, optional
-        Head model for SPEECH_DRIVEN; the shipped default when omitted.
+    seed : int >= 0
+        Seed of the RANDOM condition's noise and of the default speech-driven head's (same seed, same
+        stream).
+    model : ArxHeadModel or ProsodicHeadModel, optional
+        Head model for SPEECH_DRIVEN; the shipped prosodic generator when omitted.
     ground_truth : FapStream, optional
         Recorded motion on the features' grid (required for GROUND_TRUTH); see
         :func:`prosody.ground_truth.fit_to_grid`.
@@ -86,12 +87,9 @@ def condition_stream(
         return FapStream.from_curves(perlin_curves(n, fps=fps, seed=seed, settings=perlin), fps=fps, name=name,
                                      n_frames=n)
     if condition is Condition.SPEECH_DRIVEN:
-        if model is None:
-            from .head import default_model
-
-            model = default_model()
+        model = resolve_head_model(model)
         curves = (eyebrows or eyebrow_raises(features, eyebrow_rule)).curves()
-        curves.update(model.generate(features))
+        curves.update(model.generate(features, seed=seed))
         return FapStream.from_curves(curves, fps=fps, name=name, n_frames=n)
     if ground_truth is None:
         raise ConfigError("the GROUND_TRUTH condition needs recorded motion (--ground-truth FILE)")

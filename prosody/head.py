@@ -133,6 +133,9 @@ class ArxHeadModel:
     fps_ : float
     """
 
+    #: The name model files and ``--model`` use for this kind.
+    kind = "arx"
+
     def __init__(self, na: int = 1, nb: int = 5, nk: int = 0, ridge: float = 0.1, smoothing_s: float = 1.0,
                  input_normalization: str = "recording"):
         self.na = na
@@ -254,8 +257,20 @@ class ArxHeadModel:
                 history = np.concatenate([y, history[:-k]])
         return out * self.output_scale_
 
-    def generate(self, features: Features) -> dict[int, np.ndarray]:
-        """Head motion for a recording, run free: FAP number (48, 49, 50) -> curve in AU."""
+    def rest_pose_au(self) -> np.ndarray:
+        """The pose the model settles to when every input sits at its recording's average (per-recording
+        normalisation) or at the training average ("global"): the steady state of the free run, AU (3,).
+        Intensity gains scale the motion about this pose, not about 0."""
+        self._check_fitted()
+        level = (-self.input_mean_ / self.input_std_ if self.input_normalization == "recording"
+                 else np.zeros_like(self.input_mean_))
+        drive = sum((bj @ level for bj in self.b_), np.zeros(len(HEAD_FAPS))) + self.c_
+        feedback = np.eye(len(HEAD_FAPS)) - (self.a_.sum(axis=0) if self.na else 0.0)
+        return np.linalg.solve(feedback, drive) * self.output_scale_
+
+    def generate(self, features: Features, *, seed: int = 0) -> dict[int, np.ndarray]:
+        """Head motion for a recording, run free: FAP number (48, 49, 50) -> curve in AU. The model is
+        deterministic: ``seed`` is accepted for a common interface with the other head models and unused."""
         self._check_fitted()
         if features.fps != self.fps_:
             raise ConfigError(
@@ -275,6 +290,7 @@ class ArxHeadModel:
         return {
             "format": MODEL_FORMAT,
             "version": MODEL_VERSION,
+            "kind": self.kind,
             "orders": {"na": int(self.na), "nb": int(self.nb), "nk": int(self.nk)},
             "fps": self.fps_,
             "smoothing_s": self.smoothing_s,
@@ -375,5 +391,6 @@ class ArxHeadModel:
 
 
 def default_model() -> ArxHeadModel:
-    """The model shipped with the package (trained on ../shared/data/talking-heads; see the README)."""
+    """The thesis's ARX model as shipped with the package (trained on the seven talking-head clips; see the
+    README). The default speech-driven head is :func:`prosody.head_models.default_head_model`."""
     return ArxHeadModel.load(DEFAULT_MODEL_PATH)

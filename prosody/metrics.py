@@ -149,3 +149,121 @@ def normalize_stream(stream: FapStream, targets: Mapping[int, tuple[float, float
 def head_matrix(stream: FapStream) -> np.ndarray:
     """Head pitch, yaw, roll (AU) as columns, shape (n_frames, 3)."""
     return stream.curves(HEAD_FAPS)
+
+
+# Head-motion measures that discriminate at our data sizes (SPEC section 6) -----------------------------
+#: Low-pass cut-off applied to head angles before any velocity: above ~5 Hz recordings are tracker jitter.
+HEAD_LOWPASS_HZ = 4.0
+#: Window of the centred moving average that turns head speed into its envelope, in s.
+SPEED_ENVELOPE_S = 0.5
+#: Welch segment length and frequency band of the velocity-spectrum distance.
+SPECTRUM_SEGMENT_FRAMES = 64
+SPECTRUM_BAND_HZ = (0.25, 4.0)
+
+
+def lowpass_head(angles_rad: np.ndarray, *, fps: float, cutoff_hz: float = HEAD_LOWPASS_HZ) -> np.ndarray:
+    """Head angles low-passed by a 4th-order Butterworth filter run forwards and backwards (zero phase).
+
+    Parameters
+    ----------
+    angles_rad : array (n_frames,) or (n_frames, n_axes)
+    fps : float > 0
+    cutoff_hz : float > 0, in Hz
+        Left unfiltered when at or above the Nyquist frequency, or when the curve is too short to filter.
+    """
+    from scipy.signal import butter, sosfiltfilt
+
+    angles = np.asarray(angles_rad, float)
+    if cutoff_hz >= fps / 2:
+        return angles.copy()
+    sos = butter(4, cutoff_hz, btype="low", fs=fps, output="sos")
+    pad = 3 * (2 * sos.shape[0] + 1)
+    if angles.shape[0] <= pad:
+        return angles.copy()
+    return sosfiltfilt(sos, angles, axis=0)
+
+
+def centred_moving_average(values: np.ndarray, window: int) -> np.ndarray:
+    """Centred moving average over ``window`` frames (odd windows are symmetric), edges padded with the
+    edge value.
+
+    Examples
+    --------
+    >>> centred_moving_average(np.array([0.0, 0.0, 3.0, 0.0, 0.0]), 3).tolist()
+    [0.0, 1.0, 1.0, 1.0, 0.0]
+    """
+    values = np.asarray(values, float)
+    window = max(1, int(window))
+    before = window // 2
+    after = window - 1 - before
+    padded = np.concatenate([np.full(before, values[0]), values, np.full(after, values[-1])])
+    cumulative = np.concatenate([[0.0], np.cumsum(padded)])
+    return (cumulative[window:] - cumulative[:-window]) / window
+
+
+def head_speed(angles_rad: np.ndarray, *, fps: float) -> np.ndarray:
+    """Angular speed (rad/s): the norm of the three axes' velocities, by central differences, of the
+    4 Hz low-passed angles; shape (n_frames,)."""
+    smooth = lowpass_head(np.asarray(angles_rad, float), fps=fps)
+    if smooth.shape[0] < 2:
+        return np.zeros(smooth.shape[0])
+    velocity = np.gradient(smooth, axis=0) * fps
+    return np.sqrt((velocity**2).sum(axis=1)) if velocity.ndim == 2 else np.abs(velocity)
+
+
+def speed_envelope(angles_rad: np.ndarray, *, fps: float, window_s: float = SPEED_ENVELOPE_S) -> np.ndarray:
+    """How much the head is moving: its speed averaged over a centred 0.5 s window (rad/s)."""
+    return centred_moving_average(head_speed(angles_rad, fps=fps), int(round(window_s * fps)))
+
+
+def velocity_spectrum_distance_db(generated_rad: np.ndarray, recorded_rad: np.ndarray, *, fps: float) -> float | None:
+    """RMS over 0.25-4 Hz of ``10 log10(P_generated / P_recorded)``, P the Welch spectrum (64-frame
+    segments) of each axis's frame-to-frame velocity of the raw angles, averaged over the axes, in dB.
+
+    0 dB is a head whose motion has the recording's size and tempo; a still head or a jittery one scores
+    high. None where a spectrum is zero (a still axis) or the curves are too short for one segment.
+    """
+    from scipy.signal import welch
+
+    generated = np.atleast_2d(np.asarray(generated_rad, float).T).T
+    recorded = np.atleast_2d(np.asarray(recorded_rad, float).T).T
+    if generated.shape[0] < SPECTRUM_SEGMENT_FRAMES + 1:
+        return None
+    distances = []
+    for axis in range(generated.shape[1]):
+        frequencies, p_generated = welch(np.diff(generated[:, axis]), fs=fps, nperseg=SPECTRUM_SEGMENT_FRAMES)
+        _, p_recorded = welch(np.diff(recorded[:, axis]), fs=fps, nperseg=SPECTRUM_SEGMENT_FRAMES)
+        band = (frequencies >= SPECTRUM_BAND_HZ[0]) & (frequencies <= SPECTRUM_BAND_HZ[1])
+        if np.any(p_generated[band] <= 0) or np.any(p_recorded[band] <= 0):
+            return None
+        ratio_db = 10 * np.log10(p_generated[band] / p_recorded[band])
+        distances.append(float(np.sqrt(np.mean(ratio_db**2))))
+    return float(np.mean(distances))
+
+
+def head_metrics(generated_au: np.ndarray, recorded_au: np.ndarray, *, fps: float) -> dict:
+    """The head measures of one generated motion against the recording, both (n_frames, 3) in AU
+    (FAP 48, 49, 50).
+
+    Returns
+    -------
+    dict
+        ``{"speed_envelope_r", "pitch_r", "std_ratio": {"48", "49", "50"}, "velocity_spectrum_distance_db",
+        "yaw_r", "roll_r"}``; None where undefined (a still head has no correlation).
+    """
+    generated = np.asarray(generated_au, float) * 1e-5
+    recorded = np.asarray(recorded_au, float) * 1e-5
+    if generated.shape != recorded.shape or generated.ndim != 2 or generated.shape[1] != len(HEAD_FAPS):
+        raise ConfigError(f"head motion must be (n_frames, 3) on one grid, got {generated.shape} and "
+                          f"{recorded.shape}")
+    recorded_std = recorded.std(axis=0)
+    ratios = {str(fap): (float(generated[:, axis].std() / recorded_std[axis]) if recorded_std[axis] > 0 else None)
+              for axis, fap in enumerate(HEAD_FAPS)}
+    return {
+        "speed_envelope_r": pearson(speed_envelope(generated, fps=fps), speed_envelope(recorded, fps=fps)),
+        "pitch_r": pearson(generated[:, 0], recorded[:, 0]),
+        "std_ratio": ratios,
+        "velocity_spectrum_distance_db": velocity_spectrum_distance_db(generated, recorded, fps=fps),
+        "yaw_r": pearson(generated[:, 1], recorded[:, 1]),
+        "roll_r": pearson(generated[:, 2], recorded[:, 2]),
+    }

@@ -13,7 +13,7 @@ from .errors import ConfigError
 from .eyebrows import EyebrowRule
 from .fapfile import read_fap
 from .ground_truth import fit_to_grid, read_motion
-from .head import ArxHeadModel
+from .head_models import HeadModel, resolve_head_model, rest_pose
 from .perlin import PerlinSettings
 from .stream import FapStream
 
@@ -22,15 +22,16 @@ CHANNELS = {"pitch": (48,), "yaw": (49,), "roll": (50,), "brows": (31, 32, 33, 3
 
 
 def apply_controls(stream: FapStream, *, gains: Mapping[str, float] | None = None,
-                   disabled: Iterable[str] = ()) -> FapStream:
-    """Per-channel intensity: multiply each channel (pitch, yaw, roll, brows) by its gain, and mask the
-    ``disabled`` channels off entirely (they are then absent from the output, not zero)."""
+                   disabled: Iterable[str] = (), rest: Mapping[int, float] | None = None) -> FapStream:
+    """Per-channel intensity: multiply each channel's motion (pitch, yaw, roll, brows) by its gain about the
+    rest pose (``rest``: FAP -> value, 0 where not given), and mask the ``disabled`` channels off entirely
+    (they are then absent from the output, not zero)."""
     gains = dict(gains or {})
     disabled = list(disabled)
     unknown = [name for name in [*gains, *disabled] if name not in CHANNELS]
     if unknown:
         raise ConfigError(f"unknown channel(s) {', '.join(map(repr, unknown))}; choose from {', '.join(CHANNELS)}")
-    stream = stream.scaled({fap: gain for name, gain in gains.items() for fap in CHANNELS[name]})
+    stream = stream.scaled({fap: gain for name, gain in gains.items() for fap in CHANNELS[name]}, about=rest)
     return stream.without([fap for name in disabled for fap in CHANNELS[name]])
 
 
@@ -45,7 +46,7 @@ def convert(
     *,
     condition: Condition | str = Condition.SPEECH_DRIVEN,
     ground_truth: str | os.PathLike[str] | None = None,
-    model: ArxHeadModel | str | os.PathLike[str] | None = None,
+    model: HeadModel | str | os.PathLike[str] | None = None,
     base: str | os.PathLike[str] | None = None,
     seed: int = 0,
     fps: float = 30.0,
@@ -70,12 +71,13 @@ def convert(
         ``speech`` (default), ``random``, ``none`` or ``truth`` (or the full names).
     ground_truth : path, optional
         Recorded motion (``.head.csv`` or ``.fap``); required for ``truth``.
-    model : ArxHeadModel or path, optional
-        Head model for ``speech``; the shipped default when omitted.
+    model : head model, shipped name or path, optional
+        Head model for ``speech``: the shipped prosodic generator when omitted; ``"arx"`` for the
+        thesis's ARX model, or a file from ``prosody train``.
     base : path, optional
         A .fap recording whose other FAPs (lips, eyes) are carried into the output.
-    seed : int
-        Seed of the ``random`` condition.
+    seed : int >= 0
+        Seed of the ``random`` condition and of the default speech-driven head.
     fps : float > 0
         Frame rate of the output.
     output_format : str, optional
@@ -94,13 +96,14 @@ def convert(
     chosen = condition if isinstance(condition, Condition) else Condition.parse(condition)
     if features is None:
         features = extract_features(audio, fps=fps, f0_floor_hz=f0_floor_hz, f0_ceiling_hz=f0_ceiling_hz)
-    if model is not None and not isinstance(model, ArxHeadModel):
-        model = ArxHeadModel.load(model)
+    head_model = resolve_head_model(model) if chosen is Condition.SPEECH_DRIVEN else None
     truth = load_ground_truth(ground_truth, features) if ground_truth is not None else None
     name = Path(output).stem if output is not None else Path(str(audio)).stem
-    stream = condition_stream(chosen, features, seed=seed, model=model, ground_truth=truth,
+    stream = condition_stream(chosen, features, seed=seed, model=head_model, ground_truth=truth,
                               eyebrow_rule=eyebrow_rule, perlin=perlin, name=name)
-    stream = apply_controls(stream, gains=gains, disabled=disabled)
+    # gains scale motion about the rest pose: a model's resting lean is not motion
+    stream = apply_controls(stream, gains=gains, disabled=disabled,
+                            rest=rest_pose(head_model) if head_model is not None else None)
     if base is not None:
         stream = stream.merged_over(read_fap(base).stream)
     if output is not None:

@@ -46,6 +46,9 @@ def comparison_markdown(comparison: Comparison, *, figures: Mapping[str, str] | 
            "figure"] if metrics.get("model_trained_on_this_recording") else []),
         f"- eyebrow rule: raise above {metrics['eyebrow_threshold_hz']:.0f} Hz, hold while energy >= "
         f"{metrics['energy_threshold_db']:.0f} dB; {len(metrics['eyebrow_events'])} raise(s)",
+    ]
+    lines += _head_section(metrics)
+    lines += [
         "",
         "## Motion statistics (mean ± standard deviation, FAP units)",
         "",
@@ -74,7 +77,10 @@ def comparison_markdown(comparison: Comparison, *, figures: Mapping[str, str] | 
                              f"{_number(entry['pearson_r'], 3)} ({_number(entry['rmse'])})")
             rows.append(cells)
         lines += _table(header, rows)
-    lines += ["", "## Canonical correlation (first canonical r)", ""]
+    lines += ["", "## Canonical correlation (first canonical r)", "",
+              "A secondary measure: on clips of under a minute it is high for any motion (noise, or another "
+              "recording's real motion, scores 0.4-0.5), so it does not show whether motion follows the speech.",
+              ""]
     cca = metrics["cca"]
     lines += _table(["condition", "head (48-50) vs recorded head", "audio (energy, F0) vs head"],
                     [[name, _number(cca["head_vs_ground_truth"].get(name), 3),
@@ -88,6 +94,51 @@ def comparison_markdown(comparison: Comparison, *, figures: Mapping[str, str] | 
         if figures and key in figures:
             lines += ["", f"## {title}", "", f"![{title}]({figures[key]})"]
     return "\n".join(lines) + "\n"
+
+
+def _head_row(name: str, head: Mapping | None) -> list[str]:
+    head = head or {}
+    ratios = head.get("std_ratio") or {}
+    return [name, _number(head.get("speed_envelope_r"), 3), _number(head.get("pitch_r"), 3),
+            " / ".join(_number(ratios.get(axis), 2) for axis in ("48", "49", "50")),
+            _number(head.get("velocity_spectrum_distance_db"), 1)]
+
+
+HEAD_HEADER = ["condition", "speed-envelope r", "pitch r", "std ratio pitch / yaw / roll",
+               "velocity-spectrum distance (dB)"]
+
+
+def _head_section(metrics: Mapping) -> list[str]:
+    """The lead table: head measures per condition against the recording, with the control beside them."""
+    conditions = metrics["conditions"]
+    if not any((block.get("head") or {}).get("std_ratio", {}).get("48") is not None for block in conditions.values()):
+        return ["", "## Head motion", "", "No recorded head motion was given, so the head measures are undefined "
+                "(give --ground-truth FILE)."]
+    seeds = metrics.get("seeds", 1)
+    lines = ["", "## Head motion against the recording", "",
+             "How much the head moves over time (speed envelope: angular speed averaged over 0.5 s, angles "
+             "low-passed at 4 Hz) and head pitch, each as Pearson r with the recording; the spread of each axis "
+             "as a ratio to the recording's (1 = a person's size); and the velocity-spectrum distance (0 dB = "
+             "the recording's size and tempo; a still or jittery head scores high). "
+             f"RANDOM{' and SPEECH_DRIVEN' if metrics.get('head_model') == 'prosodic' else ''} are averaged over "
+             f"{seeds} seed(s). The control drives the same speech-driven generator with this recording's own "
+             "audio shifted in time by 5 s or more: it keeps the audio's statistics and breaks its timing, so a "
+             "figure counts by how far it rises above the control.", ""]
+    rows = [_head_row(name, block.get("head")) for name, block in conditions.items()]
+    control = (metrics.get("controls") or {}).get("mismatched_audio")
+    if control and "SPEECH_DRIVEN" in conditions:
+        rows.append(_head_row("SPEECH_DRIVEN with mismatched audio (control)", control))
+        speech = conditions["SPEECH_DRIVEN"].get("head") or {}
+        rises = []
+        for key, label in (("speed_envelope_r", "speed-envelope r"), ("pitch_r", "pitch r")):
+            if speech.get(key) is not None and control.get(key) is not None:
+                rises.append(f"{label} {speech[key] - control[key]:+.3f}")
+        lines += _table(HEAD_HEADER, rows)
+        if rises:
+            lines += ["", f"Rise of SPEECH_DRIVEN above the control: {', '.join(rises)}."]
+    else:
+        lines += _table(HEAD_HEADER, rows)
+    return lines
 
 
 def batch_markdown(summary: Mapping) -> str:

@@ -166,8 +166,10 @@ class FapStream:
             values[:, columns] = 0.0
         return FapStream._adopt(values, mask, self.fps, self.name)
 
-    def scaled(self, gains: Mapping[int, float]) -> FapStream:
-        """A copy with the given FAPs multiplied by their gain (intensity controls; 0 keeps them, still)."""
+    def scaled(self, gains: Mapping[int, float], *, about: Mapping[int, float] | None = None) -> FapStream:
+        """A copy with the given FAPs' motion multiplied by their gain (intensity controls; 0 keeps them,
+        still), about the value ``about[fap]`` (the rest pose; 0 when not given)."""
+        about = dict(about or {})
         for fap, gain in gains.items():
             if not np.isfinite(gain):
                 raise ConfigError(f"gain of FAP {fap} must be a finite number, got {gain!r}")
@@ -176,7 +178,9 @@ class FapStream:
             return self
         values = self.values.copy()
         for fap, gain in changing.items():
-            values[:, _fap_columns([fap])[0]] *= gain
+            rest = float(about.get(fap, 0.0))
+            column = _fap_columns([fap])[0]
+            values[:, column] = rest + (values[:, column] - rest) * gain
         return FapStream._adopt(values, self.mask, self.fps, self.name)
 
     def renamed(self, name: str) -> FapStream:

@@ -104,10 +104,18 @@ def test_compare_cli_writes_everything_with_the_documented_shape(tmp_path, rng) 
                      "head.png", "report.md", "metrics.json"}
     metrics = json.loads((out / "metrics.json").read_text())
     assert list(metrics["conditions"]) == ["NO_PROSODY", "RANDOM", "SPEECH_DRIVEN", "GROUND_TRUTH"]
+    head_keys = {"speed_envelope_r", "pitch_r", "std_ratio", "velocity_spectrum_distance_db", "yaw_r", "roll_r"}
     for _condition, per_fap in metrics["conditions"].items():
-        assert list(per_fap) == ["31", "32", "33", "34", "48", "49", "50"]
-        for entry in per_fap.values():
-            assert set(entry) == {"mean", "std", "pearson_r", "rmse"}
+        assert list(per_fap) == ["31", "32", "33", "34", "48", "49", "50", "head"]
+        for fap, entry in per_fap.items():
+            assert set(entry) == (head_keys if fap == "head" else {"mean", "std", "pearson_r", "rmse"})
+        assert set(per_fap["head"]["std_ratio"]) == {"48", "49", "50"}
+    assert set(metrics["controls"]["mismatched_audio"]) == head_keys
+    assert metrics["seeds"] == 10 and metrics["head_model"] == "prosodic"
+    truth_block = metrics["conditions"]["GROUND_TRUTH"]["head"]
+    assert truth_block["speed_envelope_r"] == pytest.approx(1.0) and truth_block["pitch_r"] == pytest.approx(1.0)
+    assert truth_block["velocity_spectrum_distance_db"] is None  # 60 frames: shorter than one Welch segment
+    assert metrics["conditions"]["NO_PROSODY"]["head"]["std_ratio"] == {"48": 0.0, "49": 0.0, "50": 0.0}
     truth_head = metrics["conditions"]["GROUND_TRUTH"]["48"]
     assert truth_head["pearson_r"] == pytest.approx(1.0) and truth_head["rmse"] == pytest.approx(0.0)
     assert metrics["conditions"]["NO_PROSODY"]["48"]["pearson_r"] is None  # a still head: undefined
@@ -138,7 +146,10 @@ def test_compare_normalize_matches_the_ground_truth_spread(tmp_path, rng) -> Non
 def test_compare_without_ground_truth(tmp_path) -> None:
     result = compare(_tone_file(tmp_path / "tone.wav"), seed=1)
     assert list(result.metrics["conditions"]) == ["NO_PROSODY", "RANDOM", "SPEECH_DRIVEN"]
-    assert all(entry["pearson_r"] is None for entry in result.metrics["conditions"]["RANDOM"].values())
+    random = result.metrics["conditions"]["RANDOM"]
+    assert all(random[str(fap)]["pearson_r"] is None for fap in (31, 32, 33, 34, 48, 49, 50))
+    assert random["head"]["speed_envelope_r"] is None and random["head"]["std_ratio"]["48"] is None
+    assert result.metrics["controls"]["mismatched_audio"]["pitch_r"] is None
     assert result.metrics["eyebrow_events"][0][0] in (14, 15, 16)
 
 

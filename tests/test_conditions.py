@@ -221,7 +221,7 @@ def test_train_command_on_synthetic_pairs(tmp_path, rng) -> None:
     soundfile.write(data / "bad.wav", harmonic_tone(200, 2.0, SR), SR)
     _write_head_csv(data / "bad.head.csv", np.zeros(10), np.zeros(10), np.zeros(10))
     out = tmp_path / "model.json"
-    assert main(["train", "--data", str(data), "-o", str(out), "--na", "1", "--nb", "2"]) == 0
+    assert main(["train", "--data", str(data), "-o", str(out), "--kind", "arx", "--na", "1", "--nb", "2"]) == 0
     from prosody.head import ArxHeadModel
 
     model = ArxHeadModel.load(out)
@@ -230,6 +230,16 @@ def test_train_command_on_synthetic_pairs(tmp_path, rng) -> None:
     import json
 
     assert any("bad" in line for line in json.loads(out.read_text())["skipped"])
+    # ARX orders without --kind arx are a usage error; the default kind is the prosodic generator
+    assert main(["train", "--data", str(data), "-o", str(tmp_path / "p.json"), "--na", "2"]) == 2
+    assert not (tmp_path / "p.json").exists()
+    assert main(["train", "--data", str(data), "-o", str(tmp_path / "p.json")]) == 0
+    from prosody.head_models import load_head_model
+    from prosody.speech_head import ProsodicHeadModel
+
+    prosodic = load_head_model(tmp_path / "p.json")
+    assert isinstance(prosodic, ProsodicHeadModel)
+    assert json.loads((tmp_path / "p.json").read_text())["kind"] == "prosodic"
 
 
 # layering -------------------------------------------------------------------------------------------------

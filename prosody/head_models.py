@@ -1,0 +1,100 @@
+"""Head models by name and by file: the default prosodic generator and the thesis's ARX model.
+
+Model files are JSON and say what they hold: ``"format": "visual-prosody-head", "kind": "prosodic"`` for
+the default generator, ``"format": "visual-prosody-arx"`` (``"kind": "arx"``) for the thesis's model.
+``--model`` takes either a file or one of the names of :data:`SHIPPED_MODELS`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Union
+
+import numpy as np
+
+from .errors import ModelError
+from .fap_table import HEAD_FAPS
+from .head import DEFAULT_MODEL_PATH as ARX_MODEL_PATH
+from .head import MODEL_FORMAT as ARX_FORMAT
+from .head import ArxHeadModel
+from .speech_head import MODEL_FORMAT as PROSODIC_FORMAT
+from .speech_head import ProsodicHeadModel
+
+HeadModel = Union[ArxHeadModel, ProsodicHeadModel]  # noqa: UP007 - a runtime alias on Python 3.10
+PROSODIC_MODEL_PATH = Path(__file__).with_name("models") / "default_head.json"
+#: Shipped models by name: ``prosodic`` (the default) and ``arx`` (the thesis's model).
+SHIPPED_MODELS = {"prosodic": PROSODIC_MODEL_PATH, "arx": ARX_MODEL_PATH}
+#: Largest model file read (the shipped ones are well under 100 kB).
+MAX_MODEL_BYTES = 16 << 20
+
+
+def load_head_model(source: str | os.PathLike[str]) -> HeadModel:
+    """A head model from a shipped name (``prosodic``, ``arx``) or a model file of either kind.
+
+    Raises
+    ------
+    ModelError
+        The file is missing, unreadable, too large, not JSON, or not a model this release reads.
+    """
+    text_source = os.fspath(source)
+    if isinstance(text_source, str) and text_source in SHIPPED_MODELS:
+        source = SHIPPED_MODELS[text_source]
+    name = str(source)
+    path = Path(source)
+    try:
+        with open(path, "rb") as handle:
+            data = handle.read(MAX_MODEL_BYTES + 1)
+    except FileNotFoundError:
+        raise ModelError(f"{name}: no such model file (or give a shipped model: "
+                         f"{', '.join(SHIPPED_MODELS)})") from None
+    except OSError as error:
+        raise ModelError(f"{name}: cannot be read ({error.strerror or error})") from None
+    if len(data) > MAX_MODEL_BYTES:
+        raise ModelError(f"{name}: larger than {MAX_MODEL_BYTES >> 20} MiB; not a model file")
+    try:
+        payload = json.loads(data.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise ModelError(f"{name}: not a text (JSON) model file") from None
+    except json.JSONDecodeError as error:
+        raise ModelError(f"{name}: not JSON (line {error.lineno}: {error.msg})") from None
+    except RecursionError:
+        raise ModelError(f"{name}: JSON nested too deeply to be a model file") from None
+    kind = payload.get("format") if isinstance(payload, dict) else None
+    if kind == PROSODIC_FORMAT:
+        return ProsodicHeadModel.from_dict(payload, source=name)
+    if kind == ARX_FORMAT:
+        return ArxHeadModel.from_dict(payload, source=name)
+    raise ModelError(f"{name}: not a head model file (its \"format\" must be {PROSODIC_FORMAT!r} or "
+                     f"{ARX_FORMAT!r})")
+
+
+def default_head_model() -> ProsodicHeadModel:
+    """The default speech-driven head shipped with the package (trained on the seven talking-head clips)."""
+    model = load_head_model(PROSODIC_MODEL_PATH)
+    assert isinstance(model, ProsodicHeadModel)
+    return model
+
+
+def resolve_head_model(model: HeadModel | str | os.PathLike[str] | None) -> HeadModel:
+    """A model object from what a caller passed: None (the default), a name, a path or a model."""
+    if model is None:
+        return default_head_model()
+    if isinstance(model, (ArxHeadModel, ProsodicHeadModel)):
+        return model
+    return load_head_model(model)
+
+
+def rest_pose(model: HeadModel) -> dict[int, float]:
+    """FAP -> AU of the pose the model rests in (0 for the prosodic generator)."""
+    if isinstance(model, ArxHeadModel):
+        pose = model.rest_pose_au()
+    else:
+        pose = np.zeros(len(HEAD_FAPS))
+    return {fap: float(pose[axis]) for axis, fap in enumerate(HEAD_FAPS)}
+
+
+def is_stochastic(model: HeadModel) -> bool:
+    """Whether the model's motion depends on the seed (summaries then average over several seeds)."""
+    return isinstance(model, ProsodicHeadModel)

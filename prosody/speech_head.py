@@ -1,0 +1,498 @@
+"""The default speech-driven head: motion of a person's size whose timing comes from the speech.
+
+Two things about head motion during speech can be predicted from the audio, and one cannot:
+
+- *how much* the head is moving at each moment (its speed envelope) follows the prosody over about half a
+  second on either side: the head moves more while someone speaks, and more on loud, changing syllables;
+- head *pitch* follows it too (the head rises with a louder, higher voice);
+- the direction of yaw and roll does not.
+
+So the generator predicts the speed envelope and the pitch from windowed prosodic features with two ridge
+regressions, and draws the motion itself as coloured noise whose spectrum is the recorded head velocity's:
+the noise's velocity is rescaled frame by frame to the predicted speed, integrated with a slow leak back to
+the rest pose, and the predicted pitch is added to the pitch axis. Where there is no speech for a while the
+speed falls to an idle sway. The noise is seeded: the same seed gives the same motion, bit for bit.
+
+The motion is a displacement from the rest pose (0 on every axis): the pose a speaker holds in silence.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from audio_features import Features
+from audio_features._atomic import atomic_write
+
+from .errors import ConfigError, ModelError
+from .fap_table import HEAD_FAPS, RADIANS_PER_AU
+from .metrics import centred_moving_average, lowpass_head
+
+MODEL_FORMAT = "visual-prosody-head"
+MODEL_VERSION = 1
+MODEL_KIND = "prosodic"
+#: Per-frame features, before windowing, in this order.
+FEATURE_NAMES = ("voiced", "loudness", "pitch_st", "pitch_conditioned_st", "loudness_change", "pitch_change")
+#: Features that drive the speed envelope and the pitch (indices into FEATURE_NAMES).
+ENVELOPE_FEATURES = (0, 1, 4)
+PITCH_FEATURES = (0, 1, 2, 3)
+#: Loudness is the energy relative to the recording's speech level, clipped to this range (dB).
+LOUDNESS_RANGE_DB = (-40.0, 10.0)
+#: Voiced time below which a recording counts as holding no speech (s).
+MIN_SPEECH_S = 0.5
+#: Window over which speech presence is judged (s), and the voiced share that counts as full speech.
+PRESENCE_WINDOW_S = 2.0
+PRESENCE_FULL_SHARE = 0.2
+#: Taps of the noise-shaping filters (the recorded velocity's spectrum is estimated on this many frames).
+SPECTRUM_FRAMES = 128
+MIN_SPECTRUM_FRAMES = 16
+
+
+def prosodic_features(features: Features) -> np.ndarray:
+    """Per-frame prosodic features, shape (n_frames, 6), in the order of :data:`FEATURE_NAMES`.
+
+    ``voiced`` is 1 on voiced frames; ``loudness`` is the energy above the recording's speech level (the
+    median energy of its voiced frames), clipped to -40..+10 dB and shifted so that silence is 0 and speech
+    level is 4 (tens of dB); ``pitch_st`` and ``pitch_conditioned_st`` are the raw (0 where unvoiced) and
+    conditioned F0 above the speaker's median voiced F0, in units of 4 semitones;
+    the two changes are the absolute frame-to-frame differences of loudness and of the conditioned pitch
+    (the latter on voiced frames only). A recording with less than 0.5 s of voiced frames holds no speech:
+    every feature is 0, as in silence.
+    """
+    n = features.n_frames
+    voiced = features.f0.voiced
+    if voiced.sum() < MIN_SPEECH_S * features.fps or n < 2:
+        return np.zeros((n, len(FEATURE_NAMES)))
+    energy = features.energy.values
+    level_db = float(np.median(energy[voiced]))
+    low, high = LOUDNESS_RANGE_DB
+    loudness = (np.clip(energy - level_db, low, high) - low) / 10.0
+    median_f0 = float(np.median(features.f0.values[voiced]))
+    pitch = np.zeros(n)
+    pitch[voiced] = 12 * np.log2(features.f0.values[voiced] / median_f0) / 4
+    conditioned = features.f0_conditioned.values
+    pitch_conditioned = 12 * np.log2(np.maximum(conditioned, 1.0) / median_f0) / 4
+    return np.column_stack([
+        voiced.astype(float), loudness, pitch, pitch_conditioned,
+        np.abs(np.gradient(loudness)), np.abs(np.gradient(pitch_conditioned)) * voiced,
+    ])
+
+
+def windowed_features(per_frame: np.ndarray, offsets_frames: Sequence[int], *, smoothing_frames: int) -> np.ndarray:
+    """Each feature smoothed over ``smoothing_frames`` and read at every offset from the frame (positive:
+    later audio), edges held; shape (n_frames, n_features * len(offsets_frames))."""
+    n = per_frame.shape[0]
+    smooth = np.column_stack([centred_moving_average(per_frame[:, j], smoothing_frames)
+                              for j in range(per_frame.shape[1])]) if n else per_frame
+    index = np.arange(n)
+    return np.hstack([smooth[np.clip(index + offset, 0, max(n - 1, 0))] for offset in offsets_frames])
+
+
+def speech_presence(features: Features) -> np.ndarray:
+    """How much speech surrounds each frame, 0..1: the voiced share of a centred 2 s window over 0.2
+    (ordinary speech is voiced well over a fifth of the time), capped at 1; 0 for a recording without speech."""
+    voiced = features.f0.voiced.astype(float)
+    if voiced.sum() < MIN_SPEECH_S * features.fps or voiced.size == 0:
+        return np.zeros(voiced.size)
+    share = centred_moving_average(voiced, int(round(PRESENCE_WINDOW_S * features.fps)))
+    return np.clip(share / PRESENCE_FULL_SHARE, 0.0, 1.0)
+
+
+def head_speed_from_velocity(velocity: np.ndarray, *, fps: float) -> np.ndarray:
+    """Norm of the 4 Hz low-passed angular velocities (n_frames, 3) -> (n_frames,)."""
+    return np.sqrt((lowpass_head(velocity, fps=fps) ** 2).sum(axis=1))
+
+
+def _ridge(x: np.ndarray, y: np.ndarray, penalty: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ridge regression on standardised columns: (weights, column mean, column spread); intercept last."""
+    mean = x.mean(axis=0)
+    spread = x.std(axis=0)
+    spread = np.where(spread > 1e-12, spread, 1.0)
+    z = np.hstack([(x - mean) / spread, np.ones((x.shape[0], 1))])
+    shrink = np.eye(z.shape[1]) * penalty
+    shrink[-1, -1] = 0.0  # the intercept is not shrunk
+    weights = np.linalg.solve(z.T @ z + shrink, z.T @ y)
+    return weights, mean, spread
+
+
+def _shaping_filter(velocities: Sequence[np.ndarray], fps: float) -> np.ndarray:
+    """Zero-phase FIR taps whose gain follows the average amplitude spectrum of the given velocity curves
+    (each recording weighted equally), normalised to unit output variance for unit white noise."""
+    from scipy.signal import welch
+
+    spectra = []
+    for velocity in velocities:
+        if velocity.size < MIN_SPECTRUM_FRAMES:
+            continue
+        # short recordings give a coarser estimate on the same frequency grid
+        _, power = welch(velocity, fs=fps, nperseg=min(SPECTRUM_FRAMES, velocity.size), nfft=SPECTRUM_FRAMES)
+        total = power.sum()
+        if total > 0:
+            spectra.append(power / total)
+    if not spectra:
+        raise ConfigError(f"head motion too short to estimate its spectrum (need {MIN_SPECTRUM_FRAMES} frames)")
+    amplitude = np.sqrt(np.mean(spectra, axis=0))
+    taps = np.fft.fftshift(np.fft.irfft(amplitude, n=SPECTRUM_FRAMES))
+    taps = taps * np.hanning(SPECTRUM_FRAMES + 1)[:SPECTRUM_FRAMES]
+    return taps / np.sqrt(np.sum(taps**2))
+
+
+def _finite_number(value: object) -> bool:
+    """A JSON number that is finite (not a bool, not NaN or infinity)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+@dataclass(frozen=True)
+class TrainingClip:
+    """A recording the model was trained on."""
+
+    name: str
+    frames: int
+    duration_s: float
+
+
+class ProsodicHeadModel:
+    """Head pitch, yaw and roll (FAP 48-50, AU) from speech: a predicted speed envelope driving coloured
+    noise, plus a predicted head pitch.
+
+    Parameters
+    ----------
+    lookbehind_s, lookahead_s : float in [0, 5], in s
+        Prosody is read from ``lookbehind_s`` before to ``lookahead_s`` after each frame (0.5 s each: the
+        head leads the voice by 0.1-0.4 s).
+    step_s : float > 0, in s
+        Spacing of the points read inside the window (0.1 s).
+    ridge : float >= 0
+        Ridge penalty of both regressions, per standardised column.
+    pitch_share : float in [0, 1]
+        Share of the pitch axis's spread that comes from the predicted pitch; the rest is noise.
+    leak_s : float > 0, in s
+        Time constant of the pull back to the rest pose (yaw and roll).
+    pitch_leak_s : float > 0, in s
+        The same for the pitch axis's noise, shorter: its slow part is the prediction.
+    idle_ratio : float in [0, 1]
+        Speed of a head at rest, as a share of its average speed while speaking.
+    speed_iterations : int in [0, 10]
+        Passes that correct the noise so that the whole head's speed follows the prediction.
+
+    Attributes
+    ----------
+    envelope_weights_, envelope_mean_, envelope_std_ : arrays
+        Speed-envelope regression (envelope relative to the recording's average speed).
+    pitch_weights_, pitch_mean_, pitch_std_ : arrays
+        Pitch regression (pitch in units of its recorded spread).
+    filters_ : array (3, 128)
+        Noise-shaping taps per axis.
+    velocity_scale_ : array (3,)
+        RMS recorded velocity per axis, rad/s.
+    speed_rad_s_ : float
+        Average recorded head speed, rad/s.
+    spread_au_ : array (3,)
+        Average recorded spread per axis, AU.
+    noise_spread_, pitch_prediction_spread_, output_scale_
+        Calibration: the noise's and the prediction's own spreads, and the final per-axis factors that make
+        the average generated / recorded spread 1.
+    fps_ : float
+    training_ : list of TrainingClip
+    """
+
+    kind = MODEL_KIND
+
+    def __init__(self, lookbehind_s: float = 0.5, lookahead_s: float = 0.5, step_s: float = 0.1,
+                 ridge: float = 1e4, pitch_share: float = 0.95, leak_s: float = 2.0, pitch_leak_s: float = 0.3,
+                 idle_ratio: float = 0.15, speed_iterations: int = 2):
+        self.lookbehind_s = lookbehind_s
+        self.lookahead_s = lookahead_s
+        self.step_s = step_s
+        self.ridge = ridge
+        self.pitch_share = pitch_share
+        self.leak_s = leak_s
+        self.idle_ratio = idle_ratio
+        self.speed_iterations = speed_iterations
+        self.pitch_leak_s = pitch_leak_s
+
+    # settings -------------------------------------------------------------------------------------------
+    def _check_settings(self) -> None:
+        checks = (
+            ("lookbehind_s", self.lookbehind_s, 0.0, 5.0), ("lookahead_s", self.lookahead_s, 0.0, 5.0),
+            ("step_s", self.step_s, 1e-3, 5.0),
+            ("ridge", self.ridge, 0.0, 1e12), ("pitch_share", self.pitch_share, 0.0, 1.0),
+            ("leak_s", self.leak_s, 1e-2, 1e3), ("pitch_leak_s", self.pitch_leak_s, 1e-2, 1e3),
+            ("idle_ratio", self.idle_ratio, 0.0, 1.0), ("speed_iterations", self.speed_iterations, 0, 10),
+        )
+        for name, value, low, high in checks:
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)
+                                                and low <= value <= high):
+                raise ConfigError(f"{name} must be a number in [{low:g}, {high:g}], got {value!r}")
+
+    def offsets_frames(self, fps: float) -> list[int]:
+        """Frame offsets read around each frame."""
+        behind = int(round(self.lookbehind_s * fps))
+        ahead = int(round(self.lookahead_s * fps))
+        step = max(1, int(round(self.step_s * fps)))
+        return sorted({*range(-behind, ahead + 1, step), ahead})
+
+    def _smoothing(self, fps: float) -> int:
+        return max(1, int(round(self.step_s * fps * 5 / 3)))  # 5 frames at 30 fps with a 0.1 s step
+
+    def _design(self, features: Features) -> tuple[np.ndarray, np.ndarray]:
+        per_frame = prosodic_features(features)
+        offsets = self.offsets_frames(features.fps)
+        smoothing = self._smoothing(features.fps)
+        return (windowed_features(per_frame[:, ENVELOPE_FEATURES], offsets, smoothing_frames=smoothing),
+                windowed_features(per_frame[:, PITCH_FEATURES], offsets, smoothing_frames=smoothing))
+
+    # fitting --------------------------------------------------------------------------------------------
+    def fit(self, features: Sequence[Features], motion_au: Sequence[np.ndarray],
+            names: Sequence[str] | None = None) -> ProsodicHeadModel:
+        """Fit on recordings: their features and recorded head motion, shape (n_frames, 3) in AU (the
+        resting pose, e.g. each recording's median, already removed)."""
+        from .metrics import lowpass_head, speed_envelope
+
+        self._check_settings()
+        if len(features) != len(motion_au) or not features:
+            raise ConfigError("need the same, non-zero number of feature sets and motion recordings")
+        rates = {f.fps for f in features}
+        if len(rates) != 1:
+            raise ConfigError(f"training recordings have different frame rates {sorted(rates)!r}")
+        fps = rates.pop()
+        envelope_rows, envelope_targets, pitch_rows, pitch_targets, velocities = [], [], [], [], []
+        speeds, spreads = [], []
+        for feature_set, motion in zip(features, motion_au, strict=True):
+            motion = np.asarray(motion, float)
+            if motion.shape != (feature_set.n_frames, len(HEAD_FAPS)):
+                raise ConfigError(f"a recording has {feature_set.n_frames} frames of audio but motion of shape "
+                                  f"{motion.shape}; expected ({feature_set.n_frames}, 3)")
+            radians = motion * RADIANS_PER_AU
+            envelope = speed_envelope(radians, fps=fps)
+            pitch = lowpass_head(radians, fps=fps)[:, 0]
+            design_envelope, design_pitch = self._design(feature_set)
+            if envelope.mean() <= 0 or pitch.std() <= 0:
+                continue  # a still recording teaches nothing about timing
+            envelope_rows.append(design_envelope)
+            envelope_targets.append(envelope / envelope.mean())
+            pitch_rows.append(design_pitch)
+            pitch_targets.append((pitch - pitch.mean()) / pitch.std())
+            velocities.append(np.diff(radians, axis=0))
+            speeds.append(envelope.mean())
+            spreads.append(radians.std(axis=0))
+        if not envelope_rows:
+            raise ConfigError("every training recording is still: nothing to learn")
+        self.envelope_weights_, self.envelope_mean_, self.envelope_std_ = _ridge(
+            np.vstack(envelope_rows), np.concatenate(envelope_targets), self.ridge)
+        self.pitch_weights_, self.pitch_mean_, self.pitch_std_ = _ridge(
+            np.vstack(pitch_rows), np.concatenate(pitch_targets), self.ridge)
+        self.filters_ = np.vstack([_shaping_filter([v[:, axis] for v in velocities], fps)
+                                   for axis in range(len(HEAD_FAPS))])
+        self.velocity_scale_ = np.sqrt(np.mean([np.mean(v**2, axis=0) for v in velocities], axis=0)) * fps
+        self.speed_rad_s_ = float(np.mean(speeds))
+        self.fps_ = float(fps)
+        # calibration over the training recordings and a few seeds: each part at unit spread, then the
+        # whole at the recorded average spread per axis (a person's size)
+        self.spread_au_ = np.mean(spreads, axis=0) / RADIANS_PER_AU
+        self.noise_spread_ = np.ones(len(HEAD_FAPS))
+        self.pitch_prediction_spread_ = 1.0
+        self.output_scale_ = np.ones(len(HEAD_FAPS))
+        seeds = range(3)
+        self.noise_spread_ = np.mean([self._noise_angles(f, seed=seed).std(axis=0)
+                                      for f in features for seed in seeds], axis=0)
+        self.noise_spread_ = np.where(self.noise_spread_ > 0, self.noise_spread_, 1.0)
+        pitch_spread = float(np.mean([self.predicted_pitch(f).std() for f in features]))
+        self.pitch_prediction_spread_ = pitch_spread if pitch_spread > 0 else 1.0
+        # the average over recordings of generated / recorded spread is 1 on every axis
+        ratios = np.mean([self._motion(f, seed=seed).std(axis=0) / (spread / RADIANS_PER_AU)
+                          for f, spread in zip(features, spreads, strict=True) for seed in seeds], axis=0)
+        self.output_scale_ = np.where(ratios > 0, 1.0 / np.where(ratios > 0, ratios, 1.0), 1.0)
+        names = list(names) if names is not None else [f"recording {i}" for i in range(len(features))]
+        self.training_ = [TrainingClip(name, f.n_frames, f.n_frames / fps)
+                          for name, f in zip(names, features, strict=False)]
+        return self
+
+    # generation -----------------------------------------------------------------------------------------
+    def predicted_envelope(self, features: Features) -> np.ndarray:
+        """Predicted head speed relative to the average while speaking (1 = average), with the idle floor
+        and the fall to idle where there is no speech; shape (n_frames,)."""
+        design, _ = self._design(features)
+        z = (design - self.envelope_mean_) / self.envelope_std_
+        relative = z @ self.envelope_weights_[:-1] + self.envelope_weights_[-1]
+        presence = speech_presence(features)
+        relative = np.maximum(relative, self.idle_ratio)
+        return self.idle_ratio + (relative - self.idle_ratio) * presence
+
+    def predicted_pitch(self, features: Features) -> np.ndarray:
+        """Predicted head pitch in units of its recorded spread, about the average pose while speaking (0),
+        fading to 0 (rest) where there is no speech; shape (n_frames,)."""
+        _, design = self._design(features)
+        predicted = ((design - self.pitch_mean_) / self.pitch_std_) @ self.pitch_weights_[:-1]
+        return (predicted + self.pitch_weights_[-1]) * speech_presence(features)
+
+    def _noise_angles(self, features: Features, *, seed: int) -> np.ndarray:
+        """Coloured noise (n_frames, 3), rad, whose speed follows the predicted envelope, leaking to rest."""
+        from scipy.signal import lfilter, oaconvolve
+
+        n = features.n_frames
+        fps = self.fps_
+        taps = self.filters_.shape[1]
+        generator = np.random.default_rng(seed)
+        white = generator.standard_normal((n + taps - 1, len(HEAD_FAPS)))
+        shaped = np.column_stack([oaconvolve(white[:, axis], self.filters_[axis], mode="valid")
+                                  for axis in range(len(HEAD_FAPS))])
+        velocity = shaped * self.velocity_scale_  # rad/s, the recorded spread per axis
+        # the speed a viewer sees is the smooth one (below 4 Hz): that is what follows the envelope
+        own_speed = centred_moving_average(head_speed_from_velocity(velocity, fps=fps), int(round(0.5 * fps)))
+        wanted_speed = self.predicted_envelope(features) * self.speed_rad_s_
+        velocity *= (wanted_speed / np.maximum(own_speed, 1e-12))[:, None]
+        angles = np.empty_like(velocity)
+        for axis in range(len(HEAD_FAPS)):
+            # the pitch axis's noise only adds the quick part of the motion; its slow part is the prediction
+            leak_s = self.pitch_leak_s if axis == 0 else self.leak_s
+            decay = math.exp(-1.0 / (leak_s * fps))
+            angles[:, axis] = lfilter([1.0 / fps], [1.0, -decay], velocity[:, axis])
+        return angles
+
+    def _motion(self, features: Features, *, seed: int) -> np.ndarray:
+        """Head angles (n_frames, 3) in AU: noise on every axis, the predicted pitch mixed into the first,
+        the noise's speed then corrected so that the whole head's speed follows the prediction."""
+        from .metrics import speed_envelope
+
+        if features.n_frames == 0:
+            return np.zeros((0, len(HEAD_FAPS)))
+        noise = self._noise_angles(features, seed=seed) / self.noise_spread_  # unit spread per axis
+        pitch = self.predicted_pitch(features) / self.pitch_prediction_spread_  # unit spread
+        share = self.pitch_share
+        noise[:, 0] *= math.sqrt(max(0.0, 1.0 - share**2))
+        scale = self.spread_au_ * self.output_scale_ * RADIANS_PER_AU
+        fixed = np.zeros_like(noise)
+        fixed[:, 0] = share * pitch
+        wanted = self.predicted_envelope(features)
+        wanted = wanted / max(float(wanted.mean()), 1e-12)
+        for _ in range(self.speed_iterations):
+            # the pitch prediction moves the head too: rescale the noise until the sum has the wanted speed
+            speed = speed_envelope((fixed + noise) * scale, fps=self.fps_)
+            speed = speed / max(float(speed.mean()), 1e-12)
+            noise *= np.clip(wanted / np.maximum(speed, 1e-12), 0.25, 4.0)[:, None]
+        return (fixed + noise) * scale / RADIANS_PER_AU
+
+    def generate(self, features: Features, *, seed: int = 0) -> dict[int, np.ndarray]:
+        """Head motion for a recording: FAP number (48, 49, 50) -> curve in AU. Same seed, same motion."""
+        self._check_fitted()
+        if features.fps != self.fps_:
+            raise ConfigError(
+                f"the model was trained at {self.fps_:g} fps but the features are at {features.fps:g} fps; "
+                "extract features at the model's rate or train a model at this rate"
+            )
+        if not (isinstance(seed, (int, np.integer)) and seed >= 0):
+            raise ConfigError(f"seed must be a whole number >= 0, got {seed!r}")
+        motion = self._motion(features, seed=int(seed))
+        return {fap: motion[:, axis] for axis, fap in enumerate(HEAD_FAPS)}
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "filters_"):
+            raise ConfigError("the model is not fitted: call fit() or load a model file")
+
+    # persistence ----------------------------------------------------------------------------------------
+    SETTINGS = ("lookbehind_s", "lookahead_s", "step_s", "ridge", "pitch_share", "leak_s", "pitch_leak_s",
+                "idle_ratio", "speed_iterations")
+
+    def _array_shapes(self) -> dict[str, tuple[int, ...]]:
+        fps = getattr(self, "fps_", 30.0)
+        width = len(self.offsets_frames(fps))
+        axes = len(HEAD_FAPS)
+        return {
+            "envelope_weights": (len(ENVELOPE_FEATURES) * width + 1,),
+            "envelope_mean": (len(ENVELOPE_FEATURES) * width,), "envelope_std": (len(ENVELOPE_FEATURES) * width,),
+            "pitch_weights": (len(PITCH_FEATURES) * width + 1,),
+            "pitch_mean": (len(PITCH_FEATURES) * width,), "pitch_std": (len(PITCH_FEATURES) * width,),
+            "filters": (axes, SPECTRUM_FRAMES), "velocity_scale": (axes,), "spread_au": (axes,),
+            "noise_spread": (axes,), "output_scale": (axes,),
+        }
+
+    def to_dict(self) -> dict:
+        """The model as plain data (what :meth:`save` writes)."""
+        self._check_fitted()
+        return {
+            "format": MODEL_FORMAT,
+            "version": MODEL_VERSION,
+            "kind": MODEL_KIND,
+            "fps": self.fps_,
+            "settings": {name: getattr(self, name) for name in self.SETTINGS},
+            "features": list(FEATURE_NAMES),
+            "envelope_features": [FEATURE_NAMES[i] for i in ENVELOPE_FEATURES],
+            "pitch_features": [FEATURE_NAMES[i] for i in PITCH_FEATURES],
+            "outputs": list(HEAD_FAPS),
+            **{key: np.asarray(getattr(self, key + "_")).tolist() for key in self._array_shapes()},
+            "speed_rad_s": self.speed_rad_s_,
+            "pitch_prediction_spread": self.pitch_prediction_spread_,
+            "training": [clip.__dict__ for clip in self.training_],
+        }
+
+    def save(self, path: str | os.PathLike[str], *, extra: dict | None = None) -> None:
+        """Write the model as JSON (plain data, never pickle), atomically."""
+        payload = self.to_dict()
+        if extra:
+            payload.update(extra)
+        with atomic_write(path) as handle:
+            json.dump(payload, handle, indent=1, allow_nan=False)
+            handle.write("\n")
+
+    @classmethod
+    def from_dict(cls, payload: dict, *, source: str = "<dict>") -> ProsodicHeadModel:
+        """Rebuild a model from :meth:`to_dict` output, checking every field."""
+
+        def fail(problem: str) -> ModelError:
+            return ModelError(f"{source}: {problem}")
+
+        if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
+            raise fail(f"not a {MODEL_FORMAT} model file (no \"format\": \"{MODEL_FORMAT}\")")
+        if payload.get("version") != MODEL_VERSION or payload.get("kind") != MODEL_KIND:
+            raise fail(f"model version {payload.get('version')!r} of kind {payload.get('kind')!r} is not supported "
+                       f"(this release reads version {MODEL_VERSION} of kind {MODEL_KIND!r})")
+        try:
+            settings = payload["settings"]
+            if not isinstance(settings, dict) or set(settings) != set(cls.SETTINGS):
+                raise fail(f"\"settings\" must hold exactly {', '.join(cls.SETTINGS)}")
+            for name, value in settings.items():
+                if not _finite_number(value):
+                    raise fail(f"setting {name!r} must be a finite number, got {value!r}")
+            if not isinstance(settings["speed_iterations"], int):
+                raise fail(f"setting 'speed_iterations' must be a whole number, got {settings['speed_iterations']!r}")
+            model = cls(**settings)
+            try:
+                model._check_settings()
+            except ConfigError as error:
+                raise fail(str(error)) from None
+            fps = payload["fps"]
+            if not _finite_number(fps) or not 0 < fps <= 1000:
+                raise fail(f"fps {fps!r} must be a number in (0, 1000]")
+            model.fps_ = float(fps)
+            if (list(payload["features"]) != list(FEATURE_NAMES) or list(payload["outputs"]) != list(HEAD_FAPS)
+                    or list(payload["envelope_features"]) != [FEATURE_NAMES[i] for i in ENVELOPE_FEATURES]
+                    or list(payload["pitch_features"]) != [FEATURE_NAMES[i] for i in PITCH_FEATURES]):
+                raise fail("features and outputs differ from the ones this release computes")
+            for key, shape in model._array_shapes().items():
+                array = np.array(payload[key], dtype=float)
+                if array.shape != shape:
+                    raise fail(f"field {key!r} has shape {array.shape!r}, expected {shape!r}")
+                if not np.all(np.isfinite(array)):
+                    raise fail(f"field {key!r} holds non-finite numbers")
+                setattr(model, key + "_", array)
+            for key in ("envelope_std", "pitch_std", "velocity_scale", "spread_au", "noise_spread", "output_scale"):
+                if np.any(getattr(model, key + "_") <= 0):
+                    raise fail(f"field {key!r} must hold positive numbers")
+            for key in ("speed_rad_s", "pitch_prediction_spread"):
+                value = payload[key]
+                if not _finite_number(value) or not value > 0:
+                    raise fail(f"field {key!r} must be a positive number, got {value!r}")
+                setattr(model, key + "_", float(value))
+            model.training_ = [TrainingClip(str(c["name"]), int(c["frames"]), float(c["duration_s"]))
+                               for c in payload["training"]]
+        except ModelError:
+            raise
+        except (KeyError, TypeError, ValueError, OverflowError) as error:
+            raise fail(f"missing or malformed field ({error!r})") from None
+        return model
