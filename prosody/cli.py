@@ -81,25 +81,66 @@ def _analysis_kwargs(args: argparse.Namespace) -> dict:
     return {"fps": args.fps, "f0_floor_hz": args.f0_floor, "f0_ceiling_hz": args.f0_ceiling}
 
 
+def _finite_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if value != value or value in (float("inf"), float("-inf")):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+#: Options of the thesis's eyebrow rule, with their defaults.
+_THESIS_BROW_OPTIONS = {"eyebrow_threshold": 207.0, "eyebrow_semitones": None, "energy_threshold": 45.0,
+                        "energy_relative": None}
+
+
 def _add_eyebrow_options(parser: argparse.ArgumentParser) -> None:
-    group = parser.add_argument_group("eyebrow rule (SPEC section 3; thesis values by default)")
-    group.add_argument("--eyebrow-threshold", type=_positive_float, default=207.0, metavar="HZ",
-                       help="a rising crossing of the conditioned F0 through HZ raises the brows (default 207)")
-    group.add_argument("--eyebrow-semitones", type=float, default=None, metavar="ST",
-                       help="speaker-relative threshold instead: ST semitones above the recording's median F0 "
-                            "(for low or high voices; e.g. 4)")
-    group.add_argument("--energy-threshold", type=float, default=45.0, metavar="DB",
-                       help="after 300 ms the raise lasts while energy >= DB, dB re 2e-5 Pa (default 45)")
-    group.add_argument("--energy-relative", type=float, default=None, metavar="DB",
-                       help="calibrate for recording level instead: threshold = the recording's median voiced "
-                            "energy + DB (e.g. -25)")
+    group = parser.add_argument_group(
+        "eyebrows", "The speech-driven brows rise on pitch accents judged against the speaker's own voice "
+                    "(accent rule, the default), or follow the thesis's rule (--brows thesis): raise when the "
+                    "pitch crosses 207 Hz, hold 300 ms and then while the energy stays at or above 45 dB.")
+    group.add_argument("--brows", default="accent", choices=["accent", "thesis"],
+                       help="eyebrow rule (default accent: raise where the voice, at speaking loudness, goes "
+                            "--accent-semitones above the speaker's median pitch; for 0.3 to 1.2 s)")
+    group.add_argument("--accent-semitones", type=_finite_float, default=None, metavar="ST",
+                       help="accent rule: semitones above the speaker's median pitch that raise the brows "
+                            "(default 4; lower raises more often)")
+    group.add_argument("--eyebrow-threshold", type=_positive_float, default=None, metavar="HZ",
+                       help="thesis rule: a rising crossing of the conditioned pitch through HZ raises the brows "
+                            "(default 207)")
+    group.add_argument("--eyebrow-semitones", type=_finite_float, default=None, metavar="ST",
+                       help="thesis rule, speaker-relative threshold instead of --eyebrow-threshold: ST semitones "
+                            "above the recording's median pitch (e.g. 4)")
+    group.add_argument("--energy-threshold", type=_finite_float, default=None, metavar="DB",
+                       help="thesis rule: after 300 ms the raise lasts while energy >= DB, in dB re 2e-5 Pa "
+                            "(default 45)")
+    group.add_argument("--energy-relative", type=_finite_float, default=None, metavar="DB",
+                       help="thesis rule, calibrated for recording level instead of --energy-threshold: the "
+                            "recording's median voiced energy + DB (e.g. -25)")
 
 
 def _eyebrow_rule(args: argparse.Namespace):
-    from .eyebrows import EyebrowRule
+    from .errors import ConfigError
+    from .eyebrows import AccentRule, EyebrowRule
 
-    return EyebrowRule(threshold_hz=args.eyebrow_threshold, threshold_semitones=args.eyebrow_semitones,
-                       energy_threshold_db=args.energy_threshold, energy_relative_db=args.energy_relative)
+    given = {name: getattr(args, name) for name in _THESIS_BROW_OPTIONS if getattr(args, name) is not None}
+    flags = ", ".join(f"--{name.replace('_', '-')}" for name in given)
+    if args.brows == "accent":
+        if given:
+            raise ConfigError(f"{flags} set(s) the thesis's eyebrow rule: add --brows thesis")
+        if args.accent_semitones is None:
+            return AccentRule()
+        return AccentRule(threshold_semitones=args.accent_semitones)
+    if args.accent_semitones is not None:
+        raise ConfigError("--accent-semitones sets the accent rule: it does not apply with --brows thesis")
+    for pair in (("eyebrow_semitones", "eyebrow_threshold"), ("energy_relative", "energy_threshold")):
+        if all(name in given for name in pair):
+            raise ConfigError(f"--{pair[0].replace('_', '-')} replaces --{pair[1].replace('_', '-')}: give one")
+    values = {**_THESIS_BROW_OPTIONS, **given}
+    return EyebrowRule(threshold_hz=values["eyebrow_threshold"], threshold_semitones=values["eyebrow_semitones"],
+                       energy_threshold_db=values["energy_threshold"], energy_relative_db=values["energy_relative"])
 
 
 # commands -----------------------------------------------------------------------------------------------

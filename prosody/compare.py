@@ -21,11 +21,12 @@ from audio_features._atomic import atomic_write
 from .conditions import CONDITION_ORDER, Condition, MissingMotionWarning, condition_stream
 from .controls import shift_offsets, shifted_features
 from .errors import ConfigError
-from .eyebrows import EyebrowRaises, EyebrowRule, eyebrow_raises
+from .eyebrows import BrowRule, EyebrowRaises, NoRaiseWarning, brow_raises, warn_if_no_raise
 from .fap_table import HEAD_FAPS
 from .ground_truth import fit_to_grid, read_motion
 from .head_models import HeadModel, is_stochastic, resolve_head_model
 from .metrics import (
+    brow_metrics,
     fap_statistics,
     first_canonical_correlation,
     head_matrix,
@@ -94,6 +95,49 @@ def empty_head_metrics() -> dict:
             "velocity_spectrum_distance_db": None, "yaw_r": None, "roll_r": None}
 
 
+def empty_brow_metrics() -> dict:
+    """The brow block where it is undefined (no recorded brows, or a condition without brows)."""
+    return {"raise_r": None, "onsets": {"precision": None, "recall": None, "f1": None}, "raises": None,
+            "recorded_raises": None, "median_raise_s": None, "recorded_median_raise_s": None}
+
+
+def _average_brows(rows: list[dict]) -> dict:
+    """The mean of brow-measure dicts (None entries left out), same layout."""
+
+    def mean(values: list) -> float | None:
+        present = [v for v in values if v is not None]
+        return float(np.mean(present)) if present else None
+
+    if not rows:
+        return empty_brow_metrics()
+    result: dict = {key: mean([row[key] for row in rows]) for key in
+                    ("raise_r", "raises", "recorded_raises", "median_raise_s", "recorded_median_raise_s")}
+    result["onsets"] = {key: mean([row["onsets"][key] for row in rows]) for key in ("precision", "recall", "f1")}
+    return result
+
+
+def brow_curve(stream: FapStream) -> np.ndarray | None:
+    """The inner-brow raise of a stream (mean of FAP 31 and 32 where both are active, else FAP 31), ENS;
+    None if the stream has no inner brow throughout."""
+    left, right = stream.mask[:, 30], stream.mask[:, 31]
+    if not left.all():
+        return None
+    if right.all():
+        return (stream.values[:, 30] + stream.values[:, 31]) / 2
+    return stream.values[:, 30].copy()
+
+
+def _measure(runs: list[FapStream], truth_head: np.ndarray | None, truth_brow: np.ndarray | None, *,
+             fps: float) -> tuple[dict, dict]:
+    """Head and brow measures of several runs of one condition against the recording, averaged."""
+    head = (_average_head([head_metrics(head_matrix(run), truth_head, fps=fps) for run in runs])
+            if truth_head is not None else empty_head_metrics())
+    brows = [brow_curve(run) for run in runs]
+    brow = (_average_brows([brow_metrics(curve, truth_brow, fps=fps) for curve in brows if curve is not None])
+            if truth_brow is not None else empty_brow_metrics())
+    return head, brow
+
+
 def comparison_metrics(streams: Mapping[Condition, FapStream], features: Features) -> dict:
     """Statistics per condition and FAP, agreement with ground truth and canonical correlations.
 
@@ -130,7 +174,7 @@ def compare(
     normalize: bool = False,
     targets: Mapping[int, tuple[float, float]] | None = None,
     conditions: Iterable[Condition | str] | None = None,
-    eyebrow_rule: EyebrowRule | None = None,
+    eyebrow_rule: BrowRule | None = None,
     fps: float = 30.0,
     f0_floor_hz: float = 75.0,
     f0_ceiling_hz: float = 500.0,
@@ -160,7 +204,8 @@ def compare(
         Normalisation targets in FAP units for FAPs the ground truth lacks (or without ground truth).
     conditions : iterable, optional
         Conditions to compute (default: all four, GROUND_TRUTH only with ``ground_truth``).
-    eyebrow_rule : EyebrowRule, optional
+    eyebrow_rule : AccentRule or EyebrowRule, optional
+        The speech-driven brows' rule (the accent rule by default).
     fps, f0_floor_hz, f0_ceiling_hz : float
         Analysis settings (see :func:`audio_features.extract_features`).
     features : Features, optional
@@ -186,8 +231,10 @@ def compare(
     if ground_truth is not None:
         recorded = ground_truth if isinstance(ground_truth, FapStream) else read_motion(ground_truth)
         truth = fit_to_grid(recorded, n_frames=features.n_frames, fps=features.fps, source=str(ground_truth))
-    rule = eyebrow_rule or EyebrowRule()
-    eyebrows = eyebrow_raises(features, rule)
+    rule = eyebrow_rule
+    eyebrows = brow_raises(features, rule)
+    if Condition.SPEECH_DRIVEN in wanted:
+        warn_if_no_raise(eyebrows)
     stem = Path(str(audio)).stem
     streams: dict[Condition, FapStream] = {}
 
@@ -195,6 +242,7 @@ def compare(
         with warnings.catch_warnings():
             # the report says which FAPs the recording lacks; no warning per condition
             warnings.simplefilter("ignore", MissingMotionWarning)
+            warnings.simplefilter("ignore", NoRaiseWarning)  # said once above, not per control run
             return condition_stream(condition, source, seed=run_seed, model=head_model, ground_truth=truth,
                                     eyebrows=eyebrows if source is features else None, eyebrow_rule=rule,
                                     name=f"{stem}_{condition.value.lower()}")
@@ -213,27 +261,28 @@ def compare(
     def finished(condition: Condition, stream: FapStream) -> FapStream:
         return normalize_stream(stream, chosen_targets) if normalize and condition in NORMALIZED_CONDITIONS else stream
 
-    # head measures against the recording, stochastic conditions over several seeds, and the control
+    # head and brow measures against the recording (stochastic conditions over several seeds), and the
+    # same generator driven by this recording's audio shifted in time (the mismatched-audio control)
     truth_head = (head_matrix(truth) if truth is not None and all(truth.mask[:, fap - 1].all() for fap in HEAD_FAPS)
                   else None)
+    truth_brow = brow_curve(truth) if truth is not None else None
     stochastic = {Condition.RANDOM} | ({Condition.SPEECH_DRIVEN} if head_model is not None
                                        and is_stochastic(head_model) else set())
     head_blocks: dict[str, dict] = {}
-    control = empty_head_metrics()
-    if truth_head is not None:
+    brow_blocks: dict[str, dict] = {}
+    control, brow_control = empty_head_metrics(), empty_brow_metrics()
+    if truth_head is not None or truth_brow is not None:
         for condition, stream in streams.items():
             runs = [stream] + ([finished(condition, make(condition, seed + k)) for k in range(1, seeds)]
                                if condition in stochastic else [])
-            head_blocks[condition.value] = _average_head(
-                [head_metrics(head_matrix(run), truth_head, fps=features.fps) for run in runs])
+            head_blocks[condition.value], brow_blocks[condition.value] = _measure(runs, truth_head, truth_brow,
+                                                                                  fps=features.fps)
         if Condition.SPEECH_DRIVEN in streams:
             run_seeds = range(seed, seed + seeds) if Condition.SPEECH_DRIVEN in stochastic else [seed]
-            control = _average_head([
-                head_metrics(head_matrix(finished(Condition.SPEECH_DRIVEN,
-                                                  make(Condition.SPEECH_DRIVEN, run_seed,
-                                                       shifted_features(features, offset)))),
-                             truth_head, fps=features.fps)
-                for run_seed in run_seeds for offset in shift_offsets(features.n_frames, fps=features.fps)])
+            runs = [finished(Condition.SPEECH_DRIVEN,
+                             make(Condition.SPEECH_DRIVEN, run_seed, shifted_features(features, offset)))
+                    for run_seed in run_seeds for offset in shift_offsets(features.n_frames, fps=features.fps)]
+            control, brow_control = _measure(runs, truth_head, truth_brow, fps=features.fps)
     metrics = {
         "version": METRICS_VERSION,
         "source": str(audio),
@@ -242,8 +291,10 @@ def compare(
         "fps": features.fps,
         "duration_s": features.duration_s,
         "normalized": bool(normalize),
-        "eyebrow_threshold_hz": eyebrows.f0_threshold_hz,
-        "energy_threshold_db": eyebrows.energy_threshold_db,
+        "eyebrow_rule": eyebrows.rule,
+        # infinite where the recording has no voice to set them by: null in JSON
+        "eyebrow_threshold_hz": eyebrows.f0_threshold_hz if np.isfinite(eyebrows.f0_threshold_hz) else None,
+        "energy_threshold_db": eyebrows.energy_threshold_db if np.isfinite(eyebrows.energy_threshold_db) else None,
         "eyebrow_events": [list(event) for event in eyebrows.events],
         "seed": seed,
         "seeds": seeds,
@@ -255,7 +306,8 @@ def compare(
     }
     for name, block in metrics["conditions"].items():
         block["head"] = head_blocks.get(name, empty_head_metrics())
-    metrics["controls"] = {"mismatched_audio": control}
+        block["brows"] = brow_blocks.get(name, empty_brow_metrics())
+    metrics["controls"] = {"mismatched_audio": control, "mismatched_audio_brows": brow_control}
     return Comparison(str(audio), features, eyebrows, streams, metrics)
 
 

@@ -10,7 +10,7 @@ import numpy as np
 from audio_features import Features
 
 from .errors import ConfigError, GroundTruthError
-from .eyebrows import EyebrowRaises, EyebrowRule, eyebrow_raises
+from .eyebrows import BrowRule, EyebrowRaises, brow_raises, warn_if_no_raise
 from .fap_table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
 from .head_models import HeadModel, resolve_head_model
 from .perlin import PerlinSettings, perlin_curves
@@ -55,7 +55,7 @@ def condition_stream(
     seed: int = 0,
     model: HeadModel | None = None,
     ground_truth: FapStream | None = None,
-    eyebrow_rule: EyebrowRule | None = None,
+    eyebrow_rule: BrowRule | None = None,
     eyebrows: EyebrowRaises | None = None,
     perlin: PerlinSettings | None = None,
     name: str = "prosody",
@@ -75,8 +75,10 @@ def condition_stream(
     ground_truth : FapStream, optional
         Recorded motion on the features' grid (required for GROUND_TRUTH); see
         :func:`prosody.ground_truth.fit_to_grid`.
-    eyebrow_rule, perlin : optional
-        Parameters of the eyebrow rule and of the noise.
+    eyebrow_rule : AccentRule or EyebrowRule, optional
+        The speech-driven brows' rule: the accent rule (default) or the thesis's rule.
+    perlin : PerlinSettings, optional
+        Parameters of the noise.
     eyebrows : EyebrowRaises, optional
         The rule's result when the caller already has it (SPEECH_DRIVEN; ``eyebrow_rule`` is then unused).
     """
@@ -88,7 +90,10 @@ def condition_stream(
                                      n_frames=n)
     if condition is Condition.SPEECH_DRIVEN:
         model = resolve_head_model(model)
-        curves = (eyebrows or eyebrow_raises(features, eyebrow_rule)).curves()
+        if eyebrows is None:
+            eyebrows = brow_raises(features, eyebrow_rule)
+            warn_if_no_raise(eyebrows)
+        curves = eyebrows.curves()
         curves.update(model.generate(features, seed=seed))
         return FapStream.from_curves(curves, fps=fps, name=name, n_frames=n)
     if ground_truth is None:

@@ -1,7 +1,19 @@
-"""The eyebrow rule of SPEC section 3: raise on a rising F0 crossing, hold, release when the voice fades."""
+"""Eyebrow raises from the voice.
+
+Two rules:
+
+- :class:`AccentRule` (the default): raise on a pitch accent, judged against the speaker's own voice. A raise
+  starts where the voice, at speaking loudness, goes 4 semitones above the speaker's median F0; it lasts at
+  least 300 ms and ends when the pitch falls back (1 semitone of hysteresis) or the voice stops, at most
+  1.2 s later. Octave errors are filtered out (a 5-frame median over voiced frames) and only voiced frames
+  count, so a spline bridge in a pause never raises the brows. It fires on any voice and any recording level.
+- :class:`EyebrowRule` (the thesis's rule, kept exactly): raise on a rising crossing of the conditioned F0
+  through 207 Hz, hold at least 300 ms and then while the energy stays at or above 45 dB.
+"""
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -9,6 +21,32 @@ import numpy as np
 from audio_features import Features
 
 from .errors import ConfigError
+
+
+class NoRaiseWarning(UserWarning):
+    """The eyebrow rule raised the brows nowhere in a recording; the message says which setting changes that."""
+
+
+def no_raise_message(raises: EyebrowRaises) -> str | None:
+    """One line saying why a recording got no raise and what changes it; None if it has raises."""
+    if raises.events:
+        return None
+    if not np.isfinite(raises.f0_threshold_hz):
+        return "no eyebrow raise: the recording has no voiced speech to raise them on"
+    if raises.rule == "accent":
+        return (f"no eyebrow raise: the voice never went above {raises.f0_threshold_hz:.0f} Hz (the accent "
+                "threshold) at speaking loudness; a lower threshold raises more often (AccentRule "
+                "threshold_semitones, --accent-semitones on the command line; default 4)")
+    return (f"no eyebrow raise: the pitch never rose through {raises.f0_threshold_hz:.0f} Hz (the thesis's rule "
+            "suits voices that reach it); the accent rule follows any voice (--brows accent), or set a "
+            "speaker-relative threshold (EyebrowRule threshold_semitones, --eyebrow-semitones)")
+
+
+def warn_if_no_raise(raises: EyebrowRaises) -> None:
+    """Issue a :class:`NoRaiseWarning` when the rule raised the brows nowhere."""
+    message = no_raise_message(raises)
+    if message is not None:
+        warnings.warn(message, NoRaiseWarning, stacklevel=3)
 
 
 @dataclass(frozen=True)
@@ -88,6 +126,15 @@ class EyebrowRaises:
     events: tuple[tuple[int, int], ...]
     f0_threshold_hz: float
     energy_threshold_db: float
+    rule: str = "thesis"
+
+    def describe(self) -> str:
+        """One line saying what the rule did, for reports."""
+        if self.rule == "accent":
+            return (f"accent rule: raise where the voice goes above {self.f0_threshold_hz:.0f} Hz at "
+                    f">= {self.energy_threshold_db:.0f} dB; {len(self.events)} raise(s)")
+        return (f"thesis rule: raise above {self.f0_threshold_hz:.0f} Hz, hold while energy >= "
+                f"{self.energy_threshold_db:.0f} dB; {len(self.events)} raise(s)")
 
     def curves(self) -> dict[int, np.ndarray]:
         """FAP 31 = 32 (inner) and 33 = 34 (middle): both sides and both points move together."""
@@ -156,3 +203,133 @@ def eyebrow_raises(features: Features, rule: EyebrowRule | None = None) -> Eyebr
     if raised:
         events.append((onset, n))
     return EyebrowRaises(out, tuple(events), threshold_hz, threshold_db)
+
+
+@dataclass(frozen=True)
+class AccentRule:
+    """Parameters of the accent rule (the default eyebrows); see the module docstring.
+
+    Parameters
+    ----------
+    threshold_semitones : float in [0, 24], in semitones
+        Pitch above the speaker's median voiced F0 that raises the brows (4 semitones: a clear accent).
+    hysteresis_semitones : float in [0, 12]
+        The raise ends once the pitch falls this far below the threshold (after the minimum hold).
+    loudness_db : float in [-60, 0], in dB
+        Only frames at least this loud relative to the speaker's median voiced energy can raise.
+    min_hold_s, max_hold_s : float, in s
+        Shortest and longest raise (0.3 s, as the thesis; 1.2 s).
+    ramp_frames : int >= 1
+        Frames of the rise at the start and of the return to neutral at the end.
+    base_ens : float >= 0, in ENS
+        Raise at the threshold...
+    gain_ens_per_semitone : float >= 0
+        ... plus this much per semitone by which the accent's peak exceeds it ...
+    max_ens : float > 0, in ENS
+        ... capped here (the thesis's recorded subjects: inner-brow spreads of 5 to 17 ENS).
+    """
+
+    threshold_semitones: float = 4.0
+    hysteresis_semitones: float = 1.0
+    loudness_db: float = -10.0
+    min_hold_s: float = 0.3
+    max_hold_s: float = 1.2
+    ramp_frames: int = 3
+    base_ens: float = 12.0
+    gain_ens_per_semitone: float = 3.0
+    max_ens: float = 30.0
+
+    def __post_init__(self) -> None:
+        checks = (("threshold_semitones", 0.0, 24.0), ("hysteresis_semitones", 0.0, 12.0),
+                  ("loudness_db", -60.0, 0.0), ("min_hold_s", 0.0, 10.0), ("max_hold_s", 0.0, 60.0),
+                  ("base_ens", 0.0, 1000.0), ("gain_ens_per_semitone", 0.0, 1000.0), ("max_ens", 1e-9, 1000.0))
+        for name, low, high in checks:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
+                raise ConfigError(f"{name} must be a number in [{low:g}, {high:g}], got {value!r}")
+        if self.max_hold_s < self.min_hold_s:
+            raise ConfigError(f"max_hold_s ({self.max_hold_s!r}) must be >= min_hold_s ({self.min_hold_s!r})")
+        if not (isinstance(self.ramp_frames, int) and not isinstance(self.ramp_frames, bool) and self.ramp_frames >= 1):
+            raise ConfigError(f"ramp_frames must be a whole number >= 1, got {self.ramp_frames!r}")
+
+
+#: Voiced frames below which a recording has no voice to judge accents against.
+_MIN_VOICED_FRAMES = 15
+
+
+def accent_raises(features: Features, rule: AccentRule | None = None) -> EyebrowRaises:
+    """Apply the accent rule to a recording's features.
+
+    Returns
+    -------
+    EyebrowRaises
+        ``f0_threshold_hz`` is the speaker's threshold (median voiced F0 raised by the rule's semitones) and
+        ``energy_threshold_db`` the loudness a raise needs; both are infinite for a recording without voice.
+
+    Examples
+    --------
+    A 150 Hz voice that rises to 250 Hz (8.8 semitones above its median, 150 Hz) from 1.0 to 1.5 s raises the
+    brows once: from frame 31 (the first whose 40 ms pitch window lies mostly past the jump at frame 30) to
+    frame 45 (1.5 s), then ramps down over 3 frames:
+
+    >>> import numpy as np
+    >>> from audio_features import Audio, extract_features
+    >>> t = np.arange(32000) / 16000
+    >>> f0 = np.where((t >= 1.0) & (t < 1.5), 250.0, 150.0)
+    >>> tone = 0.5 * np.sin(2 * np.pi * np.cumsum(f0) / 16000)
+    >>> accent_raises(extract_features(Audio(tone, 16000))).events
+    ((31, 45),)
+    """
+    from scipy.ndimage import median_filter
+
+    rule = rule or AccentRule()
+    n = features.n_frames
+    out = np.zeros(n)
+    voiced = features.f0.voiced
+    if voiced.sum() < _MIN_VOICED_FRAMES:
+        return EyebrowRaises(out, (), float("inf"), float("inf"), rule="accent")
+    f0 = features.f0.values
+    median_hz = float(np.median(f0[voiced]))
+    semitones = np.full(n, -np.inf)
+    voiced_index = np.flatnonzero(voiced)
+    # an octave error is one or two frames: a 5-frame median over the voiced frames removes it
+    semitones[voiced_index] = median_filter(12 * np.log2(f0[voiced_index] / median_hz), size=5, mode="nearest")
+    energy = features.energy.values
+    level_db = float(np.median(energy[voiced])) + rule.loudness_db
+    accented = voiced & (energy >= level_db) & (semitones >= rule.threshold_semitones)
+    onsets = accented & ~np.concatenate([[False], accented[:-1]])
+    shortest = int(round(rule.min_hold_s * features.fps))
+    longest = max(shortest, int(round(rule.max_hold_s * features.fps)))
+    release_below = rule.threshold_semitones - rule.hysteresis_semitones
+    events: list[tuple[int, int]] = []
+    k = 0
+    while k < n:
+        if not onsets[k]:
+            k += 1
+            continue
+        start, peak, end = k, semitones[k], k + 1
+        while end < n and end - start < longest:
+            if end - start >= shortest and not (voiced[end] and semitones[end] >= release_below):
+                break
+            peak = max(peak, semitones[end])
+            end += 1
+        height = min(rule.max_ens, rule.base_ens + rule.gain_ens_per_semitone * (peak - rule.threshold_semitones))
+        ramp = rule.ramp_frames
+        rise = np.minimum(1.0, (np.arange(end - start) + 1) / ramp)
+        out[start:end] = np.maximum(out[start:end], height * rise)
+        fall = height * (1 - np.arange(1, ramp + 1) / ramp)[: max(0, n - end)]
+        out[end:end + fall.size] = np.maximum(out[end:end + fall.size], fall)
+        events.append((start, end))
+        k = end
+    threshold_hz = median_hz * 2 ** (rule.threshold_semitones / 12)
+    return EyebrowRaises(out, tuple(events), threshold_hz, level_db, rule="accent")
+
+
+BrowRule = EyebrowRule | AccentRule
+
+
+def brow_raises(features: Features, rule: BrowRule | None = None) -> EyebrowRaises:
+    """The raises of either rule; the accent rule (the default) when ``rule`` is None."""
+    if isinstance(rule, EyebrowRule):
+        return eyebrow_raises(features, rule)
+    return accent_raises(features, rule)

@@ -66,13 +66,92 @@ def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -
     return FapStream.from_curves(curves, fps=HEAD_CSV_FPS, name=Path(name).name.removesuffix(".head.csv"))
 
 
+#: Columns of the ``<clip>.brows.csv`` convention used as recorded brows.
+BROWS_CSV_HEIGHTS = ("inner_height_l", "inner_height_r", "outer_height_l", "outer_height_r")
+#: ENS units per unit of the brows.csv heights (brow-to-eye-corner distance over the outer eye-corner
+#: distance): the eye-nose separation ENS0 is about half the outer eye-corner distance in adults (about 4.5
+#: and 9 cm), so one eye-corner distance is about 2 ENS0 = 2048 ENS units.
+ENS_PER_EYE_WIDTH = 2048.0
+
+
+def read_brows_csv(path: str | os.PathLike[str]) -> FapStream:
+    """Read a ``<clip>.brows.csv`` (video-tracked brow heights) as FAP 31-34 in ENS units.
+
+    FAP 31 / 32 (inner brow, the speaker's own left / right) are ``inner_height_l`` / ``_r``; FAP 33 / 34
+    (middle) the mean of the inner and outer height of that side. Each is taken relative to its median
+    (the resting brow) and scaled by :data:`ENS_PER_EYE_WIDTH`. Frames where the face was not found (empty
+    cells) are filled by linear interpolation between their neighbours.
+
+    Raises
+    ------
+    GroundTruthError
+        Missing file or columns, frames not numbered 0, 1, 2, ..., non-numeric cells, or no face found at all.
+    """
+    name = str(path)
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            rows = list(csv.reader(handle))
+    except FileNotFoundError:
+        raise GroundTruthError(f"{name}: no such file") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as error:
+        raise GroundTruthError(f"{name}: cannot be read as CSV ({error})") from None
+    header = [cell.strip() for cell in rows[0]] if rows else []
+    missing = [column for column in ("frame", *BROWS_CSV_HEIGHTS) if column not in header]
+    if missing:
+        raise GroundTruthError(f"{name}, line 1: missing column(s) {', '.join(missing)}")
+    index = {column: header.index(column) for column in ("frame", *BROWS_CSV_HEIGHTS)}
+    data = np.full((len(rows) - 1, len(BROWS_CSV_HEIGHTS)), np.nan)
+    for line, row in enumerate(rows[1:], start=2):
+        try:
+            if len(row) != len(header):
+                raise ValueError(f"{len(row)} columns, expected {len(header)}")
+            if float(row[index["frame"]]) != line - 2:
+                raise GroundTruthError(f"{name}, line {line}: frames must be numbered 0, 1, 2, ... in order")
+            for column, key in enumerate(BROWS_CSV_HEIGHTS):
+                cell = row[index[key]].strip()
+                if cell:
+                    data[line - 2, column] = float(cell)
+        except ValueError as error:
+            raise GroundTruthError(f"{name}, line {line}: expected numbers or empty cells ({error})") from None
+    if data.shape[0] == 0 or not np.isfinite(data).any(axis=1).any():
+        raise GroundTruthError(f"{name}: no frame with a tracked face")
+    frames = np.arange(data.shape[0])
+    for column in range(data.shape[1]):
+        known = np.isfinite(data[:, column])
+        if not known.any():
+            raise GroundTruthError(f"{name}: column {BROWS_CSV_HEIGHTS[column]} is empty")
+        data[:, column] = np.interp(frames, frames[known], data[known, column])
+    heights = (data - np.median(data, axis=0)) * ENS_PER_EYE_WIDTH
+    inner_l, inner_r, outer_l, outer_r = heights.T
+    curves = {31: inner_l, 32: inner_r, 33: (inner_l + outer_l) / 2, 34: (inner_r + outer_r) / 2}
+    return FapStream.from_curves(curves, fps=HEAD_CSV_FPS, name=Path(name).name.removesuffix(".brows.csv"))
+
+
+def brows_beside(path: str | os.PathLike[str]) -> Path | None:
+    """The ``<clip>.brows.csv`` beside a ``<clip>.head.csv``, if there is one."""
+    name = str(path)
+    if not name.endswith(".head.csv"):
+        return None
+    candidate = Path(name.removesuffix(".head.csv") + ".brows.csv")
+    return candidate if candidate.is_file() else None
+
+
 def read_motion(path: str | os.PathLike[str]) -> FapStream:
-    """Recorded prosody motion from a ``.head.csv`` or a ``.fap`` file (other FAPs dropped)."""
+    """Recorded prosody motion from a ``.head.csv`` (with the ``.brows.csv`` beside it, if any) or a
+    ``.fap`` file (other FAPs dropped)."""
     from .fapfile import read_fap
 
     name = str(path)
     if name.endswith(".csv"):
-        return read_head_csv(path)
+        head = read_head_csv(path)
+        brows = brows_beside(path)
+        if brows is None:
+            return head
+        recorded = read_brows_csv(brows)
+        if abs(recorded.n_frames - head.n_frames) > MAX_LENGTH_MISMATCH_FRAMES:
+            raise GroundTruthError(f"{brows}: {recorded.n_frames} frames, but {name} has {head.n_frames}")
+        recorded = fit_to_grid(recorded, n_frames=head.n_frames, fps=head.fps, source=str(brows))
+        return head.merged_over(recorded)
     if name.lower().endswith(".fap"):
         return read_fap(path).stream.select(PROSODY_FAPS)
     raise GroundTruthError(f"{name}: ground truth must be a .head.csv or a .fap file")

@@ -267,3 +267,94 @@ def head_metrics(generated_au: np.ndarray, recorded_au: np.ndarray, *, fps: floa
         "yaw_r": pearson(generated[:, 1], recorded[:, 1]),
         "roll_r": pearson(generated[:, 2], recorded[:, 2]),
     }
+
+
+# Eyebrow measures against recorded brow motion ---------------------------------------------------------
+#: Recorded brow height above its running baseline that counts as a raise, in units of the recording's
+#: robust spread (median absolute deviation x 1.4826), with a floor in ENS.
+BROW_EVENT_SPREADS = 1.0
+BROW_EVENT_FLOOR_ENS = 3.0
+#: Shortest recorded raise (s); running-baseline window (s); onset matching tolerance (s).
+BROW_EVENT_MIN_S = 0.15
+BROW_BASELINE_S = 3.0
+ONSET_TOLERANCE_S = 0.3
+
+
+def _runs(active: np.ndarray) -> list[tuple[int, int]]:
+    """``(start, stop)`` of each run of True (stop exclusive)."""
+    edges = np.diff(np.concatenate([[0], active.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(), strict=True))
+
+
+def brow_events(brow_ens: np.ndarray, *, fps: float) -> list[tuple[int, int]]:
+    """Raises in a recorded brow curve: runs of at least 150 ms where the 4 Hz low-passed height stands
+    above its running median (3 s) by more than one robust spread (and at least 3 ENS).
+
+    Returns
+    -------
+    list of (onset_frame, end_frame)
+    """
+    from scipy.ndimage import median_filter
+
+    curve = lowpass_head(np.asarray(brow_ens, float), fps=fps)
+    if curve.size == 0:
+        return []
+    baseline = median_filter(curve, size=max(1, int(round(BROW_BASELINE_S * fps))), mode="nearest")
+    excess = curve - baseline
+    spread = 1.4826 * float(np.median(np.abs(excess - np.median(excess))))
+    threshold = max(BROW_EVENT_SPREADS * spread, BROW_EVENT_FLOOR_ENS)
+    shortest = max(1, int(round(BROW_EVENT_MIN_S * fps)))
+    return [(a, b) for a, b in _runs(excess > threshold) if b - a >= shortest]
+
+
+def generated_brow_events(brow_ens: np.ndarray) -> list[tuple[int, int]]:
+    """Raises of a generated brow curve: the runs where it is above zero (its rest)."""
+    return _runs(np.asarray(brow_ens, float) > 1e-9)
+
+
+def onset_agreement(generated: list[tuple[int, int]], recorded: list[tuple[int, int]], *, fps: float) -> dict:
+    """How well raise onsets match: precision (generated onsets within 0.3 s of a recorded one), recall
+    (recorded onsets within 0.3 s of a generated one) and their F1; None where a side has no raise."""
+    tolerance = ONSET_TOLERANCE_S * fps
+    if not generated or not recorded:
+        return {"precision": None, "recall": None, "f1": None}
+    ours = np.array([a for a, _ in generated], float)
+    theirs = np.array([a for a, _ in recorded], float)
+    precision = float(np.mean([np.min(np.abs(theirs - a)) <= tolerance for a in ours]))
+    recall = float(np.mean([np.min(np.abs(ours - a)) <= tolerance for a in theirs]))
+    f1 = 2 * precision * recall / (precision + recall) if precision + recall > 0 else 0.0
+    return {"precision": precision, "recall": recall, "f1": f1}
+
+
+def brow_metrics(generated_ens: np.ndarray, recorded_ens: np.ndarray, *, fps: float) -> dict:
+    """Eyebrow measures of a generated inner-brow curve (FAP 31, ENS) against a recorded one.
+
+    Raises of a curve that never goes below 0 are its runs above 0 (generated brows rest at 0); those of a
+    curve that does (recorded brows, about their median) are found as in the recording (:func:`brow_events`).
+
+    Returns
+    -------
+    dict
+        ``{"raise_r"}``: Pearson r of the generated raise with the 4 Hz low-passed recorded height;
+        ``"onsets": {"precision", "recall", "f1"}`` (see :func:`onset_agreement`); ``"raises"`` and
+        ``"recorded_raises"``: counts; ``"median_raise_s"`` and ``"recorded_median_raise_s"``: durations.
+        None where undefined.
+    """
+    generated = np.asarray(generated_ens, float)
+    recorded = np.asarray(recorded_ens, float)
+    # a generated raise rests at 0; a curve that goes below it is recorded motion, read as the recording is
+    recorded_like = generated.size > 0 and generated.min() < 0
+    ours = brow_events(generated, fps=fps) if recorded_like else generated_brow_events(generated)
+    theirs = brow_events(recorded, fps=fps)
+
+    def median_s(events: list[tuple[int, int]]) -> float | None:
+        return float(np.median([b - a for a, b in events]) / fps) if events else None
+
+    return {
+        "raise_r": pearson(generated, lowpass_head(recorded, fps=fps)) if recorded.size else None,
+        "onsets": onset_agreement(ours, theirs, fps=fps),
+        "raises": len(ours),
+        "recorded_raises": len(theirs),
+        "median_raise_s": median_s(ours),
+        "recorded_median_raise_s": median_s(theirs),
+    }

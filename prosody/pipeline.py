@@ -10,7 +10,7 @@ from audio_features import Features, extract_features
 
 from .conditions import Condition, condition_stream
 from .errors import ConfigError
-from .eyebrows import EyebrowRule
+from .eyebrows import BrowRule
 from .fapfile import read_fap
 from .ground_truth import fit_to_grid, read_motion
 from .head_models import HeadModel, resolve_head_model, rest_pose
@@ -52,7 +52,7 @@ def convert(
     fps: float = 30.0,
     f0_floor_hz: float = 75.0,
     f0_ceiling_hz: float = 500.0,
-    eyebrow_rule: EyebrowRule | None = None,
+    eyebrow_rule: BrowRule | None = None,
     perlin: PerlinSettings | None = None,
     output_format: str | None = None,
     gains: Mapping[str, float] | None = None,

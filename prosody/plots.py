@@ -57,13 +57,17 @@ def plot_features(comparison: Comparison, path: str | os.PathLike[str]) -> None:
         f0_axis.plot(times, features.f0_conditioned.values, color="tab:blue", linewidth=1.2,
                      label="conditioned F0")
         f0_axis.plot(times, features.f0.values, ".", color="black", markersize=2.5, label="Praat F0 (voiced)")
-        f0_axis.axhline(comparison.eyebrows.f0_threshold_hz, color="tab:red", linestyle="--", linewidth=1,
-                        label=f"raise threshold {comparison.eyebrows.f0_threshold_hz:.0f} Hz")
+        raises = comparison.eyebrows
+        if np.isfinite(raises.f0_threshold_hz):
+            f0_axis.axhline(raises.f0_threshold_hz, color="tab:red", linestyle="--", linewidth=1,
+                            label=f"raise threshold {raises.f0_threshold_hz:.0f} Hz")
         f0_axis.set_ylabel("F0 (Hz)")
         f0_axis.legend(loc="upper right", fontsize=8)
         energy_axis.plot(times, features.energy.values, color="tab:purple", linewidth=1)
-        energy_axis.axhline(comparison.eyebrows.energy_threshold_db, color="tab:red", linestyle="--",
-                            linewidth=1, label=f"hold threshold {comparison.eyebrows.energy_threshold_db:.0f} dB")
+        if np.isfinite(raises.energy_threshold_db):
+            what = "loudness a raise needs" if raises.rule == "accent" else "hold threshold"
+            energy_axis.axhline(raises.energy_threshold_db, color="tab:red", linestyle="--",
+                                linewidth=1, label=f"{what} {raises.energy_threshold_db:.0f} dB")
         energy_axis.set_ylabel("energy (dB)")
         energy_axis.legend(loc="upper right", fontsize=8)
         for condition, stream in comparison.streams.items():

@@ -30,6 +30,19 @@ def _unit(fap: int) -> str:
     return "AU" if BY_NUMBER[fap].fapu == "AU" else BY_NUMBER[fap].fapu
 
 
+def _brow_rule_line(metrics: Mapping) -> str:
+    events = len(metrics["eyebrow_events"])
+    threshold, energy = metrics.get("eyebrow_threshold_hz"), metrics.get("energy_threshold_db")
+    rule = metrics.get("eyebrow_rule", "thesis")
+    if threshold is None or energy is None:
+        return f"eyebrows ({rule} rule): no voice to judge raises by; {events} raise(s)"
+    if rule == "accent":
+        return (f"eyebrows (accent rule): raise where the voice goes above {threshold:.0f} Hz at >= "
+                f"{energy:.0f} dB; {events} raise(s)")
+    return (f"eyebrows (thesis rule): raise above {threshold:.0f} Hz, hold while energy >= {energy:.0f} dB; "
+            f"{events} raise(s)")
+
+
 def comparison_markdown(comparison: Comparison, *, figures: Mapping[str, str] | None = None) -> str:
     """The report of one recording: statistics, agreement with ground truth, CCA, eyebrow raises, figures."""
     metrics = comparison.metrics
@@ -44,10 +57,10 @@ def comparison_markdown(comparison: Comparison, *, figures: Mapping[str, str] | 
         + ("on" if metrics["normalized"] else "off"),
         *(["- note: the head model was trained on this recording, so its agreement here is not a held-out "
            "figure"] if metrics.get("model_trained_on_this_recording") else []),
-        f"- eyebrow rule: raise above {metrics['eyebrow_threshold_hz']:.0f} Hz, hold while energy >= "
-        f"{metrics['energy_threshold_db']:.0f} dB; {len(metrics['eyebrow_events'])} raise(s)",
+        f"- {_brow_rule_line(metrics)}",
     ]
     lines += _head_section(metrics)
+    lines += _brow_section(metrics)
     lines += [
         "",
         "## Motion statistics (mean ± standard deviation, FAP units)",
@@ -86,7 +99,8 @@ def comparison_markdown(comparison: Comparison, *, figures: Mapping[str, str] | 
                     [[name, _number(cca["head_vs_ground_truth"].get(name), 3),
                       _number(cca["audio_vs_head"].get(name), 3)] for name in conditions])
     if metrics["eyebrow_events"]:
-        lines += ["", "## Eyebrow raises (SPEECH_DRIVEN)", ""]
+        lines += ["", "## Eyebrow raises (SPEECH_DRIVEN)", "", "Each raise's onset and the frame its return to "
+                  "neutral starts.", ""]
         lines += _table(["raise", "onset (s)", "release (s)"],
                         [[str(i + 1), f"{onset / fps:.2f}", f"{release / fps:.2f}"]
                          for i, (onset, release) in enumerate(metrics["eyebrow_events"])])
@@ -138,6 +152,37 @@ def _head_section(metrics: Mapping) -> list[str]:
             lines += ["", f"Rise of SPEECH_DRIVEN above the control: {', '.join(rises)}."]
     else:
         lines += _table(HEAD_HEADER, rows)
+    return lines
+
+
+def _brow_row(name: str, brows: Mapping | None) -> list[str]:
+    brows = brows or {}
+    onsets = brows.get("onsets") or {}
+    return [name, _number(brows.get("raise_r"), 3), _number(onsets.get("f1"), 2), _number(onsets.get("precision"), 2),
+            _number(onsets.get("recall"), 2), _number(brows.get("raises"), 1),
+            _number(brows.get("median_raise_s"), 2)]
+
+
+def _brow_section(metrics: Mapping) -> list[str]:
+    """Eyebrows of each condition against recorded brow motion, with the control."""
+    conditions = metrics["conditions"]
+    recorded = [(block.get("brows") or {}).get("recorded_raises") for block in conditions.values()]
+    if all(value is None for value in recorded):
+        return []
+    first = next(block["brows"] for block in conditions.values() if block["brows"].get("recorded_raises") is not None)
+    lines = ["", "## Eyebrows against the recording", "",
+             "Raise r: Pearson r of the inner-brow raise with the recorded brow height (4 Hz low-passed). Onsets: "
+             "a raise onset within 0.3 s of a recorded one counts (precision: share of the condition's onsets "
+             "matched; recall: share of the recorded ones). The recording has "
+             f"{_number(first.get('recorded_raises'), 0)} raise(s) with a median length of "
+             f"{_number(first.get('recorded_median_raise_s'), 2)} s. The recorded brows are tracked from video: "
+             "a noisy reference.", ""]
+    rows = [_brow_row(name, block.get("brows")) for name, block in conditions.items()]
+    control = (metrics.get("controls") or {}).get("mismatched_audio_brows")
+    if control and control.get("recorded_raises") is not None:
+        rows.append(_brow_row("SPEECH_DRIVEN with mismatched audio (control)", control))
+    lines += _table(["condition", "raise r", "onset F1", "precision", "recall", "raises", "median length (s)"],
+                    rows)
     return lines
 
 

@@ -77,11 +77,16 @@ def test_no_prosody_is_all_zero_and_active() -> None:
 
 def test_speech_driven_combines_the_rule_and_the_model() -> None:
     f0 = np.full(90, 150.0)
-    f0[30:] = 250.0
+    f0[60:75] = 250.0  # an accent 8.8 semitones above the speaker's median, for 0.5 s
     features = make_features(f0, np.full(90, 60.0))
     stream = condition_stream(Condition.SPEECH_DRIVEN, features)
     assert stream.active_faps == (31, 32, 33, 34, 48, 49, 50)
-    assert np.all(stream.curve(31)[:30] == 0) and np.all(stream.curve(31)[30:] > 0)
+    brow = stream.curve(31)
+    assert np.all(brow[:60] == 0) and np.all(brow[60:75] > 0) and np.all(brow[78:] == 0)
+    # rise over 3 frames to 12 + 3 x (8.84 - 4) ENS, hold, fall over 3 frames
+    height = 12 + 3 * (12 * np.log2(250 / 150) - 4)
+    np.testing.assert_allclose(brow[60:63], height * np.array([1, 2, 3]) / 3)
+    np.testing.assert_allclose(brow[75:78], height * np.array([2, 1, 0]) / 3, atol=1e-12)
     assert np.all(np.isfinite(stream.curves((48, 49, 50))))
     assert np.abs(stream.curves((48, 49, 50))).max() > 0
 
