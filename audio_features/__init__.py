@@ -6,7 +6,7 @@ imports :mod:`prosody`.
 
 from .audio import AUDIO_EXTENSIONS, Audio, load_audio
 from .errors import AudioFeaturesError, AudioLoadError, NoVoicedFramesWarning, ParameterError
-from .features import CSV_COLUMNS, Features, condition_f0, extract_features
+from .features import CSV_COLUMNS, Features, condition_f0, extract_features, read_features_csv
 from .tracks import F0Track, Track, frame_count
 
 __all__ = [
@@ -24,4 +24,5 @@ __all__ = [
     "extract_features",
     "frame_count",
     "load_audio",
+    "read_features_csv",
 ]

@@ -80,6 +80,49 @@ class Features:
                 )
 
 
+def read_features_csv(path: str | os.PathLike[str], *, fps: float) -> Features:
+    """Read features written by :meth:`Features.write_csv` back (values as written: 3 decimals).
+
+    Parameters
+    ----------
+    path : path
+        CSV with the columns of :data:`CSV_COLUMNS`.
+    fps : float > 0
+        Frame rate the file was written at (row k is at k / fps s; checked against ``time_s``).
+
+    Raises
+    ------
+    AudioLoadError
+        Missing file, other columns, rows out of order or malformed numbers.
+    """
+    name = str(path)
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            rows = list(csv.reader(handle))
+    except FileNotFoundError:
+        raise AudioLoadError(f"{name}: no such file") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as error:
+        raise AudioLoadError(f"{name}: cannot be read as a features CSV ({error})") from None
+    if not rows or tuple(rows[0]) != CSV_COLUMNS:
+        raise AudioLoadError(f"{name}, line 1: expected the header {','.join(CSV_COLUMNS)}")
+    n = len(rows) - 1
+    f0, conditioned, energy = np.full(n, np.nan), np.zeros(n), np.zeros(n)
+    for k, row in enumerate(rows[1:]):
+        try:
+            if len(row) != len(CSV_COLUMNS) or int(row[0]) != k or abs(float(row[1]) - k / fps) > 1e-5:
+                raise ValueError("frame number or time out of order")
+            if row[2]:
+                f0[k] = float(row[2])
+            conditioned[k], energy[k] = float(row[3]), float(row[4])
+        except ValueError as error:
+            raise AudioLoadError(f"{name}, line {k + 2}: {error}") from None
+    if not (np.all(np.isfinite(conditioned)) and np.all(np.isfinite(energy))
+            and np.all(np.isfinite(f0) | np.isnan(f0))):
+        raise AudioLoadError(f"{name}: values must be finite")
+    return Features(F0Track(f0, fps, "Hz", "f0", ~np.isnan(f0)), Track(conditioned, fps, "Hz", "f0_conditioned"),
+                    Track(energy, fps, "dB", "energy"), n / fps, name)
+
+
 def natural_cubic_spline(x: np.ndarray, y: np.ndarray, at: np.ndarray) -> np.ndarray:
     """The natural cubic spline through ``(x, y)`` (zero second derivative at both ends), evaluated ``at``.
 

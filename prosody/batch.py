@@ -30,6 +30,12 @@ from .fap_table import PROSODY_FAPS
 
 #: Ground-truth file endings looked up beside an audio file's stem, in order of preference.
 GROUND_TRUTH_SUFFIXES = (".head.csv", ".fap")
+#: Each output folder's features (the ``prosody features`` CSV), read back for the cross-recording control.
+FEATURES_FILE = "features.csv"
+#: Other recordings whose audio drives the generator in the cross-recording control, per recording.
+OTHER_RECORDINGS = 5
+#: Bootstrap resamples of the 95% intervals in the summary.
+BOOTSTRAP_RESAMPLES = 2000
 
 
 @dataclass(frozen=True)
@@ -44,12 +50,15 @@ class BatchOptions:
     f0_floor_hz: float = 75.0
     f0_ceiling_hz: float = 500.0
     plots: bool = False
+    seeds: int = 10
 
     def __post_init__(self) -> None:
         parsed = tuple(Condition.parse(name).value for name in self.conditions)
         if not parsed:
             raise ConfigError("choose at least one condition")
         object.__setattr__(self, "conditions", parsed)
+        if not (isinstance(self.seeds, int) and not isinstance(self.seeds, bool) and 1 <= self.seeds <= 1000):
+            raise ConfigError(f"seeds must be a whole number from 1 to 1000, got {self.seeds!r}")
 
 
 @dataclass
@@ -134,8 +143,11 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
         if not conditions:
             raise ConfigError("only GROUND_TRUTH was asked for and no ground truth was found")
         comparison = compare(audio, ground_truth=truth, model=options.model, seed=options.seed,
-                             normalize=options.normalize, conditions=conditions, fps=options.fps,
-                             f0_floor_hz=options.f0_floor_hz, f0_ceiling_hz=options.f0_ceiling_hz)
+                             seeds=options.seeds, normalize=options.normalize, conditions=conditions,
+                             fps=options.fps, f0_floor_hz=options.f0_floor_hz, f0_ceiling_hz=options.f0_ceiling_hz)
+        folder.mkdir(parents=True, exist_ok=True)
+        # the features let the summary drive the generator with this recording's audio against other ones
+        comparison.features.write_csv(folder / FEATURES_FILE)
         write_comparison(comparison, folder, plots=options.plots, report=options.plots,
                          extra={"settings": settings})
         outcome.metrics = comparison.metrics
@@ -230,10 +242,11 @@ def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,
     if not (isinstance(jobs, int) and jobs >= 1):
         raise ConfigError(f"jobs must be a whole number >= 1, got {jobs!r}")
     if options.model is not None:
-        from .head import ArxHeadModel
+        from .head_models import SHIPPED_MODELS, load_head_model
 
-        ArxHeadModel.load(options.model)  # a bad model is one error up front, not one per file
-        options = BatchOptions(**{**asdict(options), "model": str(Path(options.model).resolve())})
+        load_head_model(options.model)  # a bad model is one error up front, not one per file
+        if options.model not in SHIPPED_MODELS:
+            options = BatchOptions(**{**asdict(options), "model": str(Path(options.model).resolve())})
     files = find_audio_files(indir)
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
@@ -262,7 +275,7 @@ def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,
                 outcomes[outcome.file] = outcome
                 report(outcome)
     ordered = [outcomes[str(relative)] for relative in files]
-    summary = summarize(ordered, indir=str(indir), outdir=str(out))
+    summary = summarize(ordered, indir=str(indir), outdir=str(out), options=options)
     from .report import batch_markdown
 
     with atomic_write(out / "summary.json", newline="\n") as handle:
@@ -273,14 +286,112 @@ def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,
     return summary
 
 
-def summarize(outcomes: Iterable[FileOutcome], *, indir: str, outdir: str) -> dict:
-    """Counts, one entry per file, and per condition and FAP the mean Pearson r over files with truth."""
+def bootstrap_interval(values: Iterable[float], *, resamples: int = BOOTSTRAP_RESAMPLES,
+                       seed: int = 0) -> tuple[float, float] | None:
+    """95% percentile bootstrap interval of the mean (recordings resampled with replacement, seeded);
+    None without values.
+
+    Examples
+    --------
+    >>> bootstrap_interval([0.5, 0.5, 0.5])
+    (0.5, 0.5)
+    """
+    data = np.asarray([v for v in values if v is not None], float)
+    if data.size == 0:
+        return None
+    generator = np.random.default_rng(seed)
+    means = data[generator.integers(0, data.size, size=(resamples, data.size))].mean(axis=1)
+    low, high = np.percentile(means, [2.5, 97.5])
+    return float(low), float(high)
+
+
+def _summary_entry(values: list[float | None]) -> dict:
+    present = [v for v in values if v is not None]
+    interval = bootstrap_interval(present)
+    return {"mean": float(np.mean(present)) if present else None,
+            "ci95": list(interval) if interval is not None else None, "recordings": len(present)}
+
+
+def _measure_summary(blocks: list[dict]) -> dict:
+    """Mean over recordings with a bootstrap 95% interval of each head measure in ``blocks``."""
+    summary = {key: _summary_entry([b.get(key) for b in blocks])
+               for key in ("speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db")}
+    summary["std_ratio"] = {axis: _summary_entry([(b.get("std_ratio") or {}).get(axis) for b in blocks])
+                            for axis in ("48", "49", "50")}
+    return summary
+
+
+def _brow_summary(blocks: list[dict]) -> dict:
+    return {"raise_r": _summary_entry([b.get("raise_r") for b in blocks]),
+            "onset_f1": _summary_entry([(b.get("onsets") or {}).get("f1") for b in blocks])}
+
+
+def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions, *,
+                             others: int = OTHER_RECORDINGS) -> dict[str, dict]:
+    """The cross-recording control: for each recording with recorded head motion, the speech-driven head
+    driven by the audio of up to ``others`` other inputs (the next ones in order, trimmed or tiled to this
+    recording's length), against this recording's motion; head measures averaged over those inputs and
+    ``options.seeds`` seeds. Keyed by file."""
+    from audio_features import read_features_csv
+
+    from .compare import _average_head, empty_head_metrics
+    from .controls import fitted_features
+    from .ground_truth import fit_to_grid, read_motion
+    from .head_models import is_stochastic, resolve_head_model
+    from .metrics import head_matrix, head_metrics
+
+    usable = [o for o in outcomes if o.metrics is not None and (Path(o.output) / FEATURES_FILE).is_file()]
+    if len(usable) < 2 or Condition.SPEECH_DRIVEN.value not in options.conditions:
+        return {}
+    model = resolve_head_model(options.model)
+    seeds = range(options.seed, options.seed + (options.seeds if is_stochastic(model) else 1))
+    features = {}
+    for outcome in usable:
+        try:
+            features[outcome.file] = read_features_csv(Path(outcome.output) / FEATURES_FILE, fps=options.fps)
+        except (AudioFeaturesError, OSError):
+            continue
+    result: dict[str, dict] = {}
+    names = [o.file for o in usable if o.file in features]
+    for outcome in usable:
+        if outcome.ground_truth is None or outcome.file not in features:
+            continue
+        own = features[outcome.file]
+        try:
+            truth = fit_to_grid(read_motion(outcome.ground_truth), n_frames=own.n_frames, fps=own.fps,
+                                source=outcome.ground_truth)
+        except (ProsodyError, OSError, ValueError):
+            continue
+        if not all(truth.mask[:, fap - 1].all() for fap in (48, 49, 50)):
+            continue
+        recorded = head_matrix(truth)
+        chosen = [names[(names.index(outcome.file) + k) % len(names)] for k in range(1, len(names))][:others]
+        rows = []
+        for other in chosen:
+            driven = fitted_features(features[other], own.n_frames)
+            for seed in seeds:
+                curves = model.generate(driven, seed=seed)
+                rows.append(head_metrics(np.column_stack([curves[fap] for fap in (48, 49, 50)]), recorded,
+                                         fps=own.fps))
+        result[outcome.file] = _average_head(rows) if rows else empty_head_metrics()
+    return result
+
+
+def summarize(outcomes: Iterable[FileOutcome], *, indir: str, outdir: str,
+              options: BatchOptions | None = None) -> dict:
+    """Counts, one entry per file, and per condition the mean over recordings (with a bootstrap 95% interval)
+    of the head and brow measures, beside the mismatched-audio and cross-recording controls; the older
+    per-FAP mean Pearson r stays in ``aggregate``."""
     outcomes = list(outcomes)
+    options = options or BatchOptions()
+    cross = other_recordings_control(outcomes, options)
     entries = [{"file": o.file, "status": o.status, "output": o.output, "ground_truth": o.ground_truth,
-                "error": o.error, "seconds": round(o.seconds, 3), "metrics": _compact(o.metrics)}
+                "error": o.error, "seconds": round(o.seconds, 3), "metrics": _compact(o.metrics),
+                "other_recordings_control": cross.get(o.file)}
                for o in outcomes]
     with_truth = [o.metrics for o in outcomes if o.metrics is not None and o.ground_truth]
     aggregate: dict[str, dict] = {}
+    measures: dict[str, dict] = {}
     for condition in CONDITION_ORDER:
         name = condition.value
         present = [m for m in with_truth if name in m["conditions"]]
@@ -294,15 +405,26 @@ def summarize(outcomes: Iterable[FileOutcome], *, indir: str, outdir: str) -> di
         cca = [m["cca"]["head_vs_ground_truth"].get(name) for m in present]
         cca = [v for v in cca if v is not None]
         aggregate[name] = {"faps": faps, "cca_head_vs_ground_truth": float(np.mean(cca)) if cca else None}
+        measures[name] = {"head": _measure_summary([m["conditions"][name].get("head") or {} for m in present]),
+                          "brows": _brow_summary([m["conditions"][name].get("brows") or {} for m in present])}
+    controls = {}
+    if with_truth and any("controls" in m for m in with_truth):
+        controls["mismatched_audio"] = _measure_summary(
+            [(m.get("controls") or {}).get("mismatched_audio") or {} for m in with_truth])
+        controls["mismatched_audio_brows"] = _brow_summary(
+            [(m.get("controls") or {}).get("mismatched_audio_brows") or {} for m in with_truth])
+    if cross:
+        controls["other_recordings"] = _measure_summary(list(cross.values()))
     counts = {status: sum(o.status == status for o in outcomes) for status in ("done", "skipped", "failed")}
     counts["files"] = len(outcomes)
     counts["with_ground_truth"] = sum(o.ground_truth is not None for o in outcomes)
-    return {"input": indir, "output": outdir, "counts": counts, "files": entries, "aggregate": aggregate}
+    return {"input": indir, "output": outdir, "counts": counts, "seeds": options.seeds, "files": entries,
+            "measures": measures, "controls": controls, "aggregate": aggregate}
 
 
 def _compact(metrics: dict | None) -> dict | None:
     """The part of a file's metrics the summary keeps (statistics and CCA, not the settings)."""
     if metrics is None:
         return None
-    return {key: metrics[key] for key in ("duration_s", "frames", "conditions", "cca",
-                                                  "model_trained_on_this_recording") if key in metrics}
+    return {key: metrics[key] for key in ("duration_s", "frames", "conditions", "cca", "controls", "seeds",
+                                          "head_model", "model_trained_on_this_recording") if key in metrics}

@@ -186,6 +186,52 @@ def _brow_section(metrics: Mapping) -> list[str]:
     return lines
 
 
+def _interval(entry: Mapping | None, digits: int) -> str:
+    if not entry or entry.get("mean") is None:
+        return "–"
+    low, high = entry["ci95"]
+    return f"{entry['mean']:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
+
+
+def _batch_head_row(name: str, head: Mapping) -> list[str]:
+    ratios = head.get("std_ratio") or {}
+    return [name, _interval(head.get("speed_envelope_r"), 3), _interval(head.get("pitch_r"), 3),
+            " / ".join(_number((ratios.get(axis) or {}).get("mean"), 2) for axis in ("48", "49", "50")),
+            _interval(head.get("velocity_spectrum_distance_db"), 1)]
+
+
+def _batch_measures(summary: Mapping) -> list[str]:
+    """The lead tables of a batch: head and brow measures over recordings, with the controls."""
+    measures = summary.get("measures") or {}
+    if not measures:
+        return []
+    controls = summary.get("controls") or {}
+    lines = ["", "## Head motion over recordings with ground truth", "",
+             "Mean over recordings with a bootstrap 95% interval [low, high] of each measure against the recorded "
+             f"motion (stochastic conditions averaged over {summary.get('seeds', 1)} seed(s) per recording). The "
+             "controls drive the same speech-driven generator with audio that is not the recording's: its own "
+             "audio shifted by 5 s or more, and other inputs' audio trimmed or tiled to its length. A "
+             "speech-driven figure counts by how far it rises above them. If the head model was trained on these "
+             "recordings, the figures are not held-out ones (see the files table).", ""]
+    rows = [_batch_head_row(name, block["head"]) for name, block in measures.items()]
+    if "mismatched_audio" in controls:
+        rows.append(_batch_head_row("SPEECH_DRIVEN, own audio shifted (control)", controls["mismatched_audio"]))
+    if "other_recordings" in controls:
+        rows.append(_batch_head_row("SPEECH_DRIVEN, other recordings' audio (control)", controls["other_recordings"]))
+    lines += _table(["condition", "speed-envelope r", "pitch r", "std ratio pitch / yaw / roll",
+                     "velocity-spectrum distance (dB)"], rows)
+    brow_rows = [[name, _interval(block["brows"]["raise_r"], 3), _interval(block["brows"]["onset_f1"], 2)]
+                 for name, block in measures.items() if block["brows"]["raise_r"]["recordings"]]
+    if brow_rows:
+        if "mismatched_audio_brows" in controls:
+            brow = controls["mismatched_audio_brows"]
+            brow_rows.append(["SPEECH_DRIVEN, own audio shifted (control)", _interval(brow["raise_r"], 3),
+                              _interval(brow["onset_f1"], 2)])
+        lines += ["", "## Eyebrows over recordings with recorded brows", ""]
+        lines += _table(["condition", "raise r", "onset F1"], brow_rows)
+    return lines
+
+
 def batch_markdown(summary: Mapping) -> str:
     """The summary report of a batch: counts, a table per file, aggregates over files with ground truth."""
     counts = summary["counts"]
@@ -195,13 +241,27 @@ def batch_markdown(summary: Mapping) -> str:
         f"- input: `{summary['input']}`; output: `{summary['output']}`",
         f"- {counts['files']} file(s): {counts['done']} processed, {counts['skipped']} already complete, "
         f"{counts['failed']} failed; {counts['with_ground_truth']} with ground truth",
+    ]
+    lines += _batch_measures(summary)
+    lines += [
         "",
         "## Files",
         "",
-        "Head Pearson r against the ground truth (pitch / yaw / roll) for SPEECH_DRIVEN and RANDOM, and the first "
-        "canonical correlation of the three head axes with the recorded ones.",
+        "Per recording with ground truth: the speech-driven head's speed-envelope r and pitch r against the "
+        "recording, and the same for its mismatched-audio control; then head Pearson r (pitch / yaw / roll) "
+        "for SPEECH_DRIVEN and RANDOM, and the first canonical correlation of the head axes with the recorded "
+        "ones (secondary measures).",
         "",
     ]
+
+    def measure(metrics: Mapping | None, key: str, control: bool = False) -> str:
+        if not metrics:
+            return "–"
+        if control:
+            block = (metrics.get("controls") or {}).get("mismatched_audio") or {}
+        else:
+            block = (metrics["conditions"].get("SPEECH_DRIVEN") or {}).get("head") or {}
+        return _number(block.get(key), 2)
 
     def head_r(metrics: Mapping | None, condition: str) -> str:
         if not metrics or condition not in metrics["conditions"]:
@@ -221,9 +281,13 @@ def batch_markdown(summary: Mapping) -> str:
         duration = _number(metrics["duration_s"], 1) if metrics else "–"
         seen = "yes (model trained on it)" if metrics and metrics.get("model_trained_on_this_recording") else "yes"
         rows.append([f"`{entry['file']}`", status.replace("|", "\\|"), duration,
-                     seen if entry.get("ground_truth") else "no", head_r(metrics, "SPEECH_DRIVEN"),
-                     head_r(metrics, "RANDOM"), cca(metrics, "SPEECH_DRIVEN"), cca(metrics, "RANDOM")])
-    lines += _table(["file", "status", "s", "truth", "r speech", "r random", "CCA speech", "CCA random"], rows)
+                     seen if entry.get("ground_truth") else "no",
+                     f"{measure(metrics, 'speed_envelope_r')} ({measure(metrics, 'speed_envelope_r', True)})",
+                     f"{measure(metrics, 'pitch_r')} ({measure(metrics, 'pitch_r', True)})",
+                     head_r(metrics, "SPEECH_DRIVEN"), head_r(metrics, "RANDOM"), cca(metrics, "SPEECH_DRIVEN"),
+                     cca(metrics, "RANDOM")])
+    lines += _table(["file", "status", "s", "truth", "speed-envelope r (control)", "pitch r (control)",
+                     "r speech", "r random", "CCA speech", "CCA random"], rows)
     aggregate = summary.get("aggregate") or {}
     if aggregate:
         lines += ["", "## Aggregates over files with ground truth", "",
