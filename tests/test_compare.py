@@ -219,7 +219,8 @@ def test_batch_condition_subset_and_two_processes(corpus, tmp_path) -> None:
     summary = run_batch(indir, out, ground_truth_dir=truth, options=BatchOptions(conditions=("none", "random")),
                         jobs=2)
     assert summary["counts"]["failed"] == 0
-    assert sorted(p.name for p in (out / "a").iterdir()) == ["metrics.json", "no_prosody.fap", "random.fap"]
+    assert sorted(p.name for p in (out / "a").iterdir()) == ["features.csv", "metrics.json", "no_prosody.fap",
+                                                            "random.fap"]
 
 
 def test_batch_on_a_local_dask_cluster(corpus, tmp_path) -> None:
