@@ -136,7 +136,9 @@ def _shaping_filter(velocities: Sequence[np.ndarray], fps: float) -> np.ndarray:
             spectra.append(power / total)
     if not spectra:
         raise ConfigError(f"head motion too short to estimate its spectrum (need {MIN_SPECTRUM_FRAMES} frames)")
-    amplitude = np.sqrt(np.mean(spectra, axis=0))
+    # the geometric mean over recordings: the spectrum is judged in dB, where one jittery recording would
+    # otherwise dominate an arithmetic mean
+    amplitude = np.sqrt(np.exp(np.mean(np.log(np.maximum(spectra, 1e-30)), axis=0)))
     taps = np.fft.fftshift(np.fft.irfft(amplitude, n=SPECTRUM_FRAMES))
     taps = taps * np.hanning(SPECTRUM_FRAMES + 1)[:SPECTRUM_FRAMES]
     return taps / np.sqrt(np.sum(taps**2))
@@ -204,8 +206,8 @@ class ProsodicHeadModel:
     kind = MODEL_KIND
 
     def __init__(self, lookbehind_s: float = 0.5, lookahead_s: float = 0.5, step_s: float = 0.1,
-                 ridge: float = 1e4, pitch_share: float = 0.95, leak_s: float = 2.0, pitch_leak_s: float = 0.3,
-                 idle_ratio: float = 0.15, speed_iterations: int = 2):
+                 ridge: float = 1e4, pitch_share: float = 0.95, leak_s: float = 2.0, pitch_leak_s: float = 0.15,
+                 idle_ratio: float = 0.15, speed_iterations: int = 3):
         self.lookbehind_s = lookbehind_s
         self.lookahead_s = lookahead_s
         self.step_s = step_s

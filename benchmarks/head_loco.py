@@ -1,0 +1,125 @@
+"""Leave-one-recording-out table of the head measures on paired recordings (``make evaluate``).
+
+For each recording, models are fitted on the others and measured on it; every row is the mean over
+recordings, stochastic rows over several seeds, with the chance spread (the standard deviation over
+recordings of the control's figure) and each speech-driven row's control beside it:
+
+- prosodic: the default generator (10 seeds), and the same driven by the recording's own audio shifted
+  by 5 s or more (the mismatched-audio control);
+- arx: the thesis's model with the shipped orders, and its control;
+- Perlin noise (20 seeds), a still head, and another recording's real motion (trimmed or tiled).
+
+Usage: python benchmarks/head_loco.py [DIR]  (default ../shared/data/talking-heads)
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from prosody.controls import shift_offsets, shifted_features
+from prosody.head import ArxHeadModel, arx_inputs
+from prosody.metrics import head_metrics
+from prosody.perlin import perlin_curves
+from prosody.speech_head import ProsodicHeadModel
+from prosody.training import (
+    TrainingSet,
+    average_head_metrics,
+    find_pairs,
+    held_out_prosodic,
+    load_training_set,
+    select_prosodic,
+)
+
+DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "talking-heads"
+
+
+def _array(curves: dict) -> np.ndarray:
+    return np.column_stack([curves[fap] for fap in (48, 49, 50)])
+
+
+def _row(label: str, per_recording: list[dict], control: list[dict] | None = None) -> str:
+    def mean(rows: list[dict], key: str) -> str:
+        values = [row[key] for row in rows if row[key] is not None]
+        return f"{np.mean(values):+.3f}" if values else "–"
+
+    def spread(rows: list[dict], key: str) -> str:
+        values = [row[key] for row in rows if row[key] is not None]
+        return f"±{np.std(values):.2f}" if values else ""
+
+    ratios = " / ".join(
+        f"{np.mean([row['std_ratio'][axis] for row in per_recording if row['std_ratio'][axis] is not None]):.2f}"
+        if any(row["std_ratio"][axis] is not None for row in per_recording) else "–" for axis in ("48", "49", "50"))
+    cells = [label, mean(per_recording, "speed_envelope_r"), mean(per_recording, "pitch_r"), ratios,
+             mean(per_recording, "velocity_spectrum_distance_db").lstrip("+")]
+    if control:
+        cells += [f"{mean(control, 'speed_envelope_r')} {spread(control, 'speed_envelope_r')}",
+                  f"{mean(control, 'pitch_r')} {spread(control, 'pitch_r')}"]
+    else:
+        cells += ["", ""]
+    return "| " + " | ".join(cells) + " |"
+
+
+def main(argv: list[str]) -> int:
+    directory = Path(argv[0]) if argv else DEFAULT_DATA
+    warnings.simplefilter("ignore")
+    data = load_training_set(find_pairs(directory), report=lambda message: None)
+    names, fps = data.names, data.fps
+    print(f"{len(names)} recordings, {sum(f.n_frames for f in data.features) / fps:.0f} s, leave-one-recording-out")
+    print()
+    print("| head | speed-envelope r | pitch r | std ratio pitch / yaw / roll | velocity-spectrum distance (dB) "
+          "| control: speed-envelope r (chance spread) | control: pitch r (chance spread) |")
+    print("|---|---|---|---|---|---|---|")
+    prosodic = held_out_prosodic(data, seeds=10)
+    print(_row("prosodic (default), 10 seeds", list(prosodic.per_recording.values()),
+               list(prosodic.controls.values())))
+    # nested: the settings for each held-out recording are chosen by cross-validation on the others only
+    nested, nested_control = [], []
+    for held in range(len(names)):
+        keep = [i for i in range(len(names)) if i != held]
+        inner = TrainingSet([names[i] for i in keep], [data.inputs[i] for i in keep],
+                            [data.motion_au[i] for i in keep], [data.features[i] for i in keep], fps=fps)
+        settings = select_prosodic(inner)[0].settings
+        model = ProsodicHeadModel(**settings).fit(inner.features, inner.motion_au)
+        features, recorded = data.features[held], data.motion_au[held]
+        nested.append(average_head_metrics([head_metrics(_array(model.generate(features, seed=seed)), recorded,
+                                                         fps=fps) for seed in range(10)]))
+        nested_control.append(average_head_metrics([
+            head_metrics(_array(model.generate(shifted_features(features, k), seed=seed)), recorded, fps=fps)
+            for seed in range(10) for k in shift_offsets(features.n_frames, fps=fps)]))
+    print(_row("prosodic, settings chosen per fold (nested), 10 seeds", nested, nested_control))
+    arx_rows, arx_control = [], []
+    for held in range(len(names)):
+        keep = [i for i in range(len(names)) if i != held]
+        model = ArxHeadModel().fit([data.features[i] for i in keep], [data.motion_au[i] for i in keep])
+        recorded = data.motion_au[held]
+        arx_rows.append(head_metrics(model.simulate_arrays(data.inputs[held]), recorded, fps=fps))
+        shifted = [head_metrics(model.simulate_arrays(arx_inputs(shifted_features(data.features[held], k))),
+                                recorded, fps=fps)
+                   for k in shift_offsets(data.features[held].n_frames, fps=fps)]
+        arx_control.append(average_head_metrics(shifted))
+    print(_row("thesis ARX (na=1, nb=5, nk=0)", arx_rows, arx_control))
+    perlin = []
+    for recorded in data.motion_au:
+        runs = [head_metrics(_array(perlin_curves(recorded.shape[0], fps=fps, seed=seed)), recorded, fps=fps)
+                for seed in range(20)]
+        perlin.append(average_head_metrics(runs))
+    print(_row("Perlin noise, 20 seeds", perlin))
+    print(_row("still head", [head_metrics(np.zeros_like(m), m, fps=fps) for m in data.motion_au]))
+    other = []
+    for held, recorded in enumerate(data.motion_au):
+        source = data.motion_au[(held + 1) % len(names)]
+        tiled = source[np.arange(recorded.shape[0]) % source.shape[0]]
+        other.append(head_metrics(tiled, recorded, fps=fps))
+    print(_row("another recording's real motion", other))
+    print()
+    print("Per recording (prosodic): " + ", ".join(
+        f"{name} {row['speed_envelope_r']:+.2f}/{row['pitch_r']:+.2f}" for name, row in prosodic.per_recording.items()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
