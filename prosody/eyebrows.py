@@ -157,7 +157,8 @@ def eyebrow_raises(features: Features, rule: EyebrowRule | None = None) -> Eyebr
 
     Examples
     --------
-    A 150 Hz tone that jumps to 250 Hz raises the brows at the jump (frame 15 at 30 fps):
+    A 150 Hz tone that jumps to 250 Hz at 0.5 s (frame 15 at 30 fps) raises the brows at frame 16: frame 15's
+    40 ms pitch window straddles the jump, and its F0 stays below 207 Hz:
 
     >>> import numpy as np
     >>> from audio_features import Audio, extract_features
@@ -165,7 +166,7 @@ def eyebrow_raises(features: Features, rule: EyebrowRule | None = None) -> Eyebr
     >>> f0 = np.where(t < 0.5, 150.0, 250.0)
     >>> tone = 0.5 * np.sin(2 * np.pi * np.cumsum(f0) / 16000)
     >>> eyebrow_raises(extract_features(Audio(tone, 16000))).events[0][0]
-    15
+    16
     """
     rule = rule or EyebrowRule()
     f0 = features.f0_conditioned.values

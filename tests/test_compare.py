@@ -152,7 +152,10 @@ def test_compare_without_ground_truth(tmp_path) -> None:
     assert all(random[str(fap)]["pearson_r"] is None for fap in (31, 32, 33, 34, 48, 49, 50))
     assert random["head"]["speed_envelope_r"] is None and random["head"]["std_ratio"]["48"] is None
     assert result.metrics["controls"]["mismatched_audio"]["pitch_r"] is None
-    assert result.metrics["eyebrow_events"][0][0] in (14, 15, 16)
+    # accent rule: median voiced F0 160 Hz, threshold 4 semitones above it (201.6 Hz); the 250 Hz part is
+    # frames 15-27, the first whose pitch window lies mostly inside it is 16, the raise ends where it does
+    assert result.metrics["eyebrow_events"] == [[16, 27]]
+    assert result.metrics["eyebrow_threshold_hz"] == pytest.approx(160 * 2 ** (4 / 12), rel=1e-3)
 
 
 # prosody batch --------------------------------------------------------------------------------------------
