@@ -42,6 +42,22 @@ def _seed(text: str) -> int:
     return value
 
 
+def _seeds(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if not 1 <= value <= 1000:
+        raise argparse.ArgumentTypeError(f"expected a whole number from 1 to 1000, got {text!r}")
+    return value
+
+
+def _add_seeds_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seeds", type=_seeds, default=10, metavar="N",
+                        help="average the measures of the random and speech-driven conditions (and of the "
+                             "control) over N seeds from --seed on (default 10); the written streams use --seed")
+
+
 def _add_analysis_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fps", type=_positive_float, default=30.0,
                         help="frames per second of the output grid (default 30; frame k is at k/fps s)")
@@ -235,13 +251,18 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     from .compare import compare, write_comparison
 
     comparison = compare(args.input, ground_truth=args.ground_truth, model=args.model, seed=args.seed,
-                         normalize=args.normalize, eyebrow_rule=_eyebrow_rule(args), **_analysis_kwargs(args))
-    written = write_comparison(comparison, args.output, plots=not args.no_plots)
-    speech = comparison.metrics["conditions"]["SPEECH_DRIVEN"]
+                         seeds=args.seeds, normalize=args.normalize, eyebrow_rule=_eyebrow_rule(args),
+                         **_analysis_kwargs(args))
+    written = write_comparison(comparison, args.output, plots=not args.no_plots, video=args.video,
+                               exaggerate=args.exaggerate,
+                               progress=_frame_progress(f"{args.output}/conditions.mp4") if args.video else None)
     line = f"{args.output}: {len(written)} files"
-    if comparison.ground_truth is not None:
-        r = " ".join(f"{speech[str(fap)]['pearson_r'] or 0:+.2f}" for fap in (48, 49, 50))
-        line += f"; SPEECH_DRIVEN head r vs ground truth (pitch yaw roll) {r}"
+    head = comparison.metrics["conditions"]["SPEECH_DRIVEN"]["head"]
+    control = comparison.metrics["controls"]["mismatched_audio"]
+    if head["speed_envelope_r"] is not None:
+        line += (f"; SPEECH_DRIVEN speed-envelope r {head['speed_envelope_r']:+.2f} "
+                 f"(mismatched audio {control['speed_envelope_r'] or 0:+.2f}), pitch r {head['pitch_r'] or 0:+.2f} "
+                 f"(mismatched audio {control['pitch_r'] or 0:+.2f})")
     print(line, file=sys.stderr)
     return EXIT_OK
 
@@ -250,8 +271,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     from .batch import BatchOptions, Progress, find_audio_files, run_batch
 
     conditions = [name for value in args.condition for name in value.split(",") if name.strip()] or None
-    options = BatchOptions(model=args.model, seed=args.seed, normalize=args.normalize, plots=args.plots,
-                           **_analysis_kwargs(args))
+    options = BatchOptions(model=args.model, seed=args.seed, seeds=args.seeds, normalize=args.normalize,
+                           plots=args.plots, **_analysis_kwargs(args))
     if conditions:
         options = dataclasses.replace(options, conditions=tuple(conditions))
     progress = Progress(len(find_audio_files(args.input)))
@@ -413,20 +434,31 @@ def build_parser() -> argparse.ArgumentParser:
     compare = commands.add_parser(
         "compare", help="compare the four conditions on one recording (FAP files, plots, report, metrics)",
         description="Write OUTDIR/no_prosody.fap, random.fap, speech_driven.fap (and ground_truth.fap with "
-                    "--ground-truth), features.png and head.png, report.md and metrics.json: mean and standard "
-                    "deviation per condition and FAP, Pearson r and RMSE against the ground truth, and canonical "
-                    "correlations (head vs recorded head, audio vs head).",
+                    "--ground-truth), features.png and head.png, report.md and metrics.json. With recorded motion, "
+                    "the report leads with the head measures of each condition: speed-envelope r (does the head "
+                    "move when the recording moves), pitch r, the spread of each axis as a ratio to the "
+                    "recording's, and the velocity-spectrum distance (too still or too jittery), beside the "
+                    "speech-driven generator driven by this recording's audio shifted in time (a control that "
+                    "keeps the audio's statistics but not its timing); then the brows against recorded brows "
+                    "(<clip>.brows.csv beside the .head.csv), statistics per FAP, Pearson r and RMSE, and "
+                    "canonical correlations. Random and speech-driven measures are averaged over --seeds seeds.",
     )
     compare.add_argument("input", help="speech recording")
     compare.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="output folder (created)")
     compare.add_argument("--ground-truth", default=None, metavar="FILE",
                          help="recorded motion: <clip>.head.csv or .fap (enables GROUND_TRUTH and agreement)")
     _add_generator_options(compare)
+    _add_seeds_option(compare)
     compare.add_argument("--normalize", action="store_true",
                          help="scale and offset RANDOM, SPEECH_DRIVEN and GROUND_TRUTH to the same mean and "
                               "standard deviation per FAP (the ground truth's where it has the FAP), as the "
                               "thesis's second experiment did")
     compare.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    compare.add_argument("--video", action="store_true",
+                         help="also write OUTDIR/conditions.mp4: the conditions' faces side by side, labelled, "
+                              "with the recording's audio (needs ffmpeg or the imageio-ffmpeg package)")
+    compare.add_argument("--exaggerate", type=_positive_float, default=1.0, metavar="X",
+                         help="with --video: draw head angles and brow raises X times larger (default 1)")
     _add_analysis_options(compare)
     _add_eyebrow_options(compare)
     compare.set_defaults(handler=_cmd_compare)
@@ -450,6 +482,7 @@ def build_parser() -> argparse.ArgumentParser:
     batch.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="run on a Dask distributed cluster, e.g. tcp://host:8786 (needs the 'cluster' extra)")
     _add_generator_options(batch)
+    _add_seeds_option(batch)
     batch.add_argument("--normalize", action="store_true", help="normalise as 'prosody compare --normalize'")
     batch.add_argument("--plots", action="store_true", help="also write figures and a report per file")
     batch.add_argument("--force", action="store_true", help="redo files whose outputs are already complete")

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import os
 import warnings
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -316,9 +316,16 @@ def condition_file_name(condition: Condition) -> str:
     return f"{condition.value.lower()}.fap"
 
 
+#: File name of the side-by-side video in a comparison folder.
+VIDEO_FILE = "conditions.mp4"
+
+
 def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, plots: bool = True,
-                     report: bool = True, extra: Mapping[str, object] | None = None) -> list[Path]:
-    """Write the condition streams (.fap), the plots (PNG), the report (Markdown) and ``metrics.json``.
+                     report: bool = True, extra: Mapping[str, object] | None = None, video: bool = False,
+                     exaggerate: float = 1.0, progress: Callable[[int, int], None] | None = None) -> list[Path]:
+    """Write the condition streams (.fap), the plots (PNG), the report (Markdown) and ``metrics.json``; with
+    ``video``, also ``conditions.mp4``: the conditions' faces side by side, labelled, with the recording's
+    audio (``exaggerate`` multiplies the drawn motion; ``progress`` as in :func:`prosody.preview.write_preview`).
 
     ``metrics.json`` is written last: a folder holding it is complete. Every file is written atomically.
 
@@ -345,6 +352,13 @@ def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, 
             function(comparison, path)
             figures[key] = path.name
             written.append(path)
+    if video:
+        from .preview import write_side_by_side
+
+        path = folder / VIDEO_FILE
+        write_side_by_side({condition.value: stream for condition, stream in comparison.streams.items()}, path,
+                           audio=comparison.source, exaggerate=exaggerate, progress=progress)
+        written.append(path)
     if report:
         from .report import comparison_markdown
 

@@ -21,7 +21,7 @@ import os
 import shutil
 import subprocess
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -259,15 +259,16 @@ class FaceRenderer:
 class CurveStrip:
     """The strip under the face: brow raise and head angles over +-``STRIP_WINDOW_S`` around the frame."""
 
-    def __init__(self, stream: FapStream, *, width: int, height: int) -> None:
+    def __init__(self, stream: FapStream, *, width: int, height: int,
+                 scales: tuple[float, float] | None = None) -> None:
         self.width, self.height, self.fps = width, height, stream.fps
         self.half_window = max(1, round(STRIP_WINDOW_S * stream.fps))
 
         brows = stream.curve(31)  # 0 where masked off
         head = stream.curves((48, 49, 50))
-        # each group on its own scale (its largest magnitude), so both fill the strip
-        brow_scale = max(float(np.max(np.abs(brows), initial=0.0)), 1.0)
-        head_scale = max(float(np.max(np.abs(head), initial=0.0)), 1.0)
+        # each group on its own scale (its largest magnitude), so both fill the strip; strips shown side by
+        # side share the scales they are given, so that equal heights mean equal motion
+        brow_scale, head_scale = scales if scales is not None else strip_scales([stream])
         has_brows = bool(stream.mask[:, 30].any())
         has_head = bool(stream.mask[:, 47:50].any())
         self.curves = {}
@@ -276,8 +277,8 @@ class CurveStrip:
         if has_head:
             self.curves.update(pitch=head[:, 0] / head_scale, yaw=head[:, 1] / head_scale,
                                roll=head[:, 2] / head_scale)
-        self.labels = (f"brows (max {brow_scale:.0f} ENS)" if has_brows else "brows: not in this stream",
-                       f"head, max {math.degrees(head_scale * RADIANS_PER_AU):.1f} deg:"
+        self.labels = (f"brows (full scale {brow_scale:.0f} ENS)" if has_brows else "brows: not in this stream",
+                       f"head, full scale {math.degrees(head_scale * RADIANS_PER_AU):.1f} deg:"
                        if has_head else "head: not in this stream")
 
     def render(self, frame: int) -> np.ndarray:
@@ -309,8 +310,16 @@ class CurveStrip:
         return np.asarray(image)
 
 
+def strip_scales(streams: list[FapStream]) -> tuple[float, float]:
+    """The strip's (brow ENS, head AU) scales that fit every stream: their largest magnitudes (at least 1)."""
+    brow = max([float(np.max(np.abs(s.curve(31)), initial=0.0)) for s in streams] + [1.0])
+    head = max([float(np.max(np.abs(s.curves((48, 49, 50))), initial=0.0)) for s in streams] + [1.0])
+    return brow, head
+
+
 def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.0,
-                  first_frame: int = 0, n_frames: int | None = None, strip: bool = True) -> Iterator[np.ndarray]:
+                  first_frame: int = 0, n_frames: int | None = None, strip: bool = True,
+                  label: str | None = None, scales: tuple[float, float] | None = None) -> Iterator[np.ndarray]:
     """Frames of the preview of ``stream``, one RGB array (height, width, 3) uint8 per stream frame.
 
     Parameters
@@ -325,6 +334,10 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
         The excerpt to draw (default: the whole stream).
     strip : bool
         Draw the curve strip under the face.
+    label : str, optional
+        Caption of every frame instead of the stream's name.
+    scales : (float, float), optional
+        The strip's brow (ENS) and head (AU) scales; default: this stream's largest magnitudes.
 
     Examples
     --------
@@ -336,13 +349,13 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
     if not exaggerate > 0:
         raise ConfigError(f"exaggerate must be a positive number, got {exaggerate!r}")
     renderer = FaceRenderer(width)
-    curves = CurveStrip(stream, width=renderer.width, height=renderer.height - renderer.face_height)
+    curves = CurveStrip(stream, width=renderer.width, height=renderer.height - renderer.face_height, scales=scales)
     last = stream.n_frames if n_frames is None else min(stream.n_frames, first_frame + n_frames)
     excerpt = FapStream(stream.values[first_frame:last], stream.mask[first_frame:last], stream.fps, stream.name)
     note = f"  x{exaggerate:g}" if exaggerate != 1 else ""
     for offset, pose in enumerate(poses(excerpt, exaggerate=exaggerate)):
         frame = first_frame + offset
-        caption = f"{stream.name}  {frame / stream.fps:7.2f} s{note}"
+        caption = f"{label or stream.name}  {frame / stream.fps:7.2f} s{note}"
         yield renderer.render(pose, strip=curves.render(frame) if strip else None, caption=caption)
 
 
@@ -471,4 +484,50 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
     _write_mp4(frames, path, fps=stream.fps, width=renderer.width, height=renderer.height, ffmpeg=executable,
                audio=Path(audio) if audio is not None else None, start_s=first / stream.fps,
                duration_s=count / stream.fps)
+    return path
+
+
+def write_side_by_side(streams: Mapping[str, FapStream], output: str | os.PathLike[str], *,
+                       audio: str | os.PathLike[str] | None = None, panel_width: int = 320,
+                       exaggerate: float = 1.0, start_s: float = 0.0, duration_s: float | None = None,
+                       ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None) -> Path:
+    """One video of several streams side by side, each face labelled with its name, with the recording's
+    audio: the stimulus of a paired-comparison study, and the quickest way to judge the motion by eye.
+
+    The curve strips share one scale, so equal heights mean equal motion. Parameters as
+    :func:`write_preview`; ``streams`` maps labels to streams of one length and rate, drawn left to right.
+    """
+    path = Path(output)
+    kind = path.suffix.lower()
+    if kind not in (".mp4", ".gif"):
+        raise ConfigError(f"{path}: the video is written as .mp4 or .gif, not {kind or 'a file with no ending'!r}")
+    if not streams:
+        raise ConfigError("no stream to draw")
+    items = list(streams.items())
+    n, fps = items[0][1].n_frames, items[0][1].fps
+    if any(s.n_frames != n or s.fps != fps for _, s in items):
+        raise ConfigError("streams side by side must have one length and frame rate")
+    if not start_s >= 0 or (duration_s is not None and not duration_s > 0):
+        raise ConfigError(f"the excerpt needs start >= 0 and duration > 0, got {start_s!r} and {duration_s!r}")
+    first = round(start_s * fps)
+    if first >= n:
+        raise ConfigError(f"start {start_s:g} s is past the end of the streams ({n / fps:.2f} s)")
+    count = n - first if duration_s is None else min(n - first, max(1, round(duration_s * fps)))
+    scales = strip_scales([s for _, s in items])
+    panels = [render_frames(s, width=panel_width, exaggerate=exaggerate, first_frame=first, n_frames=count,
+                            label=label, scales=scales) for label, s in items]
+    frames: Iterator[np.ndarray] = (np.hstack(row) for row in zip(*panels, strict=True))
+    if progress is not None:
+        frames = _reporting(frames, progress, count)
+    if kind == ".gif":
+        _write_gif(frames, path, fps=fps, n_frames=count)
+        return path
+    executable = find_ffmpeg() if ffmpeg == "auto" else ffmpeg
+    if executable is None:
+        raise PreviewError(f"{path}: MP4 needs ffmpeg; install it (or `pip install imageio-ffmpeg`), "
+                           "or write a .gif")
+    renderer = FaceRenderer(panel_width)
+    _write_mp4(frames, path, fps=fps, width=renderer.width * len(items), height=renderer.height,
+               ffmpeg=executable, audio=Path(audio) if audio is not None else None, start_s=first / fps,
+               duration_s=count / fps)
     return path

@@ -205,3 +205,37 @@ def test_cli_preview_of_a_recording_and_of_a_fap_file(tmp_path: Path) -> None:
                  "--exaggerate", "5"]) == 0
     assert main(["preview", str(tone_wav), "-o", str(tmp_path / "tone.webm")]) == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fap.gif", "tone.fap", "tone.mp4", "tone.wav"]
+
+
+def test_side_by_side_panels_share_one_strip_scale_and_keep_their_own_motion(tmp_path: Path) -> None:
+    from PIL import Image
+
+    from prosody.preview import render_frames, strip_scales, write_side_by_side
+
+    still = FapStream.from_curves({48: np.zeros(6), 31: np.zeros(6)}, fps=30)
+    moving = FapStream.from_curves({48: np.full(6, 8000.0), 31: np.full(6, 20.0)}, fps=30)
+    assert strip_scales([still, moving]) == (20.0, 8000.0)
+    path = write_side_by_side({"STILL": still, "MOVING": moving}, tmp_path / "pair.gif", panel_width=64)
+    with Image.open(path) as image:
+        assert image.n_frames == 6 and image.size == (128, 80)
+        first = np.asarray(image.convert("RGB"))
+    # each half is that stream's own face, drawn as the single preview draws it
+    alone = next(render_frames(moving, width=64, label="MOVING", scales=(20.0, 8000.0)))
+    assert np.abs(first[:, 64:].astype(int) - alone.astype(int)).mean() < 8  # GIF palette only
+    assert np.abs(first[:, :64].astype(int) - first[:, 64:].astype(int)).mean() > 1  # the faces differ
+    with pytest.raises(ConfigError, match="one length"):
+        write_side_by_side({"a": still, "b": FapStream.from_curves({48: np.zeros(7)}, fps=30)}, tmp_path / "x.gif")
+    assert not (tmp_path / "x.gif").exists()
+
+
+@pytest.mark.skipif(find_ffmpeg() is None, reason="no ffmpeg on PATH and imageio-ffmpeg not installed")
+def test_compare_video_has_the_conditions_side_by_side_with_the_audio(tmp_path: Path) -> None:
+    from conftest import segments
+
+    ffmpeg = find_ffmpeg()
+    assert ffmpeg is not None
+    audio = tmp_path / "v.wav"
+    soundfile.write(audio, segments(16000, (0.5, 140, 0.5), (0.4, 230, 0.5), (0.4, 150, 0.5)), 16000)
+    assert main(["compare", str(audio), "-o", str(tmp_path / "out"), "--no-plots", "--video", "--seeds", "2"]) == 0
+    report = _probe(ffmpeg, tmp_path / "out" / "conditions.mp4")
+    assert "Video: h264" in report and "960x400" in report and "Audio: aac" in report  # 3 panels of 320 x 400
