@@ -111,9 +111,10 @@ def stage_times(path: Path, out: Path) -> dict[str, float]:
     import parselmouth
 
     from audio_features import F0Track, condition_f0, extract_features, load_audio
-    from prosody.eyebrows import eyebrow_raises
+    from prosody.eyebrows import accent_raises, eyebrow_raises
     from prosody.fapfile import write_fap
     from prosody.head import default_model
+    from prosody.head_models import default_head_model
     from prosody.perlin import perlin_curves
     from prosody.stream import FapStream
 
@@ -127,9 +128,12 @@ def stage_times(path: Path, out: Path) -> dict[str, float]:
     times["features on the grid (chunked, all of the above)"], features = _timed(lambda: extract_features(path))
     raw = F0Track(features.f0.values, features.fps, "Hz", "f0", features.f0.voiced)
     times["conditioning (spline)"], _ = _timed(lambda: condition_f0(raw))
-    times["eyebrow rule"], raises = _timed(lambda: eyebrow_raises(features))
+    times["eyebrow rule (thesis)"], _ = _timed(lambda: eyebrow_raises(features))
+    times["eyebrow accent rule (default)"], raises = _timed(lambda: accent_raises(features))
     model = default_model()
-    times["ARX head (free run)"], head = _timed(lambda: model.generate(features))
+    times["ARX head (thesis, free run)"], _ = _timed(lambda: model.generate(features))
+    prosodic = default_head_model()
+    times["prosodic head (default)"], head = _timed(lambda: prosodic.generate(features, seed=0))
     times["Perlin"], _ = _timed(lambda: perlin_curves(features.n_frames, fps=features.fps, seed=0))
     stream = FapStream.from_curves({**raises.curves(), **head}, fps=features.fps)
     times["writing .fap"], _ = _timed(lambda: write_fap(stream, out))

@@ -316,12 +316,28 @@ class ProsodicHeadModel:
         return self
 
     # generation -----------------------------------------------------------------------------------------
+    def _linear(self, features: Features, columns: tuple[int, ...], weights: np.ndarray, mean: np.ndarray,
+                spread: np.ndarray) -> np.ndarray:
+        """A fitted regression on the windowed features, summed offset by offset: the same numbers as the
+        design matrix times the weights, in memory proportional to the recording, not to the window."""
+        per_frame = prosodic_features(features)[:, columns]
+        n = per_frame.shape[0]
+        smooth = np.column_stack([centred_moving_average(per_frame[:, j], self._smoothing(features.fps))
+                                  for j in range(per_frame.shape[1])]) if n else per_frame
+        width = per_frame.shape[1]
+        index = np.arange(n)
+        total = np.full(n, float(weights[-1]))
+        for block, offset in enumerate(self.offsets_frames(features.fps)):
+            part = slice(block * width, (block + 1) * width)
+            scaled = weights[part] / spread[part]
+            total += smooth[np.clip(index + offset, 0, max(n - 1, 0))] @ scaled - float(mean[part] @ scaled)
+        return total
+
     def predicted_envelope(self, features: Features) -> np.ndarray:
         """Predicted head speed relative to the average while speaking (1 = average), with the idle floor
         and the fall to idle where there is no speech; shape (n_frames,)."""
-        design, _ = self._design(features)
-        z = (design - self.envelope_mean_) / self.envelope_std_
-        relative = z @ self.envelope_weights_[:-1] + self.envelope_weights_[-1]
+        relative = self._linear(features, ENVELOPE_FEATURES, self.envelope_weights_, self.envelope_mean_,
+                                self.envelope_std_)
         presence = speech_presence(features)
         relative = np.maximum(relative, self.idle_ratio)
         return self.idle_ratio + (relative - self.idle_ratio) * presence
@@ -329,9 +345,8 @@ class ProsodicHeadModel:
     def predicted_pitch(self, features: Features) -> np.ndarray:
         """Predicted head pitch in units of its recorded spread, about the average pose while speaking (0),
         fading to 0 (rest) where there is no speech; shape (n_frames,)."""
-        _, design = self._design(features)
-        predicted = ((design - self.pitch_mean_) / self.pitch_std_) @ self.pitch_weights_[:-1]
-        return (predicted + self.pitch_weights_[-1]) * speech_presence(features)
+        predicted = self._linear(features, PITCH_FEATURES, self.pitch_weights_, self.pitch_mean_, self.pitch_std_)
+        return predicted * speech_presence(features)
 
     def _noise_angles(self, features: Features, *, seed: int) -> np.ndarray:
         """Coloured noise (n_frames, 3), rad, whose speed follows the predicted envelope, leaking to rest."""
