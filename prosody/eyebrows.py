@@ -254,6 +254,22 @@ class AccentRule:
             raise ConfigError(f"ramp_frames must be a whole number >= 1, got {self.ramp_frames!r}")
 
 
+def running_median(values: np.ndarray, size: int) -> np.ndarray:
+    """Median of each window of ``size`` (odd) values centred on each value, edges padded with the edge value.
+
+    Examples
+    --------
+    >>> running_median(np.array([1.0, 1.0, 9.0, 1.0, 2.0, 2.0]), 3).tolist()
+    [1.0, 1.0, 1.0, 2.0, 2.0, 2.0]
+    """
+    values = np.asarray(values, float)
+    if values.size == 0:
+        return values.copy()
+    half = size // 2
+    padded = np.concatenate([np.full(half, values[0]), values, np.full(half, values[-1])])
+    return np.median(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1), axis=1)
+
+
 #: Voiced frames below which a recording has no voice to judge accents against.
 _MIN_VOICED_FRAMES = 15
 
@@ -281,8 +297,6 @@ def accent_raises(features: Features, rule: AccentRule | None = None) -> Eyebrow
     >>> accent_raises(extract_features(Audio(tone, 16000))).events
     ((31, 45),)
     """
-    from scipy.ndimage import median_filter
-
     rule = rule or AccentRule()
     n = features.n_frames
     out = np.zeros(n)
@@ -294,7 +308,7 @@ def accent_raises(features: Features, rule: AccentRule | None = None) -> Eyebrow
     semitones = np.full(n, -np.inf)
     voiced_index = np.flatnonzero(voiced)
     # an octave error is one or two frames: a 5-frame median over the voiced frames removes it
-    semitones[voiced_index] = median_filter(12 * np.log2(f0[voiced_index] / median_hz), size=5, mode="nearest")
+    semitones[voiced_index] = running_median(12 * np.log2(f0[voiced_index] / median_hz), 5)
     energy = features.energy.values
     level_db = float(np.median(energy[voiced])) + rule.loudness_db
     accented = voiced & (energy >= level_db) & (semitones >= rule.threshold_semitones)

@@ -31,7 +31,7 @@ from audio_features._atomic import atomic_write
 
 from .errors import ConfigError, ModelError
 from .fap_table import HEAD_FAPS, RADIANS_PER_AU
-from .metrics import centred_moving_average, lowpass_head
+from .metrics import HEAD_LOWPASS_HZ, SPEED_ENVELOPE_S, centred_moving_average
 
 MODEL_FORMAT = "visual-prosody-head"
 MODEL_VERSION = 1
@@ -103,9 +103,54 @@ def speech_presence(features: Features) -> np.ndarray:
     return np.clip(share / PRESENCE_FULL_SHARE, 0.0, 1.0)
 
 
-def head_speed_from_velocity(velocity: np.ndarray, *, fps: float) -> np.ndarray:
-    """Norm of the 4 Hz low-passed angular velocities (n_frames, 3) -> (n_frames,)."""
-    return np.sqrt((lowpass_head(velocity, fps=fps) ** 2).sum(axis=1))
+# The generator runs inside `prosody convert`, whose speed aim leaves no room for importing scipy.signal
+# (about 0.9 s): its filters are done here with numpy's FFT.
+def _fft_size(n: int) -> int:
+    return 1 << max(1, int(n - 1).bit_length())
+
+
+def zero_phase_lowpass(values: np.ndarray, *, fps: float, cutoff_hz: float = HEAD_LOWPASS_HZ) -> np.ndarray:
+    """Low-pass along the first axis with the gain of a 4th-order Butterworth filter run forwards and
+    backwards, ``1 / (1 + (f / cutoff)^8)``, applied in the frequency domain.
+
+    As ``scipy.signal.sosfiltfilt`` does, the ends are extended by odd reflection (value and slope continue);
+    the straight line between the extension's ends is taken out before the transform and put back after, so
+    the transform sees no jump where it wraps around.
+    """
+    values = np.asarray(values, float)
+    n = values.shape[0]
+    if n < 2 or cutoff_hz >= fps / 2:
+        return values.copy()
+    pad = min(n - 1, int(round(2 * fps / cutoff_hz)))
+    first, last = values[:1], values[-1:]
+    padded = np.concatenate([2 * first - values[pad:0:-1], values, 2 * last - values[-2:-pad - 2:-1]], axis=0)
+    shape = (-1,) + (1,) * (values.ndim - 1)
+    ramp = np.linspace(0.0, 1.0, padded.shape[0]).reshape(shape)
+    line = padded[:1] + (padded[-1:] - padded[:1]) * ramp
+    size = _fft_size(padded.shape[0])
+    frequencies = np.fft.rfftfreq(size, d=1.0 / fps)
+    gain = 1.0 / (1.0 + (frequencies / cutoff_hz) ** 8)
+    spectrum = np.fft.rfft(padded - line, n=size, axis=0)
+    filtered = np.fft.irfft(spectrum * gain.reshape(shape), n=size, axis=0)[: padded.shape[0]] + line
+    return filtered[pad:pad + n]
+
+
+def smooth_speed_envelope(angles_rad: np.ndarray, *, fps: float) -> np.ndarray:
+    """The speed envelope of :func:`prosody.metrics.speed_envelope` (4 Hz low-pass, central differences,
+    norm over the axes, centred 0.5 s average), with the low-pass of :func:`zero_phase_lowpass`."""
+    smooth = zero_phase_lowpass(angles_rad, fps=fps)
+    if smooth.shape[0] < 2:
+        return np.zeros(smooth.shape[0])
+    speed = np.sqrt(((np.gradient(smooth, axis=0) * fps) ** 2).sum(axis=1))
+    return centred_moving_average(speed, int(round(SPEED_ENVELOPE_S * fps)))
+
+
+def _causal_convolve(values: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """``sum_k kernel[k] * values[t - k]`` for each column, by FFT; same length as ``values``."""
+    n = values.shape[0]
+    size = _fft_size(n + kernel.size)
+    spectrum = np.fft.rfft(values, n=size, axis=0) * np.fft.rfft(kernel, n=size)[:, None]
+    return np.fft.irfft(spectrum, n=size, axis=0)[:n]
 
 
 def _ridge(x: np.ndarray, y: np.ndarray, penalty: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -254,7 +299,7 @@ class ProsodicHeadModel:
             names: Sequence[str] | None = None) -> ProsodicHeadModel:
         """Fit on recordings: their features and recorded head motion, shape (n_frames, 3) in AU (the
         resting pose, e.g. each recording's median, already removed)."""
-        from .metrics import lowpass_head, speed_envelope
+        from .metrics import lowpass_head, speed_envelope  # training may import scipy.signal
 
         self._check_settings()
         if len(features) != len(motion_au) or not features:
@@ -350,18 +395,17 @@ class ProsodicHeadModel:
 
     def _noise_angles(self, features: Features, *, seed: int) -> np.ndarray:
         """Coloured noise (n_frames, 3), rad, whose speed follows the predicted envelope, leaking to rest."""
-        from scipy.signal import lfilter, oaconvolve
-
         n = features.n_frames
         fps = self.fps_
         taps = self.filters_.shape[1]
         generator = np.random.default_rng(seed)
         white = generator.standard_normal((n + taps - 1, len(HEAD_FAPS)))
-        shaped = np.column_stack([oaconvolve(white[:, axis], self.filters_[axis], mode="valid")
+        shaped = np.column_stack([np.convolve(white[:, axis], self.filters_[axis], mode="valid")
                                   for axis in range(len(HEAD_FAPS))])
         velocity = shaped * self.velocity_scale_  # rad/s, the recorded spread per axis
         # the speed a viewer sees is the smooth one (below 4 Hz): that is what follows the envelope
-        own_speed = centred_moving_average(head_speed_from_velocity(velocity, fps=fps), int(round(0.5 * fps)))
+        own_speed = centred_moving_average(np.sqrt((zero_phase_lowpass(velocity, fps=fps) ** 2).sum(axis=1)),
+                                           int(round(SPEED_ENVELOPE_S * fps)))
         wanted_speed = self.predicted_envelope(features) * self.speed_rad_s_
         velocity *= (wanted_speed / np.maximum(own_speed, 1e-12))[:, None]
         angles = np.empty_like(velocity)
@@ -369,14 +413,15 @@ class ProsodicHeadModel:
             # the pitch axis's noise only adds the quick part of the motion; its slow part is the prediction
             leak_s = self.pitch_leak_s if axis == 0 else self.leak_s
             decay = math.exp(-1.0 / (leak_s * fps))
-            angles[:, axis] = lfilter([1.0 / fps], [1.0, -decay], velocity[:, axis])
+            # the leaky integral y[t] = decay * y[t-1] + v[t] / fps, as a convolution with decay^k
+            reach = min(n, int(math.ceil(12 * leak_s * fps)) + 1)
+            kernel = decay ** np.arange(reach) / fps
+            angles[:, axis] = _causal_convolve(velocity[:, axis:axis + 1], kernel)[:, 0]
         return angles
 
     def _motion(self, features: Features, *, seed: int) -> np.ndarray:
         """Head angles (n_frames, 3) in AU: noise on every axis, the predicted pitch mixed into the first,
         the noise's speed then corrected so that the whole head's speed follows the prediction."""
-        from .metrics import speed_envelope
-
         if features.n_frames == 0:
             return np.zeros((0, len(HEAD_FAPS)))
         noise = self._noise_angles(features, seed=seed) / self.noise_spread_  # unit spread per axis
@@ -390,7 +435,7 @@ class ProsodicHeadModel:
         wanted = wanted / max(float(wanted.mean()), 1e-12)
         for _ in range(self.speed_iterations):
             # the pitch prediction moves the head too: rescale the noise until the sum has the wanted speed
-            speed = speed_envelope((fixed + noise) * scale, fps=self.fps_)
+            speed = smooth_speed_envelope((fixed + noise) * scale, fps=self.fps_)
             speed = speed / max(float(speed.mean()), 1e-12)
             noise *= np.clip(wanted / np.maximum(speed, 1e-12), 0.25, 4.0)[:, None]
         return (fixed + noise) * scale / RADIANS_PER_AU

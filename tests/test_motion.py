@@ -467,3 +467,17 @@ def test_features_csv_round_trip(shared_data, tmp_path) -> None:
     back = read_features_csv(tmp_path / "f.csv", fps=30.0)
     np.testing.assert_array_equal(back.f0.voiced, features.f0.voiced)
     np.testing.assert_allclose(back.energy.values, features.energy.values, atol=5e-4)
+
+
+def test_the_generators_numpy_lowpass_matches_scipys_butterworth(rng) -> None:
+    """The generator filters with numpy (convert must not pay for importing scipy.signal); it must agree
+    with the 4th-order zero-phase Butterworth that the measures use."""
+    from scipy.signal import butter, sosfiltfilt
+
+    from prosody.speech_head import smooth_speed_envelope, zero_phase_lowpass
+
+    walk = np.cumsum(rng.standard_normal((900, 3)), axis=0) * 1e-3
+    reference = sosfiltfilt(butter(4, 4.0, fs=FPS, output="sos"), walk, axis=0)
+    assert np.abs(zero_phase_lowpass(walk, fps=FPS) - reference).max() < 0.005 * walk.std()
+    envelope = speed_envelope(walk, fps=FPS)
+    np.testing.assert_allclose(smooth_speed_envelope(walk, fps=FPS), envelope, rtol=0.05, atol=0.02 * envelope.mean())
