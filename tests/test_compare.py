@@ -175,6 +175,17 @@ def corpus(tmp_path, rng) -> tuple[Path, Path]:
     return indir, truth
 
 
+def test_bootstrap_interval_of_known_samples() -> None:
+    from prosody.batch import bootstrap_interval
+
+    assert bootstrap_interval([]) is None
+    assert bootstrap_interval([2.0]) == (2.0, 2.0)
+    low, high = bootstrap_interval(np.arange(100.0))
+    # the mean of 0..99 is 49.5 with a standard error of 28.9 / 10: the interval is about +-5.7 around it
+    assert low == pytest.approx(49.5 - 1.96 * 2.887, abs=0.7) and high == pytest.approx(49.5 + 1.96 * 2.887, abs=0.7)
+    assert bootstrap_interval(np.arange(100.0)) == (low, high)  # seeded
+
+
 def test_find_files_and_ground_truth(corpus) -> None:
     indir, truth = corpus
     files = find_audio_files(indir)
@@ -202,6 +213,17 @@ def test_batch_cli_mixes_good_broken_and_paired_files(corpus, tmp_path, capsys) 
     assert not (out / "day1" / "broken").exists() or not (out / "day1" / "broken" / "metrics.json").exists()
     assert summary["aggregate"]["GROUND_TRUTH"]["faps"]["48"] == {"pearson_r": pytest.approx(1.0), "files": 2}
     assert "| `day1/broken.wav` | failed" in (out / "summary.md").read_text()
+    # measures over the recordings with truth: a mean and a bootstrap interval around it, and the controls
+    truth_pitch = summary["measures"]["GROUND_TRUTH"]["head"]["pitch_r"]
+    assert truth_pitch["mean"] == pytest.approx(1.0) and truth_pitch["recordings"] == 2
+    assert truth_pitch["ci95"] == pytest.approx([1.0, 1.0])
+    speech = summary["measures"]["SPEECH_DRIVEN"]["head"]["speed_envelope_r"]
+    assert speech["ci95"][0] <= speech["mean"] <= speech["ci95"][1]
+    assert set(summary["controls"]) == {"mismatched_audio", "mismatched_audio_brows", "other_recordings"}
+    assert summary["controls"]["other_recordings"]["pitch_r"]["recordings"] == 2
+    assert by_file["a.wav"]["other_recordings_control"]["pitch_r"] is not None
+    assert by_file["day1/c.flac"]["other_recordings_control"] is None  # no truth to compare with
+    assert "own audio shifted (control)" in (out / "summary.md").read_text()
 
     # a re-run skips complete outputs; --force redoes them; a removed metrics.json makes one incomplete
     (out / "a" / "metrics.json").unlink()

@@ -268,3 +268,22 @@ def test_generators_never_import_cli_reports_or_writers() -> None:
         tree = ast.parse((REPO / "prosody" / f"{module}.py").read_text())
         imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) and node.module}
         assert not imported & {"cli", "exporters", "report", "compare", "batch"}, module
+
+
+def test_train_prosodic_with_cv_stores_held_out_figures(tmp_path, rng) -> None:
+    data = tmp_path / "pairs"
+    data.mkdir()
+    for index in range(3):
+        soundfile.write(data / f"clip{index}.wav", harmonic_tone(140 + 40 * index, 6.0, SR), SR)
+        walk = np.cumsum(0.002 * rng.standard_normal((180, 3)), axis=0)
+        _write_head_csv(data / f"clip{index}.head.csv", *walk.T)
+    out = tmp_path / "model.json"
+    assert main(["train", "--data", str(data), "-o", str(out), "--cv"]) == 0
+    import json
+
+    payload = json.loads(out.read_text())
+    cv = payload["cross_validation"]
+    assert cv["seeds"] == 10 and set(cv["per_recording"]) == {"clip0", "clip1", "clip2"}
+    assert set(cv["settings"]) == {"pitch_share", "speed_iterations"}
+    assert set(cv["mean"]) == {"speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db", "std_ratio"}
+    assert payload["settings"]["pitch_share"] == cv["settings"]["pitch_share"]
