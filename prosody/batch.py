@@ -51,12 +51,15 @@ class BatchOptions:
     f0_ceiling_hz: float = 500.0
     plots: bool = False
     seeds: int = 10
+    brows: str = "accent"
 
     def __post_init__(self) -> None:
         parsed = tuple(Condition.parse(name).value for name in self.conditions)
         if not parsed:
             raise ConfigError("choose at least one condition")
         object.__setattr__(self, "conditions", parsed)
+        if self.brows not in ("accent", "thesis"):
+            raise ConfigError(f"brows must be 'accent' or 'thesis', got {self.brows!r}")
         if not (isinstance(self.seeds, int) and not isinstance(self.seeds, bool) and 1 <= self.seeds <= 1000):
             raise ConfigError(f"seeds must be a whole number from 1 to 1000, got {self.seeds!r}")
 
@@ -142,8 +145,11 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
     try:
         if not conditions:
             raise ConfigError("only GROUND_TRUTH was asked for and no ground truth was found")
+        from .eyebrows import AccentRule, EyebrowRule
+
+        rule = AccentRule() if options.brows == "accent" else EyebrowRule()
         comparison = compare(audio, ground_truth=truth, model=options.model, seed=options.seed,
-                             seeds=options.seeds, normalize=options.normalize, conditions=conditions,
+                             seeds=options.seeds, eyebrow_rule=rule, normalize=options.normalize, conditions=conditions,
                              fps=options.fps, f0_floor_hz=options.f0_floor_hz, f0_ceiling_hz=options.f0_ceiling_hz)
         folder.mkdir(parents=True, exist_ok=True)
         # the features let the summary drive the generator with this recording's audio against other ones

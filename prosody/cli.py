@@ -272,7 +272,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
 
     conditions = [name for value in args.condition for name in value.split(",") if name.strip()] or None
     options = BatchOptions(model=args.model, seed=args.seed, seeds=args.seeds, normalize=args.normalize,
-                           plots=args.plots, **_analysis_kwargs(args))
+                           plots=args.plots, brows=args.brows, **_analysis_kwargs(args))
     if conditions:
         options = dataclasses.replace(options, conditions=tuple(conditions))
     progress = Progress(len(find_audio_files(args.input)))
@@ -483,6 +483,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="run on a Dask distributed cluster, e.g. tcp://host:8786 (needs the 'cluster' extra)")
     _add_generator_options(batch)
     _add_seeds_option(batch)
+    batch.add_argument("--brows", default="accent", choices=["accent", "thesis"],
+                       help="eyebrow rule of the speech-driven condition, with its default settings (default "
+                            "accent; thesis: the thesis's 207 Hz / 45 dB rule)")
     batch.add_argument("--normalize", action="store_true", help="normalise as 'prosody compare --normalize'")
     batch.add_argument("--plots", action="store_true", help="also write figures and a report per file")
     batch.add_argument("--force", action="store_true", help="redo files whose outputs are already complete")
