@@ -252,7 +252,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
     comparison = compare(args.input, ground_truth=args.ground_truth, model=args.model, seed=args.seed,
                          seeds=args.seeds, normalize=args.normalize, eyebrow_rule=_eyebrow_rule(args),
-                         **_analysis_kwargs(args))
+                         other_head_models={name: name for name in args.also_model}, **_analysis_kwargs(args))
     written = write_comparison(comparison, args.output, plots=not args.no_plots, video=args.video,
                                exaggerate=args.exaggerate,
                                progress=_frame_progress(f"{args.output}/conditions.mp4") if args.video else None)
@@ -449,6 +449,9 @@ def build_parser() -> argparse.ArgumentParser:
                          help="recorded motion: <clip>.head.csv or .fap (enables GROUND_TRUTH and agreement)")
     _add_generator_options(compare)
     _add_seeds_option(compare)
+    compare.add_argument("--also-model", action="append", default=[], metavar="NAME|FILE",
+                         help="measure another head model beside the speech-driven one, with its own control "
+                              "(e.g. --also-model arx: the thesis's model next to the default; repeatable)")
     compare.add_argument("--normalize", action="store_true",
                          help="scale and offset RANDOM, SPEECH_DRIVEN and GROUND_TRUTH to the same mean and "
                               "standard deviation per FAP (the ground truth's where it has the FAP), as the "

@@ -171,6 +171,7 @@ def compare(
     model: HeadModel | str | os.PathLike[str] | None = None,
     seed: int = 0,
     seeds: int = SUMMARY_SEEDS,
+    other_head_models: Mapping[str, HeadModel | str | os.PathLike[str]] | None = None,
     normalize: bool = False,
     targets: Mapping[int, tuple[float, float]] | None = None,
     conditions: Iterable[Condition | str] | None = None,
@@ -193,6 +194,9 @@ def compare(
         thesis's model, or a file from ``prosody train``.
     seed : int >= 0
         Seed of the RANDOM condition and of the prosodic head (the written streams use it).
+    other_head_models : mapping label -> head model, shipped name or path, optional
+        Head models measured beside SPEECH_DRIVEN's, with their own mismatched-audio control (for example
+        ``{"arx": "arx"}``: the thesis's model next to the default); in ``metrics["other_head_models"]``.
     seeds : int >= 1
         Number of seeds (``seed``, ``seed + 1``, ...) over which the head measures of the stochastic
         conditions and of the mismatched-audio control are averaged.
@@ -308,6 +312,28 @@ def compare(
         block["head"] = head_blocks.get(name, empty_head_metrics())
         block["brows"] = brow_blocks.get(name, empty_brow_metrics())
     metrics["controls"] = {"mismatched_audio": control, "mismatched_audio_brows": brow_control}
+
+    # other head models beside the speech-driven one (e.g. the thesis's ARX next to the default)
+    others: dict[str, dict] = {}
+    for label, other in (other_head_models or {}).items():
+        other_model = resolve_head_model(other)
+        run_seeds = list(range(seed, seed + seeds)) if is_stochastic(other_model) else [seed]
+
+        def head_of(source: Features, run_seed: int, chosen: HeadModel = other_model) -> np.ndarray:
+            stream = FapStream.from_curves(chosen.generate(source, seed=run_seed), fps=source.fps)
+            return head_matrix(finished(Condition.SPEECH_DRIVEN, stream))
+
+        entry: dict = {"kind": other_model.kind, "head": empty_head_metrics(),
+                       "mismatched_audio": empty_head_metrics()}
+        if truth_head is not None:
+            entry["head"] = _average_head([head_metrics(head_of(features, s), truth_head, fps=features.fps)
+                                           for s in run_seeds])
+            entry["mismatched_audio"] = _average_head([
+                head_metrics(head_of(shifted_features(features, offset), s), truth_head, fps=features.fps)
+                for s in run_seeds for offset in shift_offsets(features.n_frames, fps=features.fps)])
+        others[str(label)] = entry
+    if others:
+        metrics["other_head_models"] = others
     return Comparison(str(audio), features, eyebrows, streams, metrics)
 
 

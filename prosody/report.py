@@ -142,6 +142,9 @@ def _head_section(metrics: Mapping) -> list[str]:
     control = (metrics.get("controls") or {}).get("mismatched_audio")
     if control and "SPEECH_DRIVEN" in conditions:
         rows.append(_head_row("SPEECH_DRIVEN with mismatched audio (control)", control))
+        for label, other in (metrics.get("other_head_models") or {}).items():
+            rows.append(_head_row(f"head model {label} ({other['kind']})", other["head"]))
+            rows.append(_head_row(f"head model {label} with mismatched audio (control)", other["mismatched_audio"]))
         speech = conditions["SPEECH_DRIVEN"].get("head") or {}
         rises = []
         for key, label in (("speed_envelope_r", "speed-envelope r"), ("pitch_r", "pitch r")):

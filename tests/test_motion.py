@@ -12,6 +12,7 @@ from conftest import make_features, segments
 
 from audio_features import Audio, F0Track, Features, Track, extract_features, read_features_csv
 from prosody.cli import main
+from prosody.conditions import Condition
 from prosody.controls import fitted_features, shift_offsets, shifted_features
 from prosody.errors import ConfigError, GroundTruthError, ModelError
 from prosody.eyebrows import AccentRule, EyebrowRule, NoRaiseWarning, accent_raises, brow_raises
@@ -348,7 +349,7 @@ def test_no_voice_gives_no_raise_and_says_so() -> None:
     raises = brow_raises(_voice(np.zeros(60)))
     assert raises.events == () and not np.isfinite(raises.f0_threshold_hz)
     with pytest.warns(NoRaiseWarning, match="no voiced speech"):
-        from prosody.conditions import Condition, condition_stream
+        from prosody.conditions import condition_stream
 
         condition_stream(Condition.SPEECH_DRIVEN, _voice(np.zeros(60)))
 
@@ -481,3 +482,26 @@ def test_the_generators_numpy_lowpass_matches_scipys_butterworth(rng) -> None:
     assert np.abs(zero_phase_lowpass(walk, fps=FPS) - reference).max() < 0.005 * walk.std()
     envelope = speed_envelope(walk, fps=FPS)
     np.testing.assert_allclose(smooth_speed_envelope(walk, fps=FPS), envelope, rtol=0.05, atol=0.02 * envelope.mean())
+
+
+def test_compare_measures_the_thesis_model_beside_the_default(tmp_path, rng) -> None:
+    from prosody.compare import compare
+
+    audio = tmp_path / "v.wav"
+    soundfile.write(audio, segments(SR, (2.0, 140, 0.5), (1.0, 230, 0.5), (3.0, 150, 0.5), (2.0, 0, 0),
+                                    (4.0, 170, 0.5)), SR)
+    n = 360
+    walk = np.cumsum(0.002 * rng.standard_normal((n, 3)), axis=0)
+    truth = tmp_path / "v.head.csv"
+    truth.write_text("frame,time_s,rx_rad,ry_rad,rz_rad\n" + "".join(
+        f"{k},{k / 30:.6f},{a!r},{b!r},{c!r}\n" for k, (a, b, c) in enumerate(walk.tolist())))
+    result = compare(audio, ground_truth=truth, seeds=2, other_head_models={"thesis": "arx"},
+                     conditions=["speech", "truth"])
+    other = result.metrics["other_head_models"]["thesis"]
+    assert other["kind"] == "arx"
+    # the ARX model is deterministic: its own figure is one run, and it is what the model generates
+    arx = load_head_model("arx")
+    generated = np.column_stack([arx.generate(result.features)[fap] for fap in (48, 49, 50)])
+    recorded = result.streams[Condition.GROUND_TRUTH].curves((48, 49, 50))
+    assert other["head"]["pitch_r"] == pytest.approx(head_metrics(generated, recorded, fps=FPS)["pitch_r"])
+    assert other["mismatched_audio"]["speed_envelope_r"] is not None
