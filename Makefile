@@ -18,7 +18,7 @@ demo: $(STAMP)
 	mkdir -p out
 	$(BIN)/prosody convert samples/arctic_a0009.wav -o out/arctic_a0009.fap
 	$(BIN)/prosody inspect out/arctic_a0009.fap
-	$(BIN)/prosody preview samples/arctic_a0009.wav -o out/arctic_a0009.gif --exaggerate 5
+	$(BIN)/prosody preview samples/arctic_a0009.wav -o out/arctic_a0009.gif
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

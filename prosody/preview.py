@@ -277,9 +277,11 @@ class CurveStrip:
         if has_head:
             self.curves.update(pitch=head[:, 0] / head_scale, yaw=head[:, 1] / head_scale,
                                roll=head[:, 2] / head_scale)
+        degrees = math.degrees(head_scale * RADIANS_PER_AU)
         self.labels = (f"brows (full scale {brow_scale:.0f} ENS)" if has_brows else "brows: not in this stream",
-                       f"head, full scale {math.degrees(head_scale * RADIANS_PER_AU):.1f} deg:"
-                       if has_head else "head: not in this stream")
+                       f"head, full scale {degrees:.1f} deg:" if has_head else "head: not in this stream")
+        self.short_labels = (f"brows {brow_scale:.0f} ENS" if has_brows else "no brows",
+                             f"head {degrees:.1f} deg" if has_head else "no head")
 
     def render(self, frame: int) -> np.ndarray:
         from PIL import Image, ImageDraw
@@ -299,14 +301,20 @@ class CurveStrip:
             y = middle - values[lo:hi] * h * 0.38
             draw.line(list(zip(x.tolist(), y.tolist(), strict=True)), fill=_CURVE_COLORS[name], width=2)
         draw.line([(w / 2, 0), (w / 2, h)], fill=(90, 90, 90))
-        draw.text((4, 2), self.labels[0], fill=BROW_COLOR)
+        brow_label, head_label = self.labels
+        names = ["pitch", "yaw", "roll"] if "pitch" in self.curves else []
+        legend = sum(draw.textlength(name) + 5 for name in names)
+        if draw.textlength(brow_label) > w / 2 - 6 or draw.textlength(head_label) + legend > w / 2 - 6:
+            # a narrow strip (side-by-side panels): the short forms
+            brow_label, head_label = self.short_labels
+            names = [name[0] for name in names]
+        draw.text((4, 2), brow_label, fill=BROW_COLOR)
         label_x = w / 2 + 4
-        draw.text((label_x, 2), self.labels[1], fill=(70, 70, 70))
-        label_x += draw.textlength(self.labels[1])
-        if "pitch" in self.curves:
-            for name in ("pitch", "yaw", "roll"):  # the legend of the head curves, in their colours
-                draw.text((label_x + 5, 2), name, fill=_CURVE_COLORS[name])
-                label_x += draw.textlength(name) + 5
+        draw.text((label_x, 2), head_label, fill=(70, 70, 70))
+        label_x += draw.textlength(head_label)
+        for name, full in zip(names, ("pitch", "yaw", "roll"), strict=False):  # the legend, in the curves' colours
+            draw.text((label_x + 5, 2), name, fill=_CURVE_COLORS[full])
+            label_x += draw.textlength(name) + 5
         return np.asarray(image)
 
 
