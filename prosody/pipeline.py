@@ -93,6 +93,8 @@ def convert(
     -------
     FapStream
     """
+    if output is not None and not os.fspath(output):
+        raise ConfigError("output: no output file name given")
     chosen = condition if isinstance(condition, Condition) else Condition.parse(condition)
     if features is None:
         features = extract_features(audio, fps=fps, f0_floor_hz=f0_floor_hz, f0_ceiling_hz=f0_ceiling_hz)
