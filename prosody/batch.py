@@ -9,12 +9,17 @@ is skipped on a re-run (``force`` redoes it). A broken file is reported and skip
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import json
 import os
+import re
 import sys
 import time
+import warnings
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from concurrent.futures import CancelledError, Executor, Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -75,10 +80,12 @@ class FileOutcome:
     error: str | None = None
     seconds: float = 0.0
     metrics: dict | None = field(default=None, repr=False)
+    warnings: list[str] = field(default_factory=list)
 
 
 def find_audio_files(indir: str | os.PathLike[str]) -> list[Path]:
-    """Audio files under ``indir`` (recursively, hidden folders skipped), as paths relative to it, sorted."""
+    """Audio files under ``indir`` (recursively, hidden folders skipped), as paths relative to it, in natural
+    order (clip2 before clip10)."""
     root = Path(indir)
     if not root.is_dir():
         raise ConfigError(f"{root}: not a folder")
@@ -88,7 +95,7 @@ def find_audio_files(indir: str | os.PathLike[str]) -> list[Path]:
         for filename in filenames:
             if not filename.startswith(".") and Path(filename).suffix.lower() in AUDIO_EXTENSIONS:
                 found.append(Path(dirpath, filename).relative_to(root))
-    return sorted(found)
+    return sorted(found, key=natural_key)
 
 
 def find_ground_truth(relative: Path, directory: str | os.PathLike[str] | None) -> Path | None:
@@ -104,14 +111,53 @@ def find_ground_truth(relative: Path, directory: str | os.PathLike[str] | None) 
     return None
 
 
-def output_folder(outdir: str | os.PathLike[str], relative: Path) -> Path:
-    """Where one input's outputs go: ``OUTDIR/<relative folder>/<stem>/``."""
-    return Path(outdir) / relative.parent / relative.stem
+def output_folder(outdir: str | os.PathLike[str], relative: Path, *, keep_suffix: bool = False) -> Path:
+    """Where one input's outputs go: ``OUTDIR/<relative folder>/<stem>/``, or ``<stem>.<ending>/`` when
+    another input in the same folder has the same stem (``take.wav`` and ``take.flac``)."""
+    return Path(outdir) / relative.parent / (relative.name if keep_suffix else relative.stem)
 
 
-def _settings(options: BatchOptions, ground_truth: Path | None) -> dict:
+def shared_stems(files: Iterable[Path]) -> set[Path]:
+    """The inputs whose folder holds another input of the same stem: their outputs keep the ending."""
+    seen: dict[tuple[Path, str], list[Path]] = {}
+    for relative in files:
+        seen.setdefault((relative.parent, relative.stem), []).append(relative)
+    return {relative for group in seen.values() if len(group) > 1 for relative in group}
+
+
+def natural_key(path: Path) -> list:
+    """Sort key that orders numbers by value: clip2 before clip10."""
+    return [(0, int(part), "") if part.isdigit() else (1, 0, part)
+            for part in re.split(r"(\d+)", str(path)) if part]
+
+
+def file_digest(path: str | os.PathLike[str] | None) -> str | None:
+    """SHA-256 of a file's content (None for None): resume notices an input that changed under its name."""
+    if path is None:
+        return None
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+#: Files a comparison folder may hold; a redo removes those the new settings no longer write.
+_OUTPUT_NAMES = ("no_prosody.fap", "random.fap", "speech_driven.fap", "ground_truth.fap", "features.png",
+                 "head.png", "report.md", "conditions.mp4", FEATURES_FILE, "metrics.json")
+
+
+def _settings(options: BatchOptions, ground_truth: Path | None, audio: str) -> dict:
+    """What makes an output folder current: the options, the paths, and the content of every input."""
+    model = options.model
+    if model is not None:
+        from .head_models import SHIPPED_MODELS
+
+        model = str(SHIPPED_MODELS.get(model, model))
     return {**asdict(options), "conditions": list(options.conditions),
-            "ground_truth": str(ground_truth) if ground_truth else None}
+            "ground_truth": str(ground_truth) if ground_truth else None,
+            "content": {"audio": file_digest(audio), "ground_truth": file_digest(ground_truth),
+                        "model": file_digest(model)}}
 
 
 def _complete(folder: Path, settings: dict) -> dict | None:
@@ -124,38 +170,52 @@ def _complete(folder: Path, settings: dict) -> dict | None:
 
 
 def process_file(audio: str, relative: str, outdir: str, ground_truth: str | None, options: BatchOptions,
-                 force: bool = False) -> FileOutcome:
+                 force: bool = False, keep_suffix: bool = False) -> FileOutcome:
     """Convert and compare one file; every failure is caught and returned, never raised.
 
-    A top-level function, so process pools and Dask workers can run it.
+    A top-level function, so process pools and Dask workers can run it. The folder is redone when its
+    metrics.json was made with other settings or from inputs whose content has changed since; files an
+    earlier run wrote there that the new settings do not write are removed.
     """
     from .compare import compare, write_comparison
 
     started = time.perf_counter()
-    folder = output_folder(outdir, Path(relative))
+    folder = output_folder(outdir, Path(relative), keep_suffix=keep_suffix)
     truth = Path(ground_truth) if ground_truth else None
-    settings = _settings(options, truth)
     outcome = FileOutcome(relative, "done", str(folder), ground_truth)
-    if not force:
-        stored = _complete(folder, settings)
-        if stored is not None:
-            outcome.status, outcome.metrics = "skipped", stored
-            return outcome
     conditions = [c for c in options.conditions if truth is not None or c != Condition.GROUND_TRUTH.value]
     try:
+        settings = _settings(options, truth, audio)
+        if not force:
+            stored = _complete(folder, settings)
+            if stored is not None:
+                outcome.status, outcome.metrics = "skipped", stored
+                return outcome
+        with contextlib.suppress(FileNotFoundError):
+            (folder / "metrics.json").unlink()  # from here on the folder is not complete
         if not conditions:
             raise ConfigError("only GROUND_TRUTH was asked for and no ground truth was found")
         from .eyebrows import AccentRule, EyebrowRule
 
         rule = AccentRule() if options.brows == "accent" else EyebrowRule()
-        comparison = compare(audio, ground_truth=truth, model=options.model, seed=options.seed,
-                             seeds=options.seeds, eyebrow_rule=rule, normalize=options.normalize, conditions=conditions,
-                             fps=options.fps, f0_floor_hz=options.f0_floor_hz, f0_ceiling_hz=options.f0_ceiling_hz)
+        with warnings.catch_warnings(record=True) as caught:
+            # a file's warnings are reported with the file, not raised or printed by a worker
+            warnings.simplefilter("always")
+            comparison = compare(audio, ground_truth=truth, model=options.model, seed=options.seed,
+                                 seeds=options.seeds, eyebrow_rule=rule, normalize=options.normalize,
+                                 conditions=conditions, fps=options.fps, f0_floor_hz=options.f0_floor_hz,
+                                 f0_ceiling_hz=options.f0_ceiling_hz)
+        outcome.warnings = list(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
         folder.mkdir(parents=True, exist_ok=True)
         # the features let the summary drive the generator with this recording's audio against other ones
         comparison.features.write_csv(folder / FEATURES_FILE)
-        write_comparison(comparison, folder, plots=options.plots, report=options.plots,
-                         extra={"settings": settings})
+        written = write_comparison(comparison, folder, plots=options.plots, report=options.plots,
+                                   extra={"settings": settings})
+        kept = {path.name for path in written} | {FEATURES_FILE}
+        for name in _OUTPUT_NAMES:
+            if name not in kept:
+                with contextlib.suppress(FileNotFoundError):
+                    (folder / name).unlink()
         outcome.metrics = comparison.metrics
     except (ProsodyError, AudioFeaturesError, OSError, ValueError) as error:
         outcome.status, outcome.error = "failed", _one_line(error)
@@ -171,6 +231,46 @@ def _one_line(error: BaseException) -> str:
     return " ".join(str(error).split())
 
 
+class _NoWorkers(Exception):
+    """Every worker of the cluster is gone."""
+
+
+#: Seconds without a single Dask worker after which the files still queued are failed.
+NO_WORKER_TIMEOUT_S = 60.0
+
+
+def _completed(futures: dict[Future, tuple], *, alive: Callable[[], bool] | None = None,
+               poll_s: float = 2.0) -> Iterator[tuple[tuple, object]]:
+    """``(task, outcome or exception)`` as the futures finish. With ``alive`` (the cluster still has
+    workers), waiting stops when it has had none for :data:`NO_WORKER_TIMEOUT_S`: the rest are failed."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    pending = set(futures)
+    without_workers_since: float | None = None
+    while pending:
+        done, pending = wait(pending, timeout=poll_s, return_when=FIRST_COMPLETED)
+        for future in done:
+            try:
+                yield futures[future], future.result()
+            except BaseException as error:  # noqa: BLE001 - reported per file
+                if isinstance(error, (KeyboardInterrupt, SystemExit)):
+                    raise
+                yield futures[future], error
+        if done or alive is None:
+            without_workers_since = None
+            continue
+        if alive():
+            without_workers_since = None
+        elif without_workers_since is None:
+            without_workers_since = time.monotonic()
+        elif time.monotonic() - without_workers_since > NO_WORKER_TIMEOUT_S:
+            for future in pending:
+                future.cancel()
+                yield futures[future], _NoWorkers(
+                    f"the Dask cluster has had no worker for {NO_WORKER_TIMEOUT_S:.0f} s; this file was not done")
+            return
+
+
 @contextmanager
 def make_executor(*, jobs: int = 1, scheduler: str | None = None) -> Iterator[Executor | None]:
     """The executor for a batch: None (run in this process) for one local job, a process pool for more,
@@ -184,10 +284,20 @@ def make_executor(*, jobs: int = 1, scheduler: str | None = None) -> Iterator[Ex
             client = Client(scheduler, timeout="20s")
         except (OSError, TimeoutError, ValueError) as error:
             raise ConfigError(f"cannot reach the Dask scheduler at {scheduler!r} ({error})") from None
+        executor = client.get_executor()
+
+        def workers_alive() -> bool:
+            try:
+                return bool(client.scheduler_info().get("workers"))
+            except Exception:  # noqa: BLE001 - a lost scheduler has no workers for us either
+                return False
+
+        executor.workers_alive = workers_alive  # type: ignore[attr-defined]
         try:
-            yield client.get_executor()
+            yield executor
         finally:
-            client.close()
+            with contextlib.suppress(Exception):
+                client.close()
     elif jobs > 1:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
             yield pool
@@ -253,31 +363,57 @@ def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,
         load_head_model(options.model)  # a bad model is one error up front, not one per file
         if options.model not in SHIPPED_MODELS:
             options = BatchOptions(**{**asdict(options), "model": str(Path(options.model).resolve())})
+    if ground_truth_dir is not None and not Path(ground_truth_dir).is_dir():
+        raise ConfigError(f"ground_truth_dir: {ground_truth_dir} is not a folder")
     files = find_audio_files(indir)
+    shared = shared_stems(files)
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     tasks = []
     for relative in files:
         truth = find_ground_truth(relative, ground_truth_dir)
         tasks.append((str(Path(indir) / relative), str(relative), str(out), str(truth) if truth else None))
+    suffixed = {str(relative) for relative in shared}
     outcomes: dict[str, FileOutcome] = {}
     report = on_outcome or (lambda outcome: None)
     with make_executor(jobs=jobs, scheduler=scheduler) as executor:
         if executor is None:
             for task in tasks:
-                outcome = process_file(*task, options, force)
+                outcome = process_file(*task, options, force, task[1] in suffixed)
                 outcomes[outcome.file] = outcome
                 report(outcome)
         else:
-            futures: dict[Future, tuple] = {executor.submit(process_file, *task, options, force): task
+            def failed(task: tuple, why: str) -> FileOutcome:
+                folder = output_folder(out, Path(task[1]), keep_suffix=task[1] in suffixed)
+                return FileOutcome(task[1], "failed", str(folder), task[3], error=why)
+
+            futures: dict[Future, tuple] = {executor.submit(process_file, *task, options, force,
+                                                            task[1] in suffixed): task
                                             for task in tasks}
-            for future in as_completed(futures):
-                task = futures[future]
-                try:
-                    outcome = future.result()
-                except Exception as error:  # noqa: BLE001 - a lost worker fails its file, not the batch
-                    outcome = FileOutcome(task[1], "failed", str(output_folder(out, Path(task[1]))), task[3],
-                                          error=f"worker failed: {type(error).__name__}: {_one_line(error)}")
+            broken: list[tuple] = []
+            for task, result in _completed(futures, alive=getattr(executor, "workers_alive", None)):
+                if isinstance(result, FileOutcome):
+                    outcome = result
+                elif isinstance(result, BrokenProcessPool):
+                    broken.append(task)  # a worker died: which file killed it is found below
+                    continue
+                elif isinstance(result, CancelledError):
+                    outcome = failed(task, "the Dask scheduler was lost before this file was done")
+                elif isinstance(result, _NoWorkers):
+                    outcome = failed(task, str(result))
+                else:
+                    outcome = failed(task, f"worker failed: {type(result).__name__}: {_one_line(result)}")
+                outcomes[outcome.file] = outcome
+                report(outcome)
+            # after a worker died, every file it left undone is run alone in a fresh process: only the file
+            # that kills its process fails
+            for task in broken:
+                with ProcessPoolExecutor(max_workers=1) as alone:
+                    try:
+                        outcome = alone.submit(process_file, *task, options, force, task[1] in suffixed).result()
+                    except BrokenProcessPool:
+                        outcome = failed(task, "the worker process died while processing this file (out of "
+                                               "memory, or a crash in native code)")
                 outcomes[outcome.file] = outcome
                 report(outcome)
     ordered = [outcomes[str(relative)] for relative in files]
@@ -392,7 +528,8 @@ def summarize(outcomes: Iterable[FileOutcome], *, indir: str, outdir: str,
     options = options or BatchOptions()
     cross = other_recordings_control(outcomes, options)
     entries = [{"file": o.file, "status": o.status, "output": o.output, "ground_truth": o.ground_truth,
-                "error": o.error, "seconds": round(o.seconds, 3), "metrics": _compact(o.metrics),
+                "error": o.error, "warnings": o.warnings, "seconds": round(o.seconds, 3),
+                "metrics": _compact(o.metrics),
                 "other_recordings_control": cross.get(o.file)}
                for o in outcomes]
     with_truth = [o.metrics for o in outcomes if o.metrics is not None and o.ground_truth]

@@ -278,6 +278,10 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     progress = Progress(len(find_audio_files(args.input)))
 
     def on_outcome(outcome) -> None:
+        for note in outcome.warnings:
+            if progress.enabled:
+                sys.stderr.write("\r" + " " * 80 + "\r")
+            print(f"prosody batch: warning: {outcome.file}: {note}", file=sys.stderr)
         if outcome.status == "failed":
             # failures are always said, on their own line, whatever the progress display does
             if progress.enabled:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from conftest import segments
 from prosody.batch import BatchOptions, find_audio_files, find_ground_truth, run_batch
 from prosody.cli import main
 from prosody.compare import compare
+from prosody.errors import ConfigError
 from prosody.metrics import (
     canonical_correlations,
     fap_statistics,
@@ -266,3 +268,79 @@ def test_batch_bad_usage(tmp_path, capsys) -> None:
     assert "not a folder" in capsys.readouterr().err
     assert main(["batch", str(tmp_path), "-o", str(tmp_path / "o"), "--condition", "loud"]) == 2
     assert "unknown condition" in capsys.readouterr().err
+
+
+# batch: what an unlucky run meets ----------------------------------------------------------------------
+def test_same_stem_inputs_get_their_own_folders(tmp_path) -> None:
+    indir = tmp_path / "in"
+    indir.mkdir()
+    _tone_file(indir / "take.wav")
+    soundfile.write(indir / "take.flac", segments(SR, (0.5, 200, 0.5), (0.5, 0, 0)), SR)
+    _tone_file(indir / "other.wav")
+    out = tmp_path / "out"
+    summary = run_batch(indir, out, options=BatchOptions(conditions=("none",), seeds=1))
+    folders = {entry["file"]: Path(entry["output"]).name for entry in summary["files"]}
+    assert folders == {"other.wav": "other", "take.flac": "take.flac", "take.wav": "take.wav"}
+    rerun = run_batch(indir, out, options=BatchOptions(conditions=("none",), seeds=1))
+    assert rerun["counts"]["skipped"] == 3
+    frames = {json.loads((out / name / "metrics.json").read_text())["frames"] for name in ("take.wav", "take.flac")}
+    assert len(frames) == 2  # each folder holds its own recording's results
+
+
+def test_resume_notices_changed_content_and_cleans_what_other_settings_wrote(tmp_path, rng) -> None:
+    indir = tmp_path / "in"
+    indir.mkdir()
+    audio = _tone_file(indir / "a.wav")
+    truth_dir = tmp_path / "truth"
+    truth_dir.mkdir()
+    _head_csv(truth_dir / "a.head.csv", 60, rng)
+    out = tmp_path / "out"
+    run_batch(indir, out, ground_truth_dir=truth_dir, options=BatchOptions(seeds=1, plots=True))
+    assert (out / "a" / "random.fap").exists() and (out / "a" / "report.md").exists()
+    # the same path, other content: redone, not "already complete"
+    _head_csv(truth_dir / "a.head.csv", 60, rng)
+    assert run_batch(indir, out, ground_truth_dir=truth_dir, options=BatchOptions(seeds=1, plots=True))[
+        "counts"]["done"] == 1
+    soundfile.write(audio, segments(SR, (0.5, 180, 0.5), (1.0, 240, 0.5), (0.5, 0, 0)), SR)
+    summary = run_batch(indir, out, ground_truth_dir=truth_dir, options=BatchOptions(seeds=1, plots=True))
+    assert summary["counts"]["done"] == 1, summary["files"][0]["error"]
+    assert summary["files"][0]["metrics"]["frames"] == 60
+    # fewer conditions and no plots: what the earlier run wrote and this one does not is gone
+    run_batch(indir, out, ground_truth_dir=truth_dir, options=BatchOptions(conditions=("speech",), seeds=1))
+    assert sorted(p.name for p in (out / "a").iterdir()) == ["features.csv", "metrics.json", "speech_driven.fap"]
+
+
+def test_batch_order_is_natural_and_a_missing_truth_folder_is_refused(tmp_path) -> None:
+    indir = tmp_path / "in"
+    indir.mkdir()
+    for name in ("clip10.wav", "clip2.wav", "clip1.wav"):
+        _tone_file(indir / name)
+    assert [str(f) for f in find_audio_files(indir)] == ["clip1.wav", "clip2.wav", "clip10.wav"]
+    with pytest.raises(ConfigError, match="not a folder"):
+        run_batch(indir, tmp_path / "out", ground_truth_dir=tmp_path / "nowhere")
+
+
+def test_a_worker_that_dies_fails_only_its_own_file(tmp_path, monkeypatch) -> None:
+    import multiprocessing
+
+    if multiprocessing.get_start_method() != "fork":
+        pytest.skip("the crash is injected into forked workers")
+    import prosody.compare
+
+    real = prosody.compare.compare
+
+    def crashing(audio, **kwargs):
+        if Path(audio).name == "crash.wav":
+            os._exit(9)  # as the out-of-memory killer would
+        return real(audio, **kwargs)
+
+    monkeypatch.setattr(prosody.compare, "compare", crashing)
+    indir = tmp_path / "in"
+    indir.mkdir()
+    for name in ("a.wav", "b.wav", "crash.wav", "d.wav", "e.wav"):
+        _tone_file(indir / name)
+    summary = run_batch(indir, tmp_path / "out", options=BatchOptions(conditions=("none",), seeds=1), jobs=2)
+    status = {entry["file"]: entry["status"] for entry in summary["files"]}
+    assert status == {"a.wav": "done", "b.wav": "done", "crash.wav": "failed", "d.wav": "done", "e.wav": "done"}
+    crashed = next(entry for entry in summary["files"] if entry["file"] == "crash.wav")
+    assert "worker process died" in crashed["error"]
