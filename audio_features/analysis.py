@@ -169,24 +169,35 @@ def array_reader(samples: np.ndarray) -> SegmentReader:
     return read
 
 
-def sound_file_reader(sound, *, source: str) -> SegmentReader:
-    """A :data:`SegmentReader` that seeks in an open ``soundfile.SoundFile`` and mixes to mono."""
-    total = sound.frames
+def sound_file_reader(sound, *, source: str, total: int | None = None) -> SegmentReader:
+    """A :data:`SegmentReader` that seeks in an open ``soundfile.SoundFile`` and mixes to mono.
+
+    ``total`` is the number of samples to read (default: the header's count); a file that holds fewer, or
+    whose decoder gives up, is reported as truncated or damaged.
+    """
+    import soundfile
+
+    from .audio import decode_failure, truncation
+
+    total = sound.frames if total is None else total
 
     def read(start: int, length: int) -> np.ndarray:
         out = np.zeros(length)
         lo, hi = max(0, start), min(total, start + length)
         if hi > lo:
-            sound.seek(lo)
             target = out[lo - start : hi - start]
-            if sound.channels == 1:
-                got = sound.read(hi - lo, dtype="float64", out=target).shape[0]  # no intermediate copy
-            else:
-                block = sound.read(hi - lo, dtype="float64", always_2d=True)
-                got = block.shape[0]
-                target[:got] = block.mean(axis=1)
+            try:
+                sound.seek(lo)
+                if sound.channels == 1:
+                    got = sound.read(hi - lo, dtype="float64", out=target).shape[0]  # no intermediate copy
+                else:
+                    block = sound.read(hi - lo, dtype="float64", always_2d=True)
+                    got = block.shape[0]
+                    target[:got] = block.mean(axis=1)
+            except (soundfile.SoundFileError, RuntimeError) as error:
+                raise AudioLoadError(decode_failure(source, sound.format, error)) from None
             if got != hi - lo:
-                raise AudioLoadError(f"{source}: could only read {got} of {hi - lo} samples at {lo}")
+                raise AudioLoadError(truncation(source, sound.format, total, lo + got))
             finite = np.isfinite(target)
             if not finite.all():
                 bad = lo + int(np.argmin(finite))

@@ -15,6 +15,12 @@ from .errors import AudioLoadError
 AUDIO_EXTENSIONS = (".wav", ".flac", ".ogg", ".oga", ".mp3", ".aif", ".aiff", ".aifc", ".au", ".caf", ".w64")
 #: Lowest sample rate accepted (SPEC section 2: "any sample rate from 8 kHz up").
 MIN_SAMPLE_RATE_HZ = 8000
+#: Highest sample rate accepted: above every rate recorders and interfaces use (768 kHz); a header that
+#: claims more is damaged or hostile, and would make the analysis run for ever.
+MAX_SAMPLE_RATE_HZ = 768000
+#: Containers whose header gives only an estimate of the length (MP3 without an exact Xing/LAME frame
+#: count): they are decoded to the end to learn it, and what is there is used.
+ESTIMATED_LENGTH_FORMATS = frozenset({"MP3", "MPEG"})
 
 
 @dataclass(frozen=True)
@@ -56,6 +62,11 @@ def check_shape(n_samples: int, *, source: str, sample_rate_hz: float) -> None:
         raise AudioLoadError(
             f"{source}: sample rate {sample_rate_hz!r} Hz is below the supported minimum of "
             f"{MIN_SAMPLE_RATE_HZ} Hz; resample the file first"
+        )
+    if sample_rate_hz > MAX_SAMPLE_RATE_HZ:
+        raise AudioLoadError(
+            f"{source}: the header claims a sample rate of {sample_rate_hz!r} Hz, above any recording's "
+            f"({MAX_SAMPLE_RATE_HZ} Hz at most): the file is damaged or not a recording"
         )
     if n_samples == 0:
         raise AudioLoadError(f"{source}: the recording has no samples (zero length)")
@@ -151,9 +162,24 @@ def load_audio(path: str | os.PathLike[str]) -> Audio:
     import soundfile
 
     with open_sound_file(path) as sound:
+        check_shape(max(sound.frames, 1), source=str(path), sample_rate_hz=sound.samplerate)
         try:
             data = sound.read(dtype="float64", always_2d=True)
         except (soundfile.SoundFileError, RuntimeError) as error:
-            raise AudioLoadError(f"{path}: could not decode the audio ({error})") from None
+            raise AudioLoadError(decode_failure(path, sound.format, error)) from None
+        if data.shape[0] < sound.frames and sound.format not in ESTIMATED_LENGTH_FORMATS:
+            raise AudioLoadError(truncation(path, sound.format, sound.frames, data.shape[0]))
         rate = int(sound.samplerate)
     return Audio(data, rate, str(path))
+
+
+def decode_failure(path: str | os.PathLike[str], container: str, error: BaseException) -> str:
+    """The message for a decoder that gave up part-way: the file is cut off or damaged."""
+    detail = str(error).split(": ", 1)[-1].strip()
+    return f"{path}: truncated or damaged {container} file: the decoder stopped ({detail})"
+
+
+def truncation(path: str | os.PathLike[str], container: str, promised: int, found: int) -> str:
+    """The message for a file that holds fewer samples than its header promises."""
+    return (f"{path}: truncated {container} file: the header promises {promised} samples but only {found} "
+            "could be decoded")

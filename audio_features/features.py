@@ -12,7 +12,7 @@ import numpy as np
 
 from ._atomic import atomic_write
 from .analysis import analyse_grid, array_reader, sound_file_reader
-from .audio import Audio, check_shape, open_sound_file
+from .audio import ESTIMATED_LENGTH_FORMATS, Audio, check_shape, decode_failure, open_sound_file, truncation
 from .errors import AudioLoadError, NoVoicedFramesWarning, ParameterError
 from .tracks import F0Track, Track
 
@@ -218,20 +218,45 @@ def condition_f0(f0: F0Track) -> Track:
     return Track(out, f0.fps, "Hz", "f0_conditioned")
 
 
-def _scan_file(sound, *, source: str) -> float:
-    """Global absolute peak of the mono mix, read in blocks; rejects non-finite samples."""
+def _scan_file(sound, *, source: str) -> tuple[float, int]:
+    """Global absolute peak of the mono mix and the number of samples decoded, read in blocks; rejects
+    non-finite samples and reports a decoder that gives up."""
+    import soundfile
+
     peak = 0.0
     offset = 0
     sound.seek(0)
-    for block in sound.blocks(blocksize=_SCAN_BLOCK, dtype="float64", always_2d=True):
-        mono = block.mean(axis=1)
-        finite = np.isfinite(mono)
-        if not finite.all():
-            bad = offset + int(np.argmin(finite))
-            raise AudioLoadError(f"{source}: sample {bad} is not finite; audio must have no NaN or infinity")
-        peak = max(peak, float(np.max(np.abs(mono), initial=0.0)))
-        offset += mono.shape[0]
-    return peak
+    try:
+        for block in sound.blocks(blocksize=_SCAN_BLOCK, dtype="float64", always_2d=True):
+            mono = block.mean(axis=1)
+            finite = np.isfinite(mono)
+            if not finite.all():
+                bad = offset + int(np.argmin(finite))
+                raise AudioLoadError(f"{source}: sample {bad} is not finite; audio must have no NaN or infinity")
+            peak = max(peak, float(np.max(np.abs(mono), initial=0.0)))
+            offset += mono.shape[0]
+    except (soundfile.SoundFileError, RuntimeError) as error:
+        raise AudioLoadError(decode_failure(source, sound.format, error)) from None
+    return peak, offset
+
+
+def _read_all(sound, *, source: str, exact: bool) -> np.ndarray:
+    """The whole file as mono float64; with ``exact``, fewer samples than the header's count is truncation."""
+    import soundfile
+
+    sound.seek(0)
+    try:
+        data = sound.read(dtype="float64", always_2d=True)
+    except (soundfile.SoundFileError, RuntimeError) as error:
+        raise AudioLoadError(decode_failure(source, sound.format, error)) from None
+    if exact and data.shape[0] < sound.frames:
+        raise AudioLoadError(truncation(source, sound.format, sound.frames, data.shape[0]))
+    mono = data[:, 0].copy() if data.shape[1] == 1 else data.mean(axis=1)
+    finite = np.isfinite(mono)
+    if not finite.all():
+        bad = int(np.argmin(finite))
+        raise AudioLoadError(f"{source}: sample {bad} is not finite; audio must have no NaN or infinity")
+    return mono
 
 
 def extract_features(
@@ -299,16 +324,24 @@ def extract_features(
         name = str(Path(source))
         with open_sound_file(source) as sound:
             check_shape(sound.frames, source=name, sample_rate_hz=sound.samplerate)
-            reader = sound_file_reader(sound, source=name)
-            if sound.frames * sound.channels <= IN_MEMORY_SAMPLES:
+            n_samples = sound.frames
+            estimated = sound.format in ESTIMATED_LENGTH_FORMATS
+            if n_samples * sound.channels <= IN_MEMORY_SAMPLES:
                 # one read instead of a peak scan and a second pass
-                samples = reader(0, sound.frames)
+                samples = _read_all(sound, source=name, exact=not estimated)
+                n_samples = samples.shape[0]
+                check_shape(n_samples, source=name, sample_rate_hz=sound.samplerate)
                 reader, peak = array_reader(samples), float(np.max(np.abs(samples)))
             else:
-                peak = _scan_file(sound, source=name)
-            grid = analyse_grid(reader, n_samples=sound.frames, sample_rate_hz=int(sound.samplerate),
+                peak, counted = _scan_file(sound, source=name)
+                if estimated:
+                    n_samples = counted  # the header's count was an estimate: decode what is there
+                elif counted < n_samples:
+                    raise AudioLoadError(truncation(name, sound.format, n_samples, counted))
+                reader = sound_file_reader(sound, source=name, total=n_samples)
+            grid = analyse_grid(reader, n_samples=n_samples, sample_rate_hz=int(sound.samplerate),
                                 global_peak=peak, source=name, **settings)
-            duration_s = sound.frames / sound.samplerate
+            duration_s = n_samples / sound.samplerate
     f0 = F0Track(grid.f0_hz, fps, "Hz", "f0", ~np.isnan(grid.f0_hz))
     return Features(
         f0=f0,

@@ -108,3 +108,52 @@ def test_unwritable_output_is_exit_1(tmp_path, capsys) -> None:
     assert code == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "No such file or directory" in err
+
+
+# containers: truncation everywhere, estimated lengths decoded, impossible rates refused -------------------
+def test_truncated_flac_is_reported_as_such(tmp_path, capsys) -> None:
+    path = tmp_path / "cut.flac"
+    soundfile.write(tmp_path / "whole.flac", harmonic_tone(200, 3.0, 16000), 16000)
+    data = (tmp_path / "whole.flac").read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    for call in (lambda: extract_features(path), lambda: load_audio(path)):
+        with pytest.raises(AudioLoadError, match="truncated or damaged FLAC"):
+            call()
+    assert main(["convert", str(path), "-o", str(tmp_path / "x.fap")]) == 1
+    assert capsys.readouterr().err.count("\n") == 1 and not (tmp_path / "x.fap").exists()
+
+
+def test_an_mp3_whose_header_only_estimates_its_length_is_decoded_to_its_end(tmp_path) -> None:
+    from prosody.preview import find_ffmpeg
+
+    ffmpeg = find_ffmpeg()
+    if ffmpeg is None:
+        pytest.skip("no ffmpeg to write an MP3 without its Xing frame count")
+    import subprocess
+
+    source = _wav(tmp_path / "tone.wav", harmonic_tone(200, 3.0, 16000))
+    mp3 = tmp_path / "tone.mp3"
+    subprocess.run([ffmpeg, "-loglevel", "error", "-y", "-i", str(source), "-write_xing", "0", str(mp3)], check=True)
+    with soundfile.SoundFile(mp3) as sound:
+        estimated = sound.frames
+    decoded = load_audio(mp3).samples.shape[0]
+    assert decoded != estimated  # the case at hand: the header's count is only an estimate
+    features = extract_features(mp3)
+    assert features.n_frames == int(np.ceil(decoded / 16000 * 30 - 1e-9))
+    assert abs(features.duration_s - 3.0) < 0.1
+
+
+def test_a_sample_rate_no_recording_uses_is_refused_before_analysis(tmp_path, capsys) -> None:
+    import struct
+
+    path = _wav(tmp_path / "tone.wav", harmonic_tone(200, 1.0, 16000))
+    data = bytearray(path.read_bytes())
+    data[24:28] = struct.pack("<I", 2**31 - 1)  # the fmt chunk's sample rate
+    path.write_bytes(bytes(data))
+    assert main(["convert", str(path), "-o", str(tmp_path / "x.fap")]) == 1
+    err = capsys.readouterr().err
+    assert "2147483647 Hz" in err and err.count("\n") == 1
+    from audio_features import Audio
+
+    with pytest.raises(AudioLoadError, match="above any recording"):
+        Audio(np.zeros(10), 10_000_000)
