@@ -12,6 +12,7 @@ raises :class:`FapFormatError` naming the file, the line and what was expected.
 
 from __future__ import annotations
 
+import math
 import os
 import re
 from collections.abc import Iterator
@@ -30,6 +31,14 @@ from .stream import FapStream
 DEFAULT_HEADERLESS_FPS = 25.0
 #: Largest magnitude an integer FAP value may have in a written file (players parse 32-bit ints).
 MAX_FAP_VALUE = 2**31 - 1
+#: Longest line read: a mask is 137 bytes and a full value line well under 2 kB; a longer line is not a .fap.
+MAX_LINE_BYTES = 1 << 16
+#: Largest .fap file read (two hours of every FAP at 30 fps is under 100 MB).
+MAX_FAP_BYTES = 1 << 30
+#: Frame rates a .fap header may state; outside them a stream describes nothing a face can play.
+FPS_RANGE = (1.0, 1000.0)
+#: Values that FAP 1 (viseme) and FAP 2 (expression) take in their full MPEG-4 form.
+_HIGH_LEVEL_WIDTHS = {1: 4, 2: 6}
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 
 
@@ -68,7 +77,36 @@ def _is_mask_line(tokens: list[str]) -> bool:
 def _parse_number(token: str, *, path: str, line: int, what: str) -> float:
     if not _NUMBER.match(token):
         raise FapFormatError(path, line, f"expected {what}, found {token!r}")
-    return float(token)
+    value = float(token)
+    if not math.isfinite(value):
+        raise FapFormatError(path, line, f"{what} {token!r} is out of range")
+    return value
+
+
+def _read_lines(path: str | os.PathLike[str], name: str) -> list[str]:
+    """The file's lines, decoded as Latin-1, each and all within bounds (a device or a huge line is refused)."""
+    lines: list[str] = []
+    total = 0
+    try:
+        with open(path, "rb") as handle:
+            while True:
+                raw = handle.readline(MAX_LINE_BYTES + 1)
+                if not raw:
+                    break
+                total += len(raw)
+                if len(raw) > MAX_LINE_BYTES and not raw.endswith(b"\n"):
+                    raise FapFormatError(name, len(lines) + 1, f"a line longer than {MAX_LINE_BYTES} bytes: "
+                                         "not a .fap file")
+                if total > MAX_FAP_BYTES:
+                    raise FapFormatError(name, None, f"larger than {MAX_FAP_BYTES >> 20} MiB: not a .fap file")
+                lines.append(raw.decode("latin-1"))
+    except FileNotFoundError:
+        raise FapFormatError(name, None, "no such file") from None
+    except IsADirectoryError:
+        raise FapFormatError(name, None, "is a directory, not a .fap file") from None
+    except OSError as error:
+        raise FapFormatError(name, None, f"cannot be read ({error.strerror})") from None
+    return "".join(lines).splitlines()
 
 
 def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADERLESS_FPS) -> FapFile:
@@ -92,23 +130,16 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
         whose count disagrees with its mask, or a non-numeric token.
     """
     name = str(path)
-    try:
-        text = Path(path).read_bytes().decode("latin-1")
-    except FileNotFoundError:
-        raise FapFormatError(name, None, "no such file") from None
-    except IsADirectoryError:
-        raise FapFormatError(name, None, "is a directory, not a .fap file") from None
-    except OSError as error:
-        raise FapFormatError(name, None, f"cannot be read ({error.strerror})") from None
+    raw_lines = _read_lines(path, name)
+    if any("\0" in line for line in raw_lines[:2]):
+        raise FapFormatError(name, 1, "holds binary data: not a .fap file (a text file of FAP values)")
     warnings: list[str] = []
     lines = [
         (number, line.strip())
-        for number, line in enumerate(text.splitlines(), start=1)
+        for number, line in enumerate(raw_lines, start=1)
         if line.strip() and not line.lstrip().startswith("#")
     ]
-    if len(text.splitlines()) != len(lines) and any(
-        line.lstrip().startswith("#") for line in text.splitlines()
-    ):
+    if len(raw_lines) != len(lines) and any(line.lstrip().startswith("#") for line in raw_lines):
         warnings.append("comment lines ('#') skipped")
     if not lines:
         raise FapFormatError(name, None, "the file holds no header, mask or value line")
@@ -133,6 +164,9 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
         count = _parse_number(first_tokens[-1], path=name, line=first_number, what="the number of frames")
         if fps <= 0 or count < 0 or count != int(count):
             raise FapFormatError(name, first_number, f"header frame rate {fps!r} or count {count!r} is invalid")
+        if not FPS_RANGE[0] <= fps <= FPS_RANGE[1]:
+            raise FapFormatError(name, first_number, f"header frame rate {fps:g} fps is outside "
+                                 f"{FPS_RANGE[0]:g}-{FPS_RANGE[1]:g} fps: no face plays it")
         header_frames = int(count)
         # the name may hold spaces: it is whatever stands between the version and the last two tokens
         middle = re.match(r"^\S+\s+(.*?)\s*\S+\s+\S+$", first_line)
@@ -146,6 +180,7 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
     frame_numbers: list[int] = []
     integer_values = True
     wide_masks = 0
+    high_level = 0
     index = 0
     while index < len(body):
         mask_number, mask_line = body[index]
@@ -163,6 +198,16 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
         value_number, value_line = body[index + 1]
         value_tokens = value_line.split()
         expected = int(bits.sum())
+        extra = {fap: width - 1 for fap, width in _HIGH_LEVEL_WIDTHS.items() if bits[fap - 1]}
+        if extra and len(value_tokens) == expected + 1 + sum(extra.values()):
+            # the full MPEG-4 forms of FAP 1 (viseme: 4 values) and FAP 2 (expression: 6 values) that Xface
+            # and the C++ Greta read: the first value of each (the viseme / expression selected) is kept
+            kept, position = [value_tokens[0]], 1
+            for fap in (np.flatnonzero(bits) + 1).tolist():
+                kept.append(value_tokens[position])
+                position += 1 + extra.get(fap, 0)
+            value_tokens = kept
+            high_level += 1
         if len(value_tokens) != expected + 1:
             raise FapFormatError(
                 name, value_number, f"expected a frame number and {expected} values (one per FAP set in the "
@@ -182,6 +227,9 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
         frame_numbers.append(int(frame_number))
         index += 2
 
+    if high_level:
+        warnings.append(f"{high_level} frame(s) with FAP 1 (viseme) or FAP 2 (expression) in their multi-value "
+                        "form: the selected viseme / expression number was kept")
     if wide_masks:
         warnings.append(f"{wide_masks} mask line(s) with {N_FAPS + 1} tokens (a known Greta writer bug): "
                         "the extra token was ignored")

@@ -161,6 +161,14 @@ def fit_to_grid(motion: FapStream, *, n_frames: int, fps: float, source: str,
                 max_mismatch_frames: int = MAX_LENGTH_MISMATCH_FRAMES) -> FapStream:
     """Put recorded motion on the audio's grid: resample if the rate differs, then trim or hold the last
     frame to ``n_frames``, refusing a length difference above ``max_mismatch_frames``."""
+    # lengths are compared before resampling: a stream at a tiny frame rate must not be blown up first
+    tolerance_s = (max_mismatch_frames + 1) / fps + 1.0 / motion.fps
+    if abs(motion.duration_s - n_frames / fps) > tolerance_s:
+        raise GroundTruthError(
+            f"{source}: recorded motion lasts {motion.duration_s:.2f} s ({motion.n_frames} frames at "
+            f"{motion.fps:g} fps) but the audio lasts {n_frames / fps:.2f} s; they differ by more than "
+            f"{max_mismatch_frames} frames"
+        )
     if motion.fps != fps:
         motion = motion.resampled(fps)
     difference = motion.n_frames - n_frames

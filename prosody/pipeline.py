@@ -75,7 +75,8 @@ def convert(
         Head model for ``speech``: the shipped prosodic generator when omitted; ``"arx"`` for the
         thesis's ARX model, or a file from ``prosody train``.
     base : path, optional
-        A .fap recording whose other FAPs (lips, eyes) are carried into the output.
+        A .fap recording of the same speech (its length within two frames of the audio's) whose other FAPs
+        (lips, eyes) are carried into the output.
     seed : int >= 0
         Seed of the ``random`` condition and of the default speech-driven head.
     fps : float > 0
@@ -107,7 +108,9 @@ def convert(
     stream = apply_controls(stream, gains=gains, disabled=disabled,
                             rest=rest_pose(head_model) if head_model is not None else None)
     if base is not None:
-        stream = stream.merged_over(read_fap(base).stream)
+        # the base must be of this recording: the same length within two frames, like recorded motion
+        recorded = fit_to_grid(read_fap(base).stream, n_frames=stream.n_frames, fps=stream.fps, source=str(base))
+        stream = stream.merged_over(recorded)
     if output is not None:
         from .exporters import write_stream
 

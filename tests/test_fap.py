@@ -323,3 +323,41 @@ def test_written_files_parse_in_a_token_stream_reader(tmp_path, rng) -> None:
     assert fps == 30 and len(frames) == 40
     for k, frame in enumerate(frames):
         assert frame == {fap: float(np.rint(curve[k])) for fap, curve in curves.items()}
+
+
+# hostile and unusual .fap input --------------------------------------------------------------------------
+def test_full_form_viseme_and_expression_values_are_read(tmp_path) -> None:
+    # FAP 1 with its 4 values (select1 select2 blend def) and FAP 2 with its 6, as Xface and the C++ Greta read
+    text = "2.1 v 25 2\n" + _mask_line(1, 2, 3) + "\n0 7 0 0 0 4 3 0 0 0 0 120\n" + _mask_line(3) + "\n1 130\n"
+    fap = read_fap(_write(tmp_path, text))
+    assert fap.stream.curve(1).tolist() == [7.0, 0.0] and fap.stream.curve(2).tolist() == [4.0, 0.0]
+    assert fap.stream.curve(3).tolist() == [120.0, 130.0]
+    assert any("multi-value form" in warning for warning in fap.warnings)
+
+
+@pytest.mark.parametrize("text, match", [
+    ("2.1 x 0.0001 1\n" + _mask_line(48) + "\n0 10\n", "outside 1-1000 fps"),
+    ("2.1 x 1e9 1\n" + _mask_line(48) + "\n0 10\n", "outside 1-1000 fps"),
+    ("2.1 x 30 1\n" + _mask_line(48) + "\n0 1e400\n", "out of range"),
+    ("2.1 x 30 1e400\n" + _mask_line(48) + "\n0 1\n", "out of range"),
+    ("2.1 x 30 1\n" + "1" * 100_000 + "\n", "longer than 65536 bytes"),
+    ("RIFF\0\0\0\0WAVEfmt \n", "binary data"),
+])
+def test_hostile_files_cost_nothing_and_say_why(tmp_path, text, match) -> None:
+    with pytest.raises(FapFormatError, match=match):
+        read_fap(_write(tmp_path, text))
+
+
+def test_an_endless_device_is_refused(tmp_path) -> None:
+    with pytest.raises(FapFormatError, match="longer than"):
+        read_fap("/dev/zero")
+
+
+def test_ground_truth_and_base_at_another_length_are_refused_before_resampling(tmp_path) -> None:
+    from prosody.errors import GroundTruthError
+    from prosody.ground_truth import fit_to_grid
+
+    slow = FapStream.from_curves({48: np.zeros(3)}, fps=1.0)  # 3 s at 1 fps
+    with pytest.raises(GroundTruthError, match="lasts 3.00 s"):
+        fit_to_grid(slow, n_frames=30_000, fps=30.0, source="slow.fap")  # 1000 s of audio
+    assert fit_to_grid(slow, n_frames=90, fps=30.0, source="ok.fap").n_frames == 90
