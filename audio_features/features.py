@@ -64,6 +64,37 @@ class Features:
     def n_frames(self) -> int:
         return self.f0.n_frames
 
+    def resampled(self, fps: float) -> Features:
+        """The tracks on another frame grid of the same duration: energy and conditioned F0 linearly
+        interpolated, the raw F0 and its voicing from the nearest frame.
+
+        Examples
+        --------
+        >>> t = Track(np.array([40.0, 50.0, 60.0]), 30.0, "dB", "energy")
+        >>> f0 = F0Track(np.array([100.0, np.nan, 120.0]), 30.0, "Hz", "f0", np.array([True, False, True]))
+        >>> features = Features(f0, Track(np.array([100.0, 110.0, 120.0]), 30.0, "Hz", "f0_conditioned"), t, 0.1, "")
+        >>> features.resampled(60.0).energy.values.tolist()
+        [40.0, 45.0, 50.0, 55.0, 60.0, 60.0]
+        """
+        from .tracks import frame_count
+
+        if not (np.isfinite(fps) and fps > 0):
+            raise ParameterError(f"fps must be a positive number, got {fps!r}")
+        n = frame_count(self.duration_s, fps=fps)
+        old_times = np.arange(self.n_frames) / self.fps
+        times = np.arange(n) / fps
+        nearest = np.clip(np.rint(times * self.fps).astype(np.int64), 0, max(self.n_frames - 1, 0))
+        if self.n_frames == 0:
+            nearest = np.zeros(0, dtype=np.int64)
+
+        def linear(track: Track) -> Track:
+            values = np.interp(times, old_times, track.values) if self.n_frames else np.zeros(n)
+            return Track(values, fps, track.unit, track.name)
+
+        voiced = self.f0.voiced[nearest]
+        f0 = F0Track(np.where(voiced, self.f0.values[nearest], np.nan), fps, self.f0.unit, self.f0.name, voiced)
+        return Features(f0, linear(self.f0_conditioned), linear(self.energy), self.duration_s, self.source)
+
     def write_csv(self, path: str | os.PathLike[str]) -> None:
         """Write one row per frame with the columns of :data:`CSV_COLUMNS`, atomically.
 

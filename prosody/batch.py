@@ -477,6 +477,7 @@ def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions,
     from audio_features import read_features_csv
 
     from .compare import _average_head, empty_head_metrics
+    from .conditions import head_motion
     from .controls import fitted_features
     from .ground_truth import fit_to_grid, read_motion
     from .head_models import is_stochastic, resolve_head_model
@@ -512,7 +513,7 @@ def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions,
         for other in chosen:
             driven = fitted_features(features[other], own.n_frames)
             for seed in seeds:
-                curves = model.generate(driven, seed=seed)
+                curves = head_motion(model, driven, seed=seed)
                 rows.append(head_metrics(np.column_stack([curves[fap] for fap in (48, 49, 50)]), recorded,
                                          fps=own.fps))
         result[outcome.file] = _average_head(rows) if rows else empty_head_metrics()

@@ -18,7 +18,7 @@ import numpy as np
 from audio_features import Features, extract_features
 from audio_features._atomic import atomic_write
 
-from .conditions import CONDITION_ORDER, Condition, MissingMotionWarning, condition_stream
+from .conditions import CONDITION_ORDER, Condition, MissingMotionWarning, condition_stream, head_motion
 from .controls import shift_offsets, shifted_features
 from .errors import ConfigError
 from .eyebrows import BrowRule, EyebrowRaises, NoRaiseWarning, brow_raises, warn_if_no_raise
@@ -320,7 +320,7 @@ def compare(
         run_seeds = list(range(seed, seed + seeds)) if is_stochastic(other_model) else [seed]
 
         def head_of(source: Features, run_seed: int, chosen: HeadModel = other_model) -> np.ndarray:
-            stream = FapStream.from_curves(chosen.generate(source, seed=run_seed), fps=source.fps)
+            stream = FapStream.from_curves(head_motion(chosen, source, seed=run_seed), fps=source.fps)
             return head_matrix(finished(Condition.SPEECH_DRIVEN, stream))
 
         entry: dict = {"kind": other_model.kind, "head": empty_head_metrics(),

@@ -44,6 +44,19 @@ _SHORT_NAMES = {"none": Condition.NO_PROSODY, "random": Condition.RANDOM, "speec
 CONDITION_ORDER = (Condition.NO_PROSODY, Condition.RANDOM, Condition.SPEECH_DRIVEN, Condition.GROUND_TRUTH)
 
 
+def head_motion(model: HeadModel, features: Features, *, seed: int = 0) -> dict[int, np.ndarray]:
+    """A head model's motion on the features' grid: at another frame rate than the model's (25 fps for the
+    Java Greta, 29.97 for video), the features are resampled to the model's rate and the motion back."""
+    if features.fps == model.fps_:
+        return model.generate(features, seed=seed)
+    at_model_rate = features.resampled(model.fps_)
+    curves = model.generate(at_model_rate, seed=seed)
+    model_times = np.arange(at_model_rate.n_frames) / model.fps_
+    times = np.arange(features.n_frames) / features.fps
+    return {fap: np.interp(times, model_times, curve) if curve.size else np.zeros(features.n_frames)
+            for fap, curve in curves.items()}
+
+
 class MissingMotionWarning(UserWarning):
     """Recorded motion lacks some prosody FAPs (often the eyebrows): GROUND_TRUTH leaves them masked off."""
 
@@ -94,7 +107,7 @@ def condition_stream(
             eyebrows = brow_raises(features, eyebrow_rule)
             warn_if_no_raise(eyebrows)
         curves = eyebrows.curves()
-        curves.update(model.generate(features, seed=seed))
+        curves.update(head_motion(model, features, seed=seed))
         return FapStream.from_curves(curves, fps=fps, name=name, n_frames=n)
     if ground_truth is None:
         raise ConfigError("the GROUND_TRUTH condition needs recorded motion (--ground-truth FILE)")

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -133,14 +134,14 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
     raw_lines = _read_lines(path, name)
     if any("\0" in line for line in raw_lines[:2]):
         raise FapFormatError(name, 1, "holds binary data: not a .fap file (a text file of FAP values)")
-    warnings: list[str] = []
+    notes: list[str] = []
     lines = [
         (number, line.strip())
         for number, line in enumerate(raw_lines, start=1)
         if line.strip() and not line.lstrip().startswith("#")
     ]
     if len(raw_lines) != len(lines) and any(line.lstrip().startswith("#") for line in raw_lines):
-        warnings.append("comment lines ('#') skipped")
+        notes.append("comment lines ('#') skipped")
     if not lines:
         raise FapFormatError(name, None, "the file holds no header, mask or value line")
 
@@ -151,7 +152,7 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
     first_number, first_line = lines[0]
     first_tokens = first_line.split()
     if _is_mask_line(first_tokens):
-        warnings.append(f"no header line: a headerless stream, assumed {default_fps:g} fps")
+        notes.append(f"no header line: a headerless stream, assumed {default_fps:g} fps")
         body = lines
     else:
         if len(first_tokens) < 3:
@@ -172,7 +173,7 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
         middle = re.match(r"^\S+\s+(.*?)\s*\S+\s+\S+$", first_line)
         stream_name = (middle.group(1) if middle else "") or stream_name
         if version not in ("2.0", "2.1"):
-            warnings.append(f"unknown version {version!r}: read as 2.1")
+            notes.append(f"unknown version {version!r}: read as 2.1")
         body = lines[1:]
 
     masks: list[np.ndarray] = []
@@ -228,48 +229,68 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
         index += 2
 
     if high_level:
-        warnings.append(f"{high_level} frame(s) with FAP 1 (viseme) or FAP 2 (expression) in their multi-value "
+        notes.append(f"{high_level} frame(s) with FAP 1 (viseme) or FAP 2 (expression) in their multi-value "
                         "form: the selected viseme / expression number was kept")
     if wide_masks:
-        warnings.append(f"{wide_masks} mask line(s) with {N_FAPS + 1} tokens (a known Greta writer bug): "
+        notes.append(f"{wide_masks} mask line(s) with {N_FAPS + 1} tokens (a known Greta writer bug): "
                         "the extra token was ignored")
     if frame_numbers:
         if frame_numbers[0] != 0:
-            warnings.append(f"frame numbers start at {frame_numbers[0]}, not 0: frames renumbered from 0")
+            notes.append(f"frame numbers start at {frame_numbers[0]}, not 0: frames renumbered from 0")
         steps = np.diff(frame_numbers)
         if np.any(steps != 1):
-            warnings.append("frame numbers are not consecutive: frames taken in file order")
+            notes.append("frame numbers are not consecutive: frames taken in file order")
     if header_frames is not None and header_frames != len(frame_numbers):
-        warnings.append(f"header promises {header_frames} frames but the file holds {len(frame_numbers)}: "
+        notes.append(f"header promises {header_frames} frames but the file holds {len(frame_numbers)}: "
                         f"all {len(frame_numbers)} were read")
     if not integer_values:
-        warnings.append("non-integer FAP values (players expect integers)")
+        notes.append("non-integer FAP values (players expect integers)")
     stream = FapStream(
         np.array(values).reshape(-1, N_FAPS), np.array(masks, dtype=bool).reshape(-1, N_FAPS), fps, stream_name
     )
     return FapFile(stream, name, version, header_frames, frame_numbers[0] if frame_numbers else None,
-                   integer_values, tuple(warnings))
+                   integer_values, tuple(notes))
+
+
+class FapNameWarning(UserWarning):
+    """The stream's name was changed to fit the header players read (ASCII, at most 100 bytes)."""
+
+
+#: Longest header name written: two players keep the header line in a 256-byte buffer.
+MAX_HEADER_NAME = 100
+#: Largest FAP value written: Xface stores values as float32, exact up to 2**24 (and no face shows more).
+MAX_PLAYABLE_VALUE = 2**24
 
 
 def _header_name(name: str) -> str:
+    """Whitespace to ``_``, non-ASCII characters to ``_`` (players read the header as Latin-1 bytes), at
+    most 100 characters; a change other than the whitespace is said with a :class:`FapNameWarning`."""
     cleaned = re.sub(r"\s+", "_", name.strip())
-    return cleaned or "stream"
+    ascii_name = re.sub(r"[^\x21-\x7e]", "_", cleaned)[:MAX_HEADER_NAME]
+    if ascii_name != cleaned:
+        warnings.warn(f"the .fap header name {cleaned!r} was written as {ascii_name!r} (players read at most "
+                      f"{MAX_HEADER_NAME} ASCII characters there)", FapNameWarning, stacklevel=4)
+    return ascii_name or "stream"
 
 
 def _fap_lines(stream: FapStream, *, name: str | None = None) -> Iterator[str]:
     """The lines of :func:`format_fap`, each with its newline, produced one frame at a time."""
     if stream.fps != int(stream.fps):
         raise FapWriteError(
-            f"frame rate {stream.fps!r} is not an integer: the .fap header carries integer fps; "
-            "resample the stream (FapStream.resampled) to an integer rate first"
+            f"frame rate {stream.fps!r} is not an integer: the .fap header carries integer fps; write at an "
+            "integer rate (convert --fps 25 or 30; in Python, FapStream.resampled)"
         )
+    if stream.n_frames == 0:
+        raise FapWriteError("the stream has no frame: players cannot play an empty .fap file")
     # only the FAPs active somewhere are touched: a 2-hour stream is 117 MB a copy at 68 columns
     columns = np.flatnonzero(stream.mask.any(axis=0))
     columns = columns[columns >= 2]  # FAP 1 and 2 (viseme, expression) need multi-value syntax players disagree on
     mask = stream.mask[:, columns]
     rounded = np.rint(stream.values[:, columns])
-    if np.any(np.abs(rounded[mask]) > MAX_FAP_VALUE):
-        raise FapWriteError(f"a FAP value exceeds the 32-bit integer range of .fap players ({MAX_FAP_VALUE})")
+    if np.any(np.abs(rounded[mask]) > MAX_PLAYABLE_VALUE):
+        largest = float(np.abs(rounded[mask]).max())
+        raise FapWriteError(f"a FAP value of {largest:.0f} exceeds {MAX_PLAYABLE_VALUE} (2^24), the largest a "
+                            "player stores exactly and far beyond any face's motion; lower the gains")
     integers = rounded.astype(np.int64)
     yield f"2.1 {_header_name(name if name is not None else stream.name)} {int(stream.fps)} {stream.n_frames}\n"
     mask_lines: dict[bytes, str] = {}  # streams keep one mask for long stretches: format each mask once

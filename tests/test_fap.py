@@ -111,8 +111,11 @@ def test_writer_produces_the_interoperable_subset(tmp_path) -> None:
 def test_writer_refuses_what_players_cannot_read(tmp_path) -> None:
     with pytest.raises(FapWriteError, match="integer"):
         format_fap(FapStream.from_curves({48: np.zeros(3)}, fps=29.97))
-    with pytest.raises(FapWriteError, match="32-bit"):
-        format_fap(FapStream.from_curves({48: np.array([1e12])}, fps=30))
+    with pytest.raises(FapWriteError, match="exceeds 16777216"):
+        format_fap(FapStream.from_curves({48: np.array([2.0**24 + 1])}, fps=30))
+    assert format_fap(FapStream.from_curves({48: np.array([2.0**24])}, fps=30)).endswith(f" {2**24}\n")
+    with pytest.raises(FapWriteError, match="no frame"):
+        format_fap(FapStream.empty(0, fps=30))
     path = tmp_path / "x.fap"
     with pytest.raises(FapWriteError):
         write_fap(FapStream.from_curves({48: np.zeros(3)}, fps=29.97), path)
@@ -125,7 +128,7 @@ def test_empty_frames_write_a_bare_frame_number() -> None:
 
 @settings(max_examples=60, deadline=None)
 @given(
-    st.integers(min_value=0, max_value=12),
+    st.integers(min_value=1, max_value=12),
     st.integers(min_value=1, max_value=60),
     st.randoms(use_true_random=False),
 )
@@ -361,3 +364,13 @@ def test_ground_truth_and_base_at_another_length_are_refused_before_resampling(t
     with pytest.raises(GroundTruthError, match="lasts 3.00 s"):
         fit_to_grid(slow, n_frames=30_000, fps=30.0, source="slow.fap")  # 1000 s of audio
     assert fit_to_grid(slow, n_frames=90, fps=30.0, source="ok.fap").n_frames == 90
+
+
+def test_header_names_are_ascii_and_short_enough_for_every_player(tmp_path) -> None:
+    from prosody.fapfile import FapNameWarning
+
+    stream = FapStream.from_curves({48: np.zeros(2)}, fps=30)
+    with pytest.warns(FapNameWarning, match="written as"):
+        text = format_fap(stream, name="é" * 3 + "x" * 300)
+    header = text.splitlines()[0]
+    assert header == "2.1 " + "___" + "x" * 97 + " 30 2" and header.isascii()

@@ -505,3 +505,19 @@ def test_compare_measures_the_thesis_model_beside_the_default(tmp_path, rng) -> 
     recorded = result.streams[Condition.GROUND_TRUTH].curves((48, 49, 50))
     assert other["head"]["pitch_r"] == pytest.approx(head_metrics(generated, recorded, fps=FPS)["pitch_r"])
     assert other["mismatched_audio"]["speed_envelope_r"] is not None
+
+
+@pytest.mark.parametrize("fps", [25.0, 29.97, 60.0])
+def test_speech_driven_head_at_other_frame_rates(tmp_path, fps) -> None:
+    audio = tmp_path / "v.wav"
+    soundfile.write(audio, segments(SR, (1.0, 140, 0.5), (0.5, 230, 0.5), (1.5, 150, 0.5)), SR)
+    for model in ("prosodic", "arx"):
+        stream = convert(audio, model=model, fps=fps)
+        assert stream.fps == fps and stream.n_frames == int(np.ceil(3.0 * fps - 1e-9))
+        assert np.all(np.isfinite(stream.curves((48, 49, 50))))
+    at_30 = convert(audio, fps=30.0)
+    other = convert(audio, fps=fps)
+    # the same motion, sampled on another grid
+    times = np.arange(other.n_frames) / fps
+    expected = np.interp(times, np.arange(at_30.n_frames) / 30.0, at_30.curve(49))
+    assert np.corrcoef(other.curve(49), expected)[0, 1] > 0.95
