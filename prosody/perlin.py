@@ -14,9 +14,12 @@ HEAD_STD_AU = {48: 4300.0, 49: 7200.0, 50: 5400.0}
 #: Inner-eyebrow spread used for the RANDOM brows, in ENS (the thesis's recorded subjects: 5 to 17 ENS;
 #: its Perlin brows for subjects S2 and S7: 11.6 and 13.5).
 EYEBROW_STD_ENS = 10.0
-#: Frame offset of each head axis into the noise, so the three axes move independently.
+#: Frame offset of each head axis into the noise (the thesis's way of decorrelating the axes; each channel
+#: also has its own lattice, so they are independent).
 HEAD_OFFSETS_FRAMES = {48: 0.0, 49: 7919.0, 50: 15838.0}
-_PERIOD = 256
+#: Lattice key of each channel: the brows and each head axis draw from their own noise.
+CHANNEL_KEYS = {"brows": 1, 48: 48, 49: 49, 50: 50}
+_MASK64 = (1 << 64) - 1
 
 
 @dataclass(frozen=True)
@@ -44,35 +47,57 @@ class PerlinSettings:
             raise ConfigError("persistence and base_frequency_hz must be positive")
 
 
-def _gradient_noise(x: np.ndarray, gradients: np.ndarray, permutation: np.ndarray) -> np.ndarray:
+def _mix64(values: np.ndarray) -> np.ndarray:
+    """SplitMix64's finaliser on uint64 values: every input bit changes about half of the output bits."""
+    z = values.copy()
+    z ^= z >> np.uint64(30)
+    z *= np.uint64(0xBF58476D1CE4E5B9)
+    z ^= z >> np.uint64(27)
+    z *= np.uint64(0x94D049BB133111EB)
+    z ^= z >> np.uint64(31)
+    return z
+
+
+def _lattice_key(seed: int, channel: int) -> np.uint64:
+    """A 64-bit key per (seed, channel): different channels, and different seeds, get unrelated lattices."""
+    mixed = _mix64(np.array([(seed * 0x9E3779B97F4A7C15 + channel) & _MASK64], dtype=np.uint64))
+    return np.uint64(int(mixed[0]))
+
+
+def _gradients(cells: np.ndarray, key: np.uint64) -> np.ndarray:
+    """The gradient (-1 .. 1) at each lattice cell: a hash of the cell and the key, so the lattice never
+    repeats (a table of gradients would, after as many cells as it holds)."""
+    hashed = _mix64(cells.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15) + key)
+    return (hashed >> np.uint64(11)).astype(np.float64) * (2.0 / 2.0**53) - 1.0
+
+
+def _gradient_noise(x: np.ndarray, key: np.uint64) -> np.ndarray:
     """Classic 1-D Perlin gradient noise: 0 at every lattice point, smooth (quintic fade) between."""
     cell = np.floor(x)
     frac = x - cell
-    i0 = cell.astype(np.int64) % _PERIOD
-    i1 = (i0 + 1) % _PERIOD
-    g0 = gradients[permutation[i0]]
-    g1 = gradients[permutation[i1]]
+    cells = cell.astype(np.int64)
+    g0 = _gradients(cells, key)
+    g1 = _gradients(cells + 1, key)
     fade = frac**3 * (frac * (frac * 6 - 15) + 10)
     return (1 - fade) * g0 * frac + fade * g1 * (frac - 1)
 
 
 def fractal_noise(n_frames: int, *, fps: float, seed: int, offset_frames: float = 0.0,
-                  settings: PerlinSettings | None = None) -> np.ndarray:
+                  settings: PerlinSettings | None = None, channel: int = 0) -> np.ndarray:
     """Fractal Perlin noise at frames ``0..n_frames-1`` (shifted by ``offset_frames``), unscaled.
 
-    The same ``seed`` gives the same values, bit for bit; the lattice gradients and their order come
-    from a generator seeded with it.
+    The same ``seed`` and ``channel`` give the same values, bit for bit; the lattice gradients are a hash
+    of the lattice cell, the seed and the channel, so channels are independent and the noise never repeats.
     """
     settings = settings or PerlinSettings()
-    generator = np.random.default_rng(seed)
-    gradients = generator.uniform(-1.0, 1.0, size=_PERIOD)
-    permutation = generator.permutation(_PERIOD)
+    if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
+        raise ConfigError(f"seed must be a whole number >= 0, got {seed!r}")
+    key = _lattice_key(int(seed), int(channel))
     x = np.arange(n_frames, dtype=float) + offset_frames
     total = np.zeros(n_frames)
     for octave in range(settings.octaves):
         frequency = settings.base_frequency_hz / fps * 2**octave  # cycles per frame
-        total += settings.persistence**octave * _gradient_noise(x * frequency + 0.5 * octave, gradients,
-                                                                permutation)
+        total += settings.persistence**octave * _gradient_noise(x * frequency + 0.5 * octave, key)
     return total
 
 
@@ -84,7 +109,8 @@ def _scaled(curve: np.ndarray, target_std: float) -> np.ndarray:
 def perlin_curves(n_frames: int, *, fps: float, seed: int = 0, settings: PerlinSettings | None = None,
                   eyebrow_std_ens: float = EYEBROW_STD_ENS,
                   head_std_au: dict[int, float] | None = None) -> dict[int, np.ndarray]:
-    """RANDOM prosody FAPs: brows from non-negative noise, head axes from signed noise.
+    """RANDOM prosody FAPs: brows from non-negative noise, head axes from signed noise, each channel from
+    its own noise (the brows do not follow the head).
 
     Each curve is scaled so that its standard deviation over the stream equals the target (for the brows,
     after the negatives are dropped): real motion's spread, so the baseline moves as much as people do.
@@ -103,10 +129,12 @@ def perlin_curves(n_frames: int, *, fps: float, seed: int = 0, settings: PerlinS
     True
     """
     head_std_au = head_std_au or HEAD_STD_AU
-    brows = np.maximum(fractal_noise(n_frames, fps=fps, seed=seed, settings=settings), 0.0)
+    brows = np.maximum(fractal_noise(n_frames, fps=fps, seed=seed, settings=settings,
+                                     channel=CHANNEL_KEYS["brows"]), 0.0)
     brows = _scaled(brows, eyebrow_std_ens)
     curves = {fap: brows.copy() for fap in (31, 32, 33, 34)}
     for fap, offset in HEAD_OFFSETS_FRAMES.items():
-        head = fractal_noise(n_frames, fps=fps, seed=seed, offset_frames=offset, settings=settings)
+        head = fractal_noise(n_frames, fps=fps, seed=seed, offset_frames=offset, settings=settings,
+                             channel=CHANNEL_KEYS[fap])
         curves[fap] = _scaled(head - head.mean(), head_std_au[fap])
     return curves

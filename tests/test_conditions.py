@@ -287,3 +287,19 @@ def test_train_prosodic_with_cv_stores_held_out_figures(tmp_path, rng) -> None:
     assert set(cv["settings"]) == {"pitch_share", "speed_iterations"}
     assert set(cv["mean"]) == {"speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db", "std_ratio"}
     assert payload["settings"]["pitch_share"] == cv["settings"]["pitch_share"]
+
+
+def test_random_channels_are_independent_and_never_repeat() -> None:
+    from prosody.perlin import perlin_curves
+
+    n = 30 * 2000  # 2000 s: the old 256-cell lattice at 0.4 Hz repeated every 640 s
+    curves = perlin_curves(n, fps=30, seed=4)
+    for a, b in ((31, 48), (48, 49), (49, 50), (31, 50)):
+        assert abs(np.corrcoef(curves[a], curves[b])[0, 1]) < 0.1
+    period = 640 * 30
+    for fap in (31, 48):
+        assert not np.allclose(curves[fap][:900], curves[fap][period:period + 900])
+    # seeded: the same seed, the same bytes; another seed, other noise
+    again = perlin_curves(n, fps=30, seed=4)
+    assert all(again[fap].tobytes() == curves[fap].tobytes() for fap in curves)
+    assert not np.array_equal(perlin_curves(300, fps=30, seed=5)[48], perlin_curves(300, fps=30, seed=4)[48])
