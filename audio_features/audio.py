@@ -29,8 +29,9 @@ class Audio:
 
     Parameters
     ----------
-    samples : float array of shape (n_samples,)
-        Mono signal, full scale +-1 (taken as pascals for the intensity scale).
+    samples : array of shape (n_samples,) or (n_samples, n_channels)
+        The signal, full scale +-1 for floats (taken as pascals for the intensity scale); integer PCM
+        (int16, int32, uint8) is scaled from its type's full range. Channels are averaged.
     sample_rate_hz : int >= 8000
         Samples per second.
     source : str
@@ -42,7 +43,20 @@ class Audio:
     source: str = "<memory>"
 
     def __post_init__(self) -> None:
-        samples = np.asarray(self.samples, dtype=np.float64)
+        raw = np.asarray(self.samples)
+        if raw.dtype.kind in "iu":
+            # integer PCM (int16 from a WAV reader, ...): full scale is the type's range, not 1
+            info = np.iinfo(raw.dtype)
+            samples = (raw.astype(np.float64) - (info.max + info.min + 1) / 2) / ((info.max - info.min + 1) / 2)
+        elif raw.dtype.kind in "fb":
+            samples = raw.astype(np.float64)
+        else:
+            raise AudioLoadError(f"{self.source}: samples must be numbers, got an array of {raw.dtype}")
+        if samples.ndim == 2 and samples.shape[0] < samples.shape[1] and samples.shape[0] <= 8:
+            raise AudioLoadError(
+                f"{self.source}: samples of shape {samples.shape!r} look channels-first; pass "
+                "(samples, channels), e.g. samples.T"
+            )
         if samples.ndim == 2:
             # mix multichannel to mono: SPEC section 2
             samples = samples.mean(axis=1)

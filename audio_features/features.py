@@ -19,6 +19,8 @@ from .tracks import F0Track, Track
 #: Column names of the features CSV, in order.
 CSV_COLUMNS = ("frame", "time_s", "f0_hz", "f0_conditioned_hz", "energy_db")
 
+#: Highest frame rate of the grid (animation runs at 24-120 fps; the analysis step is 10 ms at most).
+MAX_FPS = 1000.0
 #: Samples per block when scanning a file for its peak (bounded memory).
 _SCAN_BLOCK = 1 << 20
 #: Files of at most this many samples (all channels) are read into memory at once (128 MiB as float64:
@@ -339,8 +341,8 @@ def extract_features(
     >>> round(float(np.nanmedian(features.f0.values)))
     200
     """
-    if not (np.isfinite(fps) and fps > 0):
-        raise ParameterError(f"fps must be a positive number, got {fps!r}")
+    if not (np.isfinite(fps) and 0 < fps <= MAX_FPS):
+        raise ParameterError(f"fps must be a number in (0, {MAX_FPS:g}], got {fps!r}")
     if not chunk_s > 0 or not margin_s >= 0:
         raise ParameterError(f"need chunk_s > 0 and margin_s >= 0, got {chunk_s!r} and {margin_s!r}")
     settings = dict(fps=fps, f0_floor_hz=f0_floor_hz, f0_ceiling_hz=f0_ceiling_hz,

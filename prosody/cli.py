@@ -389,7 +389,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "a .fap file: the head outline turns and tilts (FAP 48-50), the brows rise (FAP 31-36), at "
                     "true scale unless --exaggerate; a strip below plots the brow and head curves around the "
                     "current frame. .mp4 (H.264, with the recording's audio) needs ffmpeg on PATH or the "
-                    "imageio-ffmpeg package; .gif (no sound, at most 2 minutes at 30 fps) always works.",
+                    "imageio-ffmpeg package; .gif (no sound, at most 1 minute at 30 fps) always works.",
     )
     preview.add_argument("input", help="speech recording, or a .fap file to show as it is")
     preview.add_argument("-o", "--output", required=True, metavar="OUT.mp4|OUT.gif", help="video to write")

@@ -13,6 +13,7 @@ Two rules:
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 
@@ -87,8 +88,13 @@ class EyebrowRule:
     offset_ens: float = -5.0
 
     def __post_init__(self) -> None:
-        if not self.threshold_hz > 0:
-            raise ConfigError(f"threshold_hz must be positive, got {self.threshold_hz!r}")
+        if not (math.isfinite(self.threshold_hz) and self.threshold_hz > 0):
+            raise ConfigError(f"threshold_hz must be a positive number, got {self.threshold_hz!r}")
+        for name in ("threshold_semitones", "energy_threshold_db", "energy_relative_db", "gain_ens_per_hz",
+                     "offset_ens", "min_hold_s"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise ConfigError(f"{name} must be a finite number, got {value!r}")
         if not self.min_hold_s >= 0:
             raise ConfigError(f"min_hold_s must be >= 0, got {self.min_hold_s!r}")
         if not (isinstance(self.ramp_frames, int) and self.ramp_frames >= 1):
@@ -247,6 +253,7 @@ class AccentRule:
         for name, low, high in checks:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
+                # (NaN fails the range test too)
                 raise ConfigError(f"{name} must be a number in [{low:g}, {high:g}], got {value!r}")
         if self.max_hold_s < self.min_hold_s:
             raise ConfigError(f"max_hold_s ({self.max_hold_s!r}) must be >= min_hold_s ({self.min_hold_s!r})")

@@ -170,6 +170,10 @@ class ArxHeadModel:
         for u, y in zip(inputs, outputs, strict=False):
             if u.shape[0] != y.shape[0]:
                 raise ConfigError(f"a recording has {u.shape[0]} input frames but {y.shape[0]} output frames")
+            if np.ndim(u) != 2 or np.shape(u)[1] != len(INPUT_NAMES) or np.ndim(y) != 2 or np.shape(y)[1] != 3:
+                raise ConfigError(f"inputs must be (n, {len(INPUT_NAMES)}) ({', '.join(INPUT_NAMES)}) and outputs "
+                                  f"(n, 3) (FAP 48-50), got {np.shape(u)!r} and {np.shape(y)!r}: a model file "
+                                  "holds these widths")
         inputs = [self._per_recording(np.asarray(u, float)) for u in inputs]
         stacked_u = np.vstack(inputs)
         stacked_y = np.vstack(outputs)
@@ -361,8 +365,8 @@ class ArxHeadModel:
                         for c in payload["training"]]
         except ModelError:
             raise
-        except (KeyError, TypeError, ValueError) as error:
-            raise fail(f"missing or malformed field ({error!r})") from None
+        except (KeyError, TypeError, ValueError, OverflowError, RecursionError) as error:
+            raise fail(f"missing or malformed field ({type(error).__name__}: {error})") from None
         radius = spectral_radius(arrays["a"])
         if radius >= 1.0:
             raise fail(f"the model is unstable when run free (spectral radius {radius:.4f} >= 1)")
@@ -387,6 +391,8 @@ class ArxHeadModel:
             payload = json.loads(text)
         except json.JSONDecodeError as error:
             raise ModelError(f"{name}: not JSON (line {error.lineno}: {error.msg})") from None
+        except RecursionError:
+            raise ModelError(f"{name}: JSON nested too deeply to be a model file") from None
         return cls.from_dict(payload, source=name)
 
 

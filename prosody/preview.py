@@ -33,8 +33,10 @@ from .errors import ConfigError, ProsodyError
 from .fap_table import RADIANS_PER_AU
 from .stream import FapStream
 
+#: Frame widths drawn, in pixels (3840: a 4K frame; drawing is done at twice the size).
+MIN_WIDTH, MAX_WIDTH = 64, 3840
 #: Longest GIF written, in frames (Pillow keeps every GIF frame in memory); longer previews need MP4.
-MAX_GIF_FRAMES = 3600
+MAX_GIF_FRAMES = 1800
 #: Seconds of curve shown on each side of the current frame in the strip under the face.
 STRIP_WINDOW_S = 3.0
 #: Drawing is done at this multiple of the output size and scaled down, for smooth edges.
@@ -134,15 +136,16 @@ class FaceRenderer:
 
     Parameters
     ----------
-    width : int >= 64
+    width : int in [64, 3840]
         Frame width in pixels; the height is ``width * 5 / 4`` rounded to an even number.
     model : FaceModel, optional
         Face geometry.
     """
 
     def __init__(self, width: int = 480, *, model: FaceModel | None = None) -> None:
-        if width < 64:
-            raise ConfigError(f"preview width must be at least 64 pixels, got {width!r}")
+        if not (isinstance(width, (int, np.integer)) and MIN_WIDTH <= width <= MAX_WIDTH):
+            raise ConfigError(f"preview width must be a whole number of pixels from {MIN_WIDTH} to {MAX_WIDTH}, "
+                              f"got {width!r}")
         self.width = width + width % 2
         self.face_height = self.width
         self.height = self.width + 2 * round(self.width / 8)
@@ -334,7 +337,7 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
     ----------
     stream : FapStream
         Head (FAP 48-50) and brow (FAP 31-36) motion; other FAPs are not drawn.
-    width : int >= 64
+    width : int in [64, 3840]
         Frame width in pixels (height = 5/4 of it, even).
     exaggerate : float > 0
         Multiplies head angles and brow raises as drawn (1 = true scale).
@@ -452,7 +455,7 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
         File to write, atomically.
     audio : path, optional
         The recording, muxed into an MP4 (over the same excerpt); GIFs have no sound.
-    width : int >= 64
+    width : int in [64, 3840]
         Frame width in pixels.
     exaggerate : float > 0
         Multiplies the drawn motion (1 = true scale).

@@ -157,3 +157,68 @@ def test_a_sample_rate_no_recording_uses_is_refused_before_analysis(tmp_path, ca
 
     with pytest.raises(AudioLoadError, match="above any recording"):
         Audio(np.zeros(10), 10_000_000)
+
+
+# library entry points check what the command line checks --------------------------------------------------
+def test_integer_pcm_is_scaled_from_its_full_range() -> None:
+    from audio_features import Audio
+
+    tone = harmonic_tone(200, 1.0, 16000)
+    as_int16 = np.round(tone * 32767).astype(np.int16)
+    floats = extract_features(Audio(tone, 16000))
+    ints = extract_features(Audio(as_int16, 16000))
+    np.testing.assert_allclose(ints.energy.values, floats.energy.values, atol=0.01)  # not 90 dB louder
+    np.testing.assert_array_equal(ints.f0.voiced, floats.f0.voiced)
+
+
+def test_channels_first_arrays_are_refused() -> None:
+    from audio_features import Audio
+
+    with pytest.raises(AudioLoadError, match="channels-first"):
+        Audio(np.zeros((2, 16000)), 16000)
+    assert Audio(np.zeros((16000, 2)), 16000).samples.shape == (16000,)
+
+
+@pytest.mark.parametrize("kwargs", [dict(threshold_hz=float("nan")), dict(threshold_hz=0.0),
+                                    dict(energy_threshold_db=float("nan")), dict(threshold_semitones=float("nan")),
+                                    dict(energy_relative_db=float("inf"))])
+def test_thesis_rule_refuses_meaningless_thresholds(kwargs) -> None:
+    from prosody.errors import ConfigError
+    from prosody.eyebrows import EyebrowRule
+
+    with pytest.raises(ConfigError):
+        EyebrowRule(**kwargs)
+
+
+def test_grids_and_frames_of_impossible_size_are_refused(tmp_path) -> None:
+    from audio_features import Audio, ParameterError
+    from prosody.errors import ConfigError
+    from prosody.preview import render_frames
+    from prosody.stream import FapStream
+
+    with pytest.raises(ParameterError, match="fps"):
+        extract_features(Audio(harmonic_tone(200, 0.5, 16000), 16000), fps=1e9)
+    with pytest.raises(ConfigError, match="3840"):
+        next(render_frames(FapStream.from_curves({48: np.zeros(2)}, fps=30), width=100_000))
+
+
+def test_arx_fit_refuses_widths_its_files_cannot_hold(tmp_path) -> None:
+    from prosody.errors import ConfigError, ModelError
+    from prosody.head import ArxHeadModel
+
+    with pytest.raises(ConfigError, match="inputs must be"):
+        ArxHeadModel().fit_arrays([np.zeros((50, 4))], [np.zeros((50, 3))])
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(ModelError, match="nested"):
+        ArxHeadModel.load(deep)
+    model = ArxHeadModel().fit_arrays([np.random.default_rng(1).standard_normal((80, 5))],
+                                      [np.random.default_rng(2).standard_normal((80, 3))])
+    payload = model.to_dict()
+    payload["orders"]["na"] = float("inf")
+    bad = tmp_path / "inf.json"
+    import json
+
+    bad.write_text(json.dumps(payload))
+    with pytest.raises(ModelError, match="malformed"):
+        ArxHeadModel.load(bad)
