@@ -24,6 +24,24 @@ HEAD_CSV_COLUMNS = ("frame", "time_s", "rx_rad", "ry_rad", "rz_rad")
 MAX_LENGTH_MISMATCH_FRAMES = 2
 
 
+def _csv_rows(path: str | os.PathLike[str], name: str) -> list[list[str]]:
+    """All rows of a CSV file; unreadable files and malformed rows (a cell over the csv module's size limit)
+    are a GroundTruthError naming the file and line."""
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            reader = csv.reader(handle)
+            try:
+                return list(reader)
+            except csv.Error as error:
+                raise GroundTruthError(f"{name}, line {reader.line_num}: not a CSV row ({error})") from None
+    except FileNotFoundError:
+        raise GroundTruthError(f"{name}: no such file") from None
+    except IsADirectoryError:
+        raise GroundTruthError(f"{name}: is a directory, not a CSV file") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise GroundTruthError(f"{name}: cannot be read as CSV ({error})") from None
+
+
 def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -> FapStream:
     """Read a ``<clip>.head.csv`` into a stream with FAP 48-50 in AU.
 
@@ -33,13 +51,7 @@ def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -
         Missing file, wrong columns, non-numeric or non-finite values, or frames that are not 0, 1, 2, ...
     """
     name = str(path)
-    try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            rows = list(csv.reader(handle))
-    except FileNotFoundError:
-        raise GroundTruthError(f"{name}: no such file") from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise GroundTruthError(f"{name}: cannot be read as CSV ({error})") from None
+    rows = _csv_rows(path, name)
     if not rows or tuple(cell.strip() for cell in rows[0]) != HEAD_CSV_COLUMNS:
         found = ",".join(rows[0]) if rows else "nothing"
         raise GroundTruthError(f"{name}, line 1: expected the header {','.join(HEAD_CSV_COLUMNS)}, found {found!r}")
@@ -59,6 +71,13 @@ def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -
     if not np.array_equal(data[:, 0], np.arange(data.shape[0])):
         line = int(np.argmax(data[:, 0] != np.arange(data.shape[0]))) + 2
         raise GroundTruthError(f"{name}, line {line}: frames must be numbered 0, 1, 2, ... in order")
+    off_grid = np.abs(data[:, 1] - data[:, 0] / HEAD_CSV_FPS) > 0.5 / HEAD_CSV_FPS
+    if off_grid.any():
+        line = int(np.argmax(off_grid)) + 2
+        raise GroundTruthError(
+            f"{name}, line {line}: time_s {data[line - 2, 1]!r} is not frame {int(data[line - 2, 0])} at "
+            f"{HEAD_CSV_FPS:g} fps ({data[line - 2, 0] / HEAD_CSV_FPS:.4f} s): a head.csv is 30 fps, frame k at k/30 s"
+        )
     angles = data[:, 2:5]
     if remove_median:
         angles = angles - np.median(angles, axis=0)  # resting pose out: SPEC section 9
@@ -88,13 +107,7 @@ def read_brows_csv(path: str | os.PathLike[str]) -> FapStream:
         Missing file or columns, frames not numbered 0, 1, 2, ..., non-numeric cells, or no face found at all.
     """
     name = str(path)
-    try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            rows = list(csv.reader(handle))
-    except FileNotFoundError:
-        raise GroundTruthError(f"{name}: no such file") from None
-    except (OSError, UnicodeDecodeError, csv.Error) as error:
-        raise GroundTruthError(f"{name}: cannot be read as CSV ({error})") from None
+    rows = _csv_rows(path, name)
     header = [cell.strip() for cell in rows[0]] if rows else []
     missing = [column for column in ("frame", *BROWS_CSV_HEIGHTS) if column not in header]
     if missing:

@@ -88,6 +88,23 @@ def _fail(source: str, problems: list[str]) -> BallotError:
     return BallotError(f"{source}: {len(problems)} bad ballot row(s): " + "; ".join(listed) + more)
 
 
+#: The short condition names of the command line, read in ballots as their full names.
+SHORT_NAMES = {"none": "NO_PROSODY", "random": "RANDOM", "speech": "SPEECH_DRIVEN", "truth": "GROUND_TRUTH"}
+
+
+def _rows(reader, source: str):
+    """``(line, cells)`` of a CSV reader; a malformed row (a cell over the csv module's size limit, a stray
+    quote) is a BallotError naming its line."""
+    while True:
+        try:
+            cells = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as error:
+            raise BallotError(f"{source}, line {reader.line_num}: not a CSV row ({error})") from None
+        yield reader.line_num, cells
+
+
 def parse_ballots(text: str, *, source: str = "<ballots>") -> list[Ballot]:
     """Parse ballot CSV text (columns ``stimulus,subject,left,right,choice``; extra columns are ignored).
 
@@ -99,7 +116,7 @@ def parse_ballots(text: str, *, source: str = "<ballots>") -> list[Ballot]:
         line number.
     """
     reader = csv.reader(io.StringIO(text))
-    header = next(reader, None)
+    header = next(_rows(reader, source), (1, None))[1]
     if header is None:
         raise BallotError(f"{source}: the file is empty; expected the header {','.join(BALLOT_COLUMNS)}")
     columns = [cell.strip().lower() for cell in header]
@@ -111,7 +128,7 @@ def parse_ballots(text: str, *, source: str = "<ballots>") -> list[Ballot]:
     ballots: list[Ballot] = []
     problems: list[str] = []
     seen: dict[tuple[str, str, str, str], int] = {}
-    for line, cells in enumerate(reader, start=2):
+    for line, cells in _rows(reader, source):
         if not any(cell.strip() for cell in cells):
             continue
         values = {name: cells[i].strip() if i < len(cells) else "" for name, i in index.items()}
@@ -119,6 +136,8 @@ def parse_ballots(text: str, *, source: str = "<ballots>") -> list[Ballot]:
         if empty:
             problems.append(f"row {line} is incomplete (no {', '.join(empty)})")
             continue
+        for side in ("left", "right"):  # the short names the other commands take are read too
+            values[side] = SHORT_NAMES.get(values[side].lower(), values[side])
         unknown = [values[side] for side in ("left", "right") if values[side] not in CONDITIONS]
         if unknown:
             problems.append(f"row {line} names unknown condition(s) {', '.join(map(repr, unknown))} "
@@ -204,15 +223,17 @@ def analyze_ballots(ballots: Sequence[Ballot]) -> dict:
         "ci_low", "ci_high", "t", "df", "p"}]}``; a comes before b in NO_PROSODY, RANDOM, SPEECH_DRIVEN,
         GROUND_TRUTH order and the differences are a minus b over the subjects who judged the stimulus.
     """
-    stimuli = list(dict.fromkeys(ballot.stimulus for ballot in ballots))
+    by_stimulus: dict[str, list[Ballot]] = {}
+    for ballot in ballots:  # one pass: the work grows with the ballots, not with ballots x stimuli
+        by_stimulus.setdefault(ballot.stimulus, []).append(ballot)
+    column = {name: i for i, name in enumerate(CONDITIONS)}
     scores: dict[str, dict[str, int]] = {}
     tests = []
-    for stimulus in stimuli:
-        mine = [ballot for ballot in ballots if ballot.stimulus == stimulus]
-        subjects = list(dict.fromkeys(ballot.subject for ballot in mine))
+    for stimulus, mine in by_stimulus.items():
+        subjects = {subject: i for i, subject in enumerate(dict.fromkeys(ballot.subject for ballot in mine))}
         per_subject = np.zeros((len(subjects), len(CONDITIONS)), dtype=int)
         for ballot in mine:
-            per_subject[subjects.index(ballot.subject), CONDITIONS.index(ballot.chosen)] += 1
+            per_subject[subjects[ballot.subject], column[ballot.chosen]] += 1
         scores[stimulus] = {name: int(per_subject[:, i].sum()) for i, name in enumerate(CONDITIONS)}
         for i, j in itertools.combinations(range(len(CONDITIONS)), 2):
             tests.append({"stimulus": stimulus, "a": CONDITIONS[i], "b": CONDITIONS[j],
@@ -242,19 +263,23 @@ def study_markdown(ballots: Sequence[Ballot], results: dict, *, notes: Sequence[
              f"{len(results['scores'])} stimulus/stimuli."]
     if notes:
         lines += ["", "Notes:", *(f"- {note}" for note in notes)]
+    by_stimulus: dict[str, list[Ballot]] = {}
+    for ballot in ballots:
+        by_stimulus.setdefault(ballot.stimulus, []).append(ballot)
+    tests_by_stimulus: dict[str, list[dict]] = {}
+    for test in results["ttests"]:
+        tests_by_stimulus.setdefault(test["stimulus"], []).append(test)
     for stimulus, scores in results["scores"].items():
         lines += ["", f"## {stimulus}", "", "Times the row condition was chosen when shown with the column "
                   "condition (either side):", "", "| chosen \\ against | " + " | ".join(CONDITIONS) + " |",
                   "|---" * (len(CONDITIONS) + 1) + "|"]
-        matrix = confusion_matrix(ballots, stimulus)
+        matrix = confusion_matrix(by_stimulus.get(stimulus, []), stimulus)
         for i, name in enumerate(CONDITIONS):
             lines.append(f"| {name} | " + " | ".join(str(v) for v in matrix[i]) + " |")
         lines += ["", "| condition | score |", "|---|---|"]
         lines += [f"| {name} | {scores[name]} |" for name in CONDITIONS]
         lines += ["", "| a − b | mean | sd | se | 95% CI | t | df | p |", "|---|---|---|---|---|---|---|---|"]
-        for test in results["ttests"]:
-            if test["stimulus"] != stimulus:
-                continue
+        for test in tests_by_stimulus.get(stimulus, []):
             ci = ("–" if test["ci_low"] is None else f"[{test['ci_low']:.2f}, {test['ci_high']:.2f}]")
             lines.append(f"| {test['a']} − {test['b']} | {number(test['mean'])} | {number(test['sd'])} | "
                          f"{number(test['se'])} | {ci} | {number(test['t'])} | {test['df']} | "

@@ -222,3 +222,37 @@ def test_arx_fit_refuses_widths_its_files_cannot_hold(tmp_path) -> None:
     bad.write_text(json.dumps(payload))
     with pytest.raises(ModelError, match="malformed"):
         ArxHeadModel.load(bad)
+
+
+def test_head_csv_rows_off_the_30_fps_grid_are_refused(tmp_path) -> None:
+    from prosody.errors import GroundTruthError
+    from prosody.ground_truth import read_head_csv
+
+    path = tmp_path / "c.head.csv"
+    path.write_text("frame,time_s,rx_rad,ry_rad,rz_rad\n0,0.0,0,0,0\n1,0.04,0,0,0\n")  # 25 fps timing
+    with pytest.raises(GroundTruthError, match="line 3: time_s 0.04 is not frame 1 at 30 fps"):
+        read_head_csv(path)
+
+
+def test_huge_csv_cells_are_one_line_errors(tmp_path) -> None:
+    from prosody.errors import BallotError, GroundTruthError
+    from prosody.ground_truth import read_head_csv
+    from prosody.study import read_ballots
+
+    big = "x" * 200_000
+    head = tmp_path / "c.head.csv"
+    head.write_text(f'frame,time_s,rx_rad,ry_rad,rz_rad\n0,0.0,"{big}",0,0\n')
+    with pytest.raises(GroundTruthError, match="line 2: not a CSV row"):
+        read_head_csv(head)
+    ballots = tmp_path / "b.csv"
+    ballots.write_text(f'stimulus,subject,left,right,choice\n"{big}",p,none,random,left\n')
+    with pytest.raises(BallotError, match="line 2: not a CSV row"):
+        read_ballots(ballots)
+
+
+def test_ballots_take_the_short_condition_names(tmp_path) -> None:
+    from prosody.study import parse_ballots
+
+    ballots = parse_ballots("stimulus,subject,left,right,choice\ns,p,speech,truth,left\ns,p,none,random,right\n")
+    assert [(b.left, b.right, b.chosen) for b in ballots] == [("SPEECH_DRIVEN", "GROUND_TRUTH", "SPEECH_DRIVEN"),
+                                                              ("NO_PROSODY", "RANDOM", "RANDOM")]
