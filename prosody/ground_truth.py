@@ -20,6 +20,8 @@ from .stream import FapStream
 #: Frame rate of the head.csv convention.
 HEAD_CSV_FPS = 30.0
 HEAD_CSV_COLUMNS = ("frame", "time_s", "rx_rad", "ry_rad", "rz_rad")
+#: How far a head.csv row's time_s may stray from frame / 30 (its rounding to a few decimals).
+TIME_TOLERANCE_S = 0.002
 #: Largest length difference (frames) between audio and recorded motion that is trimmed or padded.
 MAX_LENGTH_MISMATCH_FRAMES = 2
 
@@ -71,7 +73,7 @@ def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -
     if not np.array_equal(data[:, 0], np.arange(data.shape[0])):
         line = int(np.argmax(data[:, 0] != np.arange(data.shape[0]))) + 2
         raise GroundTruthError(f"{name}, line {line}: frames must be numbered 0, 1, 2, ... in order")
-    off_grid = np.abs(data[:, 1] - data[:, 0] / HEAD_CSV_FPS) > 0.5 / HEAD_CSV_FPS
+    off_grid = np.abs(data[:, 1] - data[:, 0] / HEAD_CSV_FPS) > TIME_TOLERANCE_S  # rounding, not re-timing
     if off_grid.any():
         line = int(np.argmax(off_grid)) + 2
         raise GroundTruthError(
