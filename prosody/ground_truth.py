@@ -77,7 +77,7 @@ def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -
     if off_grid.any():
         line = int(np.argmax(off_grid)) + 2
         raise GroundTruthError(
-            f"{name}, line {line}: time_s {data[line - 2, 1]!r} is not frame {int(data[line - 2, 0])} at "
+            f"{name}, line {line}: time_s {float(data[line - 2, 1])!r} is not frame {int(data[line - 2, 0])} at "
             f"{HEAD_CSV_FPS:g} fps ({data[line - 2, 0] / HEAD_CSV_FPS:.4f} s): a head.csv is 30 fps, frame k at k/30 s"
         )
     angles = data[:, 2:5]
