@@ -127,7 +127,8 @@ def atomic_write(path: str | os.PathLike[str], *, mode: str = "w", newline: str 
         if "b" in mode:
             handle = open(partial, mode)
         else:
-            handle = open(partial, mode, encoding="utf-8", newline=newline)
+            # file names that are not UTF-8 (bytes kept as surrogates) are written back as the same bytes
+            handle = open(partial, mode, encoding="utf-8", errors="surrogateescape", newline=newline)
         try:
             with handle:
                 yield handle

@@ -140,7 +140,8 @@ def open_sound_file(path: str | os.PathLike[str]):
 
     file = check_readable(path)
     try:
-        return soundfile.SoundFile(str(file))
+        # bytes, so that a file name that is not UTF-8 opens too (soundfile encodes str strictly)
+        return soundfile.SoundFile(os.fsencode(file) if os.name != "nt" else str(file))
     except (soundfile.SoundFileError, RuntimeError) as error:
         reason = str(error).split(": ", 1)[-1] if ": " in str(error) else str(error)
         raise AudioLoadError(f"{file}: not an audio file libsndfile can read ({reason.strip()})") from None

@@ -5,4 +5,9 @@ Entry points: :func:`prosody.pipeline.convert` (one recording, one condition), :
 (paired-comparison studies). The ``prosody`` command is a thin shell over them (:mod:`prosody.cli`).
 """
 
-__version__ = "0.1.0"
+from importlib import metadata as _metadata
+
+try:
+    __version__ = _metadata.version("visual-prosody")  # one source: pyproject.toml
+except _metadata.PackageNotFoundError:  # pragma: no cover - running from a source tree never installed
+    __version__ = "0+unknown"

@@ -7,6 +7,7 @@ Heavy libraries are imported inside each command, so a command pays only for wha
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import sys
@@ -163,6 +164,16 @@ def _eyebrow_rule(args: argparse.Namespace):
 def _cmd_features(args: argparse.Namespace) -> int:
     from audio_features import extract_features
 
+    from .errors import ConfigError
+
+    if args.output != "-" and not args.output.lower().endswith(".csv"):
+        raise ConfigError(f"-o {args.output!r}: features are written as CSV; name the file .csv (or - for "
+                          "standard output)")
+    if args.output == "-":
+        features = extract_features(args.input, **_analysis_kwargs(args))
+        _to_stdout(features.write_csv, "features.csv")
+        return EXIT_OK
+
     features = extract_features(args.input, **_analysis_kwargs(args))
     features.write_csv(args.output)
     print(f"{args.output}: {features.n_frames} frames at {features.fps:g} fps "
@@ -178,12 +189,58 @@ def _motion_kwargs(args: argparse.Namespace) -> dict:
             "eyebrow_rule": _eyebrow_rule(args), "gains": gains, "disabled": disabled, **_analysis_kwargs(args)}
 
 
+def _to_stdout(write: Callable[[str], object], name: str) -> None:
+    """Run ``write(path)`` on a temporary file called ``name`` and copy it to standard output (``-o -``)."""
+    import os
+    import shutil
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = os.path.join(folder, name)
+        write(path)
+        with open(path, "rb") as handle:
+            shutil.copyfileobj(handle, sys.stdout.buffer)
+        sys.stdout.flush()
+
+
+def _check_motion_options(args: argparse.Namespace) -> None:
+    """Options that would make the output silently other than asked are refused."""
+    from .errors import ConfigError
+
+    if args.ground_truth is not None and args.condition != "truth":
+        raise ConfigError(f"--ground-truth is the recorded motion of --condition truth; it is not used by "
+                          f"--condition {args.condition}")
+    off = {name.strip() for value in args.off for name in value.split(",") if name.strip()}
+    if {"pitch", "yaw", "roll", "brows"} <= off:
+        raise ConfigError("--off leaves out every channel (pitch, yaw, roll, brows): the output would be empty")
+
+
 def _cmd_convert(args: argparse.Namespace) -> int:
+    from .errors import ConfigError
     from .pipeline import convert
 
-    stream = convert(args.input, args.output, base=args.base, output_format=args.format, **_motion_kwargs(args))
-    print(f"{args.output}: {stream.n_frames} frames at {stream.fps:g} fps, FAPs "
-          f"{' '.join(map(str, stream.active_faps))}", file=sys.stderr)
+    _check_motion_options(args)
+    if args.output == "-":
+        if args.format is None:
+            raise ConfigError("-o - writes to standard output: give --format (fap, csv, csv-physical, json, bvh, "
+                              "livelink)")
+        holder: list = []
+
+        def write(path: str) -> None:
+            holder.append(convert(args.input, path, base=args.base, output_format=args.format,
+                                  **_motion_kwargs(args)))
+
+        from pathlib import Path
+
+        _to_stdout(write, Path(args.input).stem + "." + args.format)  # the stream keeps the input's name
+        stream = holder[0]
+    else:
+        stream = convert(args.input, args.output, base=args.base, output_format=args.format, **_motion_kwargs(args))
+    faps = " ".join(map(str, stream.active_faps))
+    written = args.format or ""
+    if written == "bvh" or (not written and args.output.lower().endswith(".bvh")):
+        faps = "48 49 50 (BVH holds the head only)"
+    print(f"{args.output}: {stream.n_frames} frames at {stream.fps:g} fps, FAPs {faps}", file=sys.stderr)
     return EXIT_OK
 
 
@@ -213,6 +270,7 @@ def _cmd_preview(args: argparse.Namespace) -> int:
 
     from .preview import write_preview
 
+    _check_motion_options(args)
     audio = args.audio
     if Path(args.input).suffix.lower() == ".fap":
         from .fapfile import read_fap
@@ -348,6 +406,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Visual prosody from speech: head and eyebrow motion (MPEG-4 FAP streams) from audio.",
         epilog="Exit codes: 0 success, 1 processing error (bad input file, failed analysis), 2 usage error.",
     )
+    from . import __version__
+
+    parser.add_argument("--version", action="version", version=f"prosody {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
 
     features = commands.add_parser(
@@ -357,7 +418,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "frame,time_s,f0_hz,f0_conditioned_hz,energy_db.",
     )
     features.add_argument("input", help="audio file (WAV, FLAC, OGG, MP3, ...; mixed to mono)")
-    features.add_argument("-o", "--output", required=True, help="CSV file to write")
+    features.add_argument("-o", "--output", required=True, help="CSV file to write (.csv), or - for standard output")
     _add_analysis_options(features)
     features.set_defaults(handler=_cmd_features)
 
@@ -371,7 +432,8 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("input", help="speech recording")
     convert.add_argument("-o", "--output", required=True,
                          help="output file; the format follows the ending: .fap (MPEG-4), .csv (FAP units), "
-                              ".json, .bvh (head joint, degrees), .livelink.csv (Live Link Face style)")
+                              ".json, .bvh (head joint, degrees), .livelink.csv (Live Link Face style); - writes "
+                              "to standard output (with --format)")
     convert.add_argument("--format", default=None,
                          choices=["fap", "csv", "csv-physical", "json", "bvh", "livelink"],
                          help="output format, overriding the ending (csv-physical: radians and fractions of "
@@ -501,7 +563,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     study = commands.add_parser(
         "study", help="plan a paired-comparison perceptual study, or analyse its ballots",
-        description="Paired comparisons of the four conditions (SPEC section 7): 'plan' writes the presentation "
+        description="Paired comparisons of the four conditions, as the thesis's perceptual study ran them: "
+                    "'plan' writes the presentation "
                     "order, 'analyze' scores the ballots and runs paired t-tests.",
     )
     study_commands = study.add_subparsers(dest="study_command", required=True, metavar="STEP",
@@ -521,7 +584,7 @@ def build_parser() -> argparse.ArgumentParser:
         "analyze", help="score ballots and run paired t-tests",
         description="BALLOTS.csv has the columns stimulus,subject,left,right,choice (choice: left or right). "
                     "Writes {\"scores\": {stimulus: {condition: points}}, \"ttests\": [...]}: one paired t-test "
-                    "of per-subject scores (a minus b, 95%% CI, two-tailed p) for each pair of conditions per "
+                    "of per-subject scores (a minus b, 95% CI, two-tailed p) for each pair of conditions per "
                     "stimulus. Incomplete, duplicated or unknown-condition rows are reported by line number.",
     )
     analyze.add_argument("input", metavar="BALLOTS.csv", help="ballot file")
@@ -555,6 +618,8 @@ def _run(handler: Callable[[argparse.Namespace], int], args: argparse.Namespace)
     except (ProsodyError, AudioFeaturesError) as error:
         print(f"prosody {args.command}: error: {error}", file=sys.stderr)
         return EXIT_FAILURE
+    except BrokenPipeError:
+        raise  # the reader of our output went away: main() ends quietly
     except OSError as error:
         where = f"{error.filename}: " if error.filename else ""
         print(f"prosody {args.command}: error: {where}{error.strerror or error}", file=sys.stderr)
@@ -579,6 +644,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"prosody {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader went away (`prosody inspect F.fap | head -1`): not an error of ours
+        import os
+
+        with contextlib.suppress(OSError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_OK
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,0 +1,101 @@
+"""The command line as a user meets it: versions, pipes, standard output, conflicting options."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+import soundfile
+from conftest import segments
+
+from prosody import __version__
+from prosody.cli import main
+
+SR = 16000
+
+
+@pytest.fixture
+def speech(tmp_path):
+    path = tmp_path / "speech.wav"
+    soundfile.write(path, segments(SR, (0.6, 140, 0.5), (0.5, 230, 0.5), (0.6, 150, 0.5)), SR)
+    return path
+
+
+def _run(*args: str, **kwargs) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "prosody", *args], capture_output=True, **kwargs)
+
+
+def test_version_and_python_dash_m() -> None:
+    result = _run("--version", text=True)
+    assert result.returncode == 0 and result.stdout.strip() == f"prosody {__version__}"
+    assert __version__ != "0+unknown"
+
+
+def test_convert_to_standard_output_keeps_the_input_name(speech) -> None:
+    result = _run("convert", str(speech), "-o", "-", "--format", "fap")
+    assert result.returncode == 0
+    lines = result.stdout.decode().splitlines()
+    assert lines[0] == "2.1 speech 30 51" and len(lines) == 1 + 2 * 51
+    assert main(["convert", str(speech), "-o", "-"]) == 2  # no format to write standard output in
+
+
+def test_a_reader_that_goes_away_is_not_an_error(tmp_path, speech) -> None:
+    fap = tmp_path / "s.fap"
+    assert main(["convert", str(speech), "-o", str(fap)]) == 0
+    inspect = subprocess.Popen([sys.executable, "-m", "prosody", "inspect", str(fap), "--json"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert inspect.stdout is not None
+    inspect.stdout.read(10)
+    inspect.stdout.close()  # as `| head -c 10` does
+    _, err = inspect.communicate(timeout=60)
+    assert inspect.returncode == 0 and b"Broken pipe" not in err and b"Traceback" not in err
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["--ground-truth", "x.head.csv"], "not used by --condition speech"),
+    (["--off", "pitch,yaw", "--off", "roll,brows"], "every channel"),
+    (["--condition", "random", "--ground-truth", "x.head.csv"], "not used by --condition random"),
+])
+def test_options_that_would_silently_do_nothing_are_refused(tmp_path, speech, capsys, arguments, message) -> None:
+    out = tmp_path / "x.fap"
+    assert main(["convert", str(speech), "-o", str(out), *arguments]) == 2
+    assert message in capsys.readouterr().err and not out.exists()
+
+
+def test_features_are_written_as_csv_only(tmp_path, speech, capsys) -> None:
+    assert main(["features", str(speech), "-o", str(tmp_path / "x.json")]) == 2
+    assert ".csv" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
+
+
+def test_bvh_says_it_holds_the_head_only(tmp_path, speech, capsys) -> None:
+    assert main(["convert", str(speech), "-o", str(tmp_path / "x.bvh")]) == 0
+    assert "BVH holds the head only" in capsys.readouterr().err
+
+
+def test_help_texts_stand_alone() -> None:
+    from prosody.cli import build_parser
+
+    parser = build_parser()
+    texts = [parser.format_help()]
+    for action in parser._subparsers._group_actions:  # noqa: SLF001 - every subcommand's help
+        for name, sub in action.choices.items():
+            texts.append(sub.format_help())
+            if name == "study":
+                texts += [step.format_help() for step in sub._subparsers._group_actions[0].choices.values()]
+    joined = "\n".join(texts)
+    assert "SPEC" not in joined and "%%" not in joined
+
+
+def test_batch_with_a_file_name_that_is_not_utf8(tmp_path) -> None:
+    if sys.platform == "darwin":
+        pytest.skip("macOS file systems refuse names that are not UTF-8")
+    indir = tmp_path / "in"
+    indir.mkdir()
+    soundfile.write(indir / "plain.wav", segments(SR, (0.6, 140, 0.5), (0.5, 230, 0.5)), SR)
+    os.rename(os.fsencode(indir / "plain.wav"), os.fsencode(indir) + b"/take_\xff.wav")
+    out = tmp_path / "out"
+    assert main(["batch", str(indir), "-o", str(out), "--condition", "none", "--seeds", "1"]) == 0
+    assert (out / "summary.md").exists() and (out / "summary.json").exists()
+    assert b"take_\xff.wav" in (out / "summary.md").read_bytes()
