@@ -292,7 +292,7 @@ def make_executor(*, jobs: int = 1, scheduler: str | None = None) -> Iterator[Ex
             except Exception:  # noqa: BLE001 - a lost scheduler has no workers for us either
                 return False
 
-        executor.workers_alive = workers_alive  # type: ignore[attr-defined]
+        executor.workers_alive = workers_alive
         try:
             yield executor
         finally:
@@ -402,7 +402,8 @@ def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,
                 elif isinstance(result, _NoWorkers):
                     outcome = failed(task, str(result))
                 else:
-                    outcome = failed(task, f"worker failed: {type(result).__name__}: {_one_line(result)}")
+                    error = result if isinstance(result, BaseException) else RuntimeError(str(result))
+                    outcome = failed(task, f"worker failed: {type(error).__name__}: {_one_line(error)}")
                 outcomes[outcome.file] = outcome
                 report(outcome)
             # after a worker died, every file it left undone is run alone in a fresh process: only the file
