@@ -341,6 +341,10 @@ def test_a_worker_that_dies_fails_only_its_own_file(tmp_path, monkeypatch) -> No
         _tone_file(indir / name)
     summary = run_batch(indir, tmp_path / "out", options=BatchOptions(conditions=("none",), seeds=1), jobs=2)
     status = {entry["file"]: entry["status"] for entry in summary["files"]}
-    assert status == {"a.wav": "done", "b.wav": "done", "crash.wav": "failed", "d.wav": "done", "e.wav": "done"}
+    errors = {entry["file"]: entry["error"] for entry in summary["files"]}
+    # a file whose worker finished it just before the pool broke is found complete when retried: "skipped"
+    assert status.pop("crash.wav") == "failed"
+    assert set(status.values()) <= {"done", "skipped"}, errors
+    assert all(entry["metrics"] is not None for entry in summary["files"] if entry["file"] != "crash.wav")
     crashed = next(entry for entry in summary["files"] if entry["file"] == "crash.wav")
     assert "worker process died" in crashed["error"]
