@@ -93,8 +93,10 @@ def analyse_grid(
     chunk_s: float,
     margin_s: float,
     source: str,
+    progress: Callable[[int, int], None] | None = None,
 ) -> GridAnalysis:
-    """Praat F0 (NaN where unvoiced) and intensity (dB) at every grid frame of a recording."""
+    """Praat F0 (NaN where unvoiced) and intensity (dB) at every grid frame of a recording;
+    ``progress(frames_done, frames_total)`` is called after each chunk."""
     import parselmouth
 
     from .tracks import frame_count
@@ -118,6 +120,8 @@ def analyse_grid(
     energy = np.full(n_frames, ENERGY_FLOOR_DB)
 
     for k0 in range(0, n_frames, chunk_frames):
+        if progress is not None:
+            progress(k0, n_frames)
         k1 = min(n_frames, k0 + chunk_frames)
         core_steps = np.arange(k0, k1) * oversample
         # pitch: core plus margin of path-finder context, clipped to the recording
@@ -152,6 +156,8 @@ def analyse_grid(
             energy[k0:k1] = np.maximum(values, ENERGY_FLOOR_DB)
     if not np.all(np.isfinite(energy)):  # pragma: no cover - Praat never returns NaN for finite input
         raise AudioLoadError(f"{source}: intensity analysis returned non-finite values")
+    if progress is not None:
+        progress(n_frames, n_frames)
     return GridAnalysis(f0_hz=f0, energy_db=energy)
 
 

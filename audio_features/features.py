@@ -5,8 +5,10 @@ from __future__ import annotations
 import csv
 import os
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -301,6 +303,7 @@ def extract_features(
     intensity_min_pitch_hz: float = 100.0,
     chunk_s: float = 60.0,
     margin_s: float = 1.0,
+    progress: Callable[[int, int], None] | None = None,
 ) -> Features:
     """Extract F0, conditioned F0 and energy of a recording on the frame grid.
 
@@ -321,6 +324,8 @@ def extract_features(
         Length of audio analysed at once.
     margin_s : float >= 0, in s
         Context given to the pitch path finder on each side of a chunk.
+    progress : callable, optional
+        Called as ``progress(frames_done, frames_total)`` as the analysis goes (once per chunk).
 
     Returns
     -------
@@ -345,8 +350,9 @@ def extract_features(
         raise ParameterError(f"fps must be a number in (0, {MAX_FPS:g}], got {fps!r}")
     if not chunk_s > 0 or not margin_s >= 0:
         raise ParameterError(f"need chunk_s > 0 and margin_s >= 0, got {chunk_s!r} and {margin_s!r}")
-    settings = dict(fps=fps, f0_floor_hz=f0_floor_hz, f0_ceiling_hz=f0_ceiling_hz,
-                    intensity_min_pitch_hz=intensity_min_pitch_hz, chunk_s=chunk_s, margin_s=margin_s)
+    settings: dict[str, Any] = dict(fps=fps, f0_floor_hz=f0_floor_hz, f0_ceiling_hz=f0_ceiling_hz,
+                                    intensity_min_pitch_hz=intensity_min_pitch_hz, chunk_s=chunk_s,
+                                    margin_s=margin_s, progress=progress)
     if isinstance(source, Audio):
         name = source.source
         grid = analyse_grid(array_reader(source.samples), n_samples=source.samples.shape[0],

@@ -235,7 +235,8 @@ def _cmd_convert(args: argparse.Namespace) -> int:
         _to_stdout(write, Path(args.input).stem + "." + args.format)  # the stream keeps the input's name
         stream = holder[0]
     else:
-        stream = convert(args.input, args.output, base=args.base, output_format=args.format, **_motion_kwargs(args))
+        stream = convert(args.input, args.output, base=args.base, output_format=args.format,
+                         progress=_frame_progress(args.input, "analysed"), **_motion_kwargs(args))
     faps = " ".join(map(str, stream.active_faps))
     written = args.format or ""
     if written == "bvh" or (not written and args.output.lower().endswith(".bvh")):
@@ -244,7 +245,7 @@ def _cmd_convert(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _frame_progress(output: str) -> Callable[[int, int], None] | None:
+def _frame_progress(output: str, verb: str = "drawn") -> Callable[[int, int], None] | None:
     """A once-a-second 'frames drawn' line on a terminal; nothing in pipes or CI."""
     import os
     import time
@@ -257,7 +258,7 @@ def _frame_progress(output: str) -> Callable[[int, int], None] | None:
         now = time.monotonic()
         if now - last[0] >= 1.0 or done == total:
             last[0] = now
-            sys.stderr.write(f"\r{output}: {done}/{total} frames drawn ({100 * done // max(total, 1)}%)")
+            sys.stderr.write(f"\r{output}: {done}/{total} frames {verb} ({100 * done // max(total, 1)}%)")
             if done == total:
                 sys.stderr.write("\n")
             sys.stderr.flush()

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
 from audio_features import Features, extract_features
@@ -58,6 +58,7 @@ def convert(
     gains: Mapping[str, float] | None = None,
     disabled: Iterable[str] = (),
     features: Features | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> FapStream:
     """Convert a speech recording into the FAP stream of one condition, and write it if ``output`` is given.
 
@@ -89,6 +90,8 @@ def convert(
         Channels to leave out of the output.
     features : Features, optional
         Already extracted features of ``audio`` (skips the analysis).
+    progress : callable, optional
+        Called as ``progress(frames_done, frames_total)`` during the analysis, the long part of a conversion.
 
     Returns
     -------
@@ -98,7 +101,8 @@ def convert(
         raise ConfigError("output: no output file name given")
     chosen = condition if isinstance(condition, Condition) else Condition.parse(condition)
     if features is None:
-        features = extract_features(audio, fps=fps, f0_floor_hz=f0_floor_hz, f0_ceiling_hz=f0_ceiling_hz)
+        features = extract_features(audio, fps=fps, f0_floor_hz=f0_floor_hz, f0_ceiling_hz=f0_ceiling_hz,
+                                    progress=progress)
     head_model = resolve_head_model(model) if chosen is Condition.SPEECH_DRIVEN else None
     truth = load_ground_truth(ground_truth, features) if ground_truth is not None else None
     name = Path(output).stem if output is not None else Path(str(audio)).stem

@@ -14,6 +14,7 @@ import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -65,7 +66,7 @@ def find_pairs(directory: str | os.PathLike[str]) -> list[tuple[Path, Path]]:
 
 
 def load_training_set(pairs: Iterable[tuple[Path, Path]], *, fps: float = 30.0,
-                      report: Callable[[str], None] | None = None, **analysis: float) -> TrainingSet:
+                      report: Callable[[str], None] | None = None, **analysis: Any) -> TrainingSet:
     """Extract features and read motion for each pair; a pair that fails or whose durations disagree by
     more than two frames is reported by name and skipped, never silently trimmed."""
     report = report or (lambda message: print(message, file=sys.stderr))

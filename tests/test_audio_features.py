@@ -255,3 +255,14 @@ def test_streamed_file_reading_equals_reading_at_once(tmp_path, monkeypatch) -> 
     streamed = extract_features(tmp_path / "tone.wav", chunk_s=0.5)
     np.testing.assert_array_equal(at_once.f0.values, streamed.f0.values)
     np.testing.assert_array_equal(at_once.energy.values, streamed.energy.values)
+
+
+def test_analysis_reports_its_progress_chunk_by_chunk() -> None:
+    from conftest import harmonic_tone
+
+    from audio_features import Audio
+
+    calls: list[tuple[int, int]] = []
+    extract_features(Audio(harmonic_tone(150, 5.0, 16000), 16000), chunk_s=2.0,
+                     progress=lambda done, total: calls.append((done, total)))
+    assert calls == [(0, 150), (60, 150), (120, 150), (150, 150)]
