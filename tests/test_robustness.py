@@ -140,3 +140,86 @@ def test_fuzz_model_loader(tmp_path, data) -> None:
         assert str(path) in str(error)
     else:
         assert model.spectral_radius_ < 1
+
+
+# past the header: values and their extremes, nested model fields, generation after loading, ballots that are
+# valid enough to be analysed
+_extreme_numbers = st.sampled_from(["0", "-0", "1e308", "-1e308", "1e400", "nan", "inf", "99999999999999999999",
+                                    "1.5e-320", "+3", ".5", "7."])
+
+
+@FUZZ
+@given(values=st.lists(_extreme_numbers, min_size=2, max_size=2), fps=_extreme_numbers)
+def test_fuzz_fap_values_and_rates(tmp_path, values, fps) -> None:
+    mask = " ".join("1" if fap in (48, 49) else "0" for fap in range(1, 69))
+    path = tmp_path / "v.fap"
+    path.write_text(f"2.1 v {fps} 1\n{mask}\n0 {values[0]} {values[1]}\n")
+    try:
+        fap = read_fap(path)
+    except FapFormatError as error:
+        assert str(path) in str(error)
+        return
+    assert np.all(np.isfinite(fap.stream.values)) and 1 <= fap.stream.fps <= 1000
+
+
+def _nested_paths(payload, prefix=()):
+    if isinstance(payload, dict):
+        for key, value in payload.items():
+            yield prefix + (key,)
+            yield from _nested_paths(value, prefix + (key,))
+    elif isinstance(payload, list) and payload and not isinstance(payload[0], (int, float)):
+        for index, value in enumerate(payload[:2]):
+            yield prefix + (index,)
+            yield from _nested_paths(value, prefix + (index,))
+
+
+@FUZZ
+@given(data=st.data())
+def test_fuzz_nested_fields_of_both_model_kinds(tmp_path, data) -> None:
+    from prosody.head_models import PROSODIC_MODEL_PATH, load_head_model
+
+    source = data.draw(st.sampled_from([PROSODIC_MODEL_PATH, DEFAULT_MODEL_PATH]))
+    payload = json.loads(source.read_text())
+    route = data.draw(st.sampled_from(sorted(_nested_paths(payload), key=str)))
+    holder = payload
+    for step in route[:-1]:
+        holder = holder[step]
+    holder[route[-1]] = data.draw(st.one_of(
+        st.none(), st.booleans(), st.integers(min_value=-10**30, max_value=10**30),
+        st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=3),
+        st.lists(st.floats(allow_nan=True), max_size=3), st.dictionaries(st.text(max_size=2), st.integers(),
+                                                                          max_size=2)))
+    path = tmp_path / "model.json"
+    path.write_text(json.dumps(payload))  # NaN and Infinity as JSON writes them
+    try:
+        model = load_head_model(path)
+    except ModelError as error:
+        assert str(path) in str(error)
+        return
+    # whatever loads must generate finite motion
+    from conftest import make_features
+
+    features = make_features(150 + 30 * np.sin(np.arange(120) / 9), 60 + 5 * np.cos(np.arange(120) / 4))
+    curves = model.generate(features, seed=1)
+    assert all(np.all(np.isfinite(curve)) for curve in curves.values())
+
+
+@FUZZ
+@given(rows=st.lists(st.tuples(st.sampled_from(["s1", "s2"]), st.sampled_from(["p1", "p2", "p3"]),
+                               st.sampled_from(["none", "RANDOM", "speech", "GROUND_TRUTH"]),
+                               st.sampled_from(["NO_PROSODY", "random", "SPEECH_DRIVEN", "truth"]),
+                               st.sampled_from(["left", "right", "LEFT"])), min_size=1, max_size=40))
+def test_fuzz_ballots_that_are_analysed(rows) -> None:
+    from prosody.study import analyze_ballots
+
+    text = "stimulus,subject,left,right,choice\n" + "\n".join(",".join(row) for row in rows)
+    try:
+        ballots = parse_ballots(text)
+    except BallotError as error:
+        assert "duplicates" in str(error)
+        return
+    results = analyze_ballots(ballots)
+    for stimulus, scores in results["scores"].items():
+        assert sum(scores.values()) == sum(b.stimulus == stimulus for b in ballots)
+    for test in results["ttests"]:
+        assert test["p"] is None or 0 <= test["p"] <= 1
