@@ -637,6 +637,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         # a warning is a note to the user, one line, not a source listing
         print(f"prosody {args.command}: warning: {message}", file=sys.stderr)
 
+    import signal
+
+    def terminated(signum, frame):
+        # SIGTERM unwinds like Ctrl-C, so that temporary files are removed and nothing is left half-written
+        raise KeyboardInterrupt
+
+    with contextlib.suppress(ValueError):  # only the main thread may set handlers
+        signal.signal(signal.SIGTERM, terminated)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("default")

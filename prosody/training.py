@@ -278,6 +278,17 @@ def train(directory: str | os.PathLike[str], output: str | os.PathLike[str], *, 
     data = load_training_set(pairs, fps=fps, report=report)
     if not data.names:
         raise GroundTruthError(f"{directory}: every pair was skipped; nothing to train on")
+    try:
+        return _train_loaded(data, directory, output, kind=kind, cv=cv, na=na, nb=nb, nk=nk, ridge=ridge, fps=fps,
+                             report=report)
+    except ConfigError as error:
+        # what the recordings cannot give (too short, too still, too few) is a problem of the data: name it
+        raise GroundTruthError(f"{directory}: {error}") from None
+
+
+def _train_loaded(data: TrainingSet, directory: str | os.PathLike[str], output: str | os.PathLike[str], *,
+                  kind: str, cv: bool, na: int, nb: int, nk: int, ridge: float, fps: float,
+                  report: Callable[[str], None]) -> ArxHeadModel | ProsodicHeadModel:
     extra: dict = {"skipped": data.skipped}
     model: ArxHeadModel | ProsodicHeadModel
     if kind == "prosodic":

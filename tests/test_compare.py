@@ -348,3 +348,52 @@ def test_a_worker_that_dies_fails_only_its_own_file(tmp_path, monkeypatch) -> No
     assert all(entry["metrics"] is not None for entry in summary["files"] if entry["file"] != "crash.wav")
     crashed = next(entry for entry in summary["files"] if entry["file"] == "crash.wav")
     assert "worker process died" in crashed["error"]
+
+
+def test_a_cluster_without_workers_stops_waiting_and_a_lost_scheduler_is_said(monkeypatch) -> None:
+    from concurrent.futures import CancelledError, Future
+
+    import prosody.batch as batch
+
+    monkeypatch.setattr(batch, "NO_WORKER_TIMEOUT_S", 0.2)
+    stuck, lost = Future(), Future()
+    lost.set_exception(CancelledError())
+    results = list(batch._completed({stuck: ("a",), lost: ("b",)}, alive=lambda: False, poll_s=0.05))
+    by_task = {task[0]: result for task, result in results}
+    assert isinstance(by_task["b"], CancelledError)
+    assert isinstance(by_task["a"], batch._NoWorkers) and "no worker" in str(by_task["a"])
+    # with workers, a slow file is simply waited for
+    slow = Future()
+    calls = []
+
+    def alive() -> bool:
+        calls.append(1)
+        if len(calls) == 3:
+            slow.set_result("done")
+        return True
+
+    assert list(batch._completed({slow: ("c",)}, alive=alive, poll_s=0.05)) == [(("c",), "done")]
+
+
+def test_sigterm_leaves_no_half_written_file(tmp_path) -> None:
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from prosody.preview import find_ffmpeg
+
+    if find_ffmpeg() is None:
+        pytest.skip("the MP4 preview, written as it is drawn, needs ffmpeg")
+    audio = tmp_path / "long.wav"
+    soundfile.write(audio, segments(SR, *[(0.5, 150 + 10 * (k % 7), 0.5) for k in range(240)]), SR)  # 2 min
+    out = tmp_path / "out.mp4"
+    process = subprocess.Popen([sys.executable, "-m", "prosody", "preview", str(audio), "-o", str(out),
+                                "--width", "64"], stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not any(p.name.endswith(".part.mp4") for p in tmp_path.iterdir()):
+        time.sleep(0.02)  # writing has started once the temporary file exists
+    process.send_signal(signal.SIGTERM)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 130 and b"interrupted" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["long.wav"]
