@@ -284,8 +284,19 @@ def _cmd_preview(args: argparse.Namespace) -> int:
         audio = audio or args.input
     if args.no_audio:
         audio = None
+    scales = None
+    if args.strip_scale is not None:
+        import math
+
+        from .errors import ConfigError
+
+        try:
+            brow_ens, head_deg = (float(part) for part in args.strip_scale.split(","))
+        except ValueError:
+            raise ConfigError(f"--strip-scale takes BROW_ENS,HEAD_DEG (e.g. 30,10), got {args.strip_scale!r}") from None
+        scales = (brow_ens, math.radians(head_deg) * 1e5)
     write_preview(stream, args.output, audio=audio, width=args.width, exaggerate=args.exaggerate,
-                  start_s=args.start, duration_s=args.duration, progress=_frame_progress(args.output))
+                  start_s=args.start, duration_s=args.duration, progress=_frame_progress(args.output), scales=scales)
     sound = " with sound" if audio is not None and Path(args.output).suffix.lower() == ".mp4" else ""
     print(f"{args.output}: preview of {stream.name} ({stream.duration_s:.2f} s){sound}", file=sys.stderr)
     return EXIT_OK
@@ -465,6 +476,9 @@ def build_parser() -> argparse.ArgumentParser:
                          help="draw head angles and brow raises X times larger (default 1: true scale; "
                               "the thesis-sized brow raises are a few pixels at true scale)")
     preview.add_argument("--start", type=float, default=0.0, metavar="S", help="first second shown (default 0)")
+    preview.add_argument("--strip-scale", default=None, metavar="BROW_ENS,HEAD_DEG",
+                         help="full scale of the curve strip: brow raise in ENS and head angle in degrees (default: "
+                              "this stream's largest values); give previews you compare the same scale, e.g. 30,10")
     preview.add_argument("--duration", type=_positive_float, default=None, metavar="S",
                          help="seconds shown (default: to the end)")
     _add_motion_options(preview)

@@ -444,7 +444,8 @@ def _reporting(frames: Iterator[np.ndarray], progress: Callable[[int, int], None
 
 def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: str | os.PathLike[str] | None = None,
                   width: int = 480, exaggerate: float = 1.0, start_s: float = 0.0, duration_s: float | None = None,
-                  ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None) -> Path:
+                  ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None,
+                  scales: tuple[float, float] | None = None) -> Path:
     """Write the drawn-face preview of ``stream`` to ``output`` (``.mp4`` or ``.gif``).
 
     Parameters
@@ -465,6 +466,9 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
         ffmpeg executable for MP4; ``"auto"`` looks it up with :func:`find_ffmpeg`.
     progress : callable, optional
         Called as ``progress(frames_drawn, frames_total)`` after every frame.
+    scales : (float, float), optional
+        Full scale of the strip's brow (ENS) and head (AU) curves; default: this stream's largest values.
+        Give the same scales to previews that will be compared.
 
     Returns
     -------
@@ -481,7 +485,10 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
         raise ConfigError(f"start {start_s:g} s is past the end of the stream ({stream.duration_s:.2f} s)")
     count = stream.n_frames - first if duration_s is None else min(stream.n_frames - first,
                                                                     max(1, round(duration_s * stream.fps)))
-    frames = render_frames(stream, width=width, exaggerate=exaggerate, first_frame=first, n_frames=count)
+    if scales is not None and not all(math.isfinite(v) and v > 0 for v in scales):
+        raise ConfigError(f"strip scales must be positive numbers, got {scales!r}")
+    frames = render_frames(stream, width=width, exaggerate=exaggerate, first_frame=first, n_frames=count,
+                           scales=scales)
     if progress is not None:
         frames = _reporting(frames, progress, count)
     if kind == ".gif":

@@ -239,3 +239,23 @@ def test_compare_video_has_the_conditions_side_by_side_with_the_audio(tmp_path: 
     assert main(["compare", str(audio), "-o", str(tmp_path / "out"), "--no-plots", "--video", "--seeds", "2"]) == 0
     report = _probe(ffmpeg, tmp_path / "out" / "conditions.mp4")
     assert "Video: h264" in report and "960x400" in report and "Audio: aac" in report  # 3 panels of 320 x 400
+
+
+def test_previews_to_be_compared_can_share_the_strip_scale(tmp_path: Path) -> None:
+    from prosody.preview import CurveStrip
+
+    small = FapStream.from_curves({48: np.linspace(0, 1000, 30), 31: np.full(30, 5.0)}, fps=30)
+    large = FapStream.from_curves({48: np.linspace(0, 8000, 30), 31: np.full(30, 20.0)}, fps=30)
+    own = CurveStrip(small, width=200, height=60)
+    shared = CurveStrip(small, width=200, height=60, scales=(20.0, 8000.0))
+    assert own.curves["pitch"].max() == pytest.approx(1.0)  # its own scale fills the strip
+    assert shared.curves["pitch"].max() == pytest.approx(1000 / 8000)  # the shared one shows it smaller
+    assert CurveStrip(large, width=200, height=60, scales=(20.0, 8000.0)).curves["pitch"].max() == pytest.approx(1)
+    from prosody.fapfile import write_fap
+
+    write_fap(small, tmp_path / "small.fap")
+    assert main(["preview", str(tmp_path / "small.fap"), "-o", str(tmp_path / "x.gif"), "--width", "64",
+                 "--strip-scale", "20,4.6"]) == 0
+    assert main(["preview", str(tmp_path / "small.fap"), "-o", str(tmp_path / "y.gif"), "--strip-scale", "a"]) == 2
+    assert main(["preview", str(tmp_path / "small.fap"), "-o", str(tmp_path / "y.gif"), "--strip-scale", "0,5"]) == 2
+    assert not (tmp_path / "y.gif").exists()
