@@ -13,20 +13,18 @@ from one recording into the next; generation runs the model free, feeding back i
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from audio_features import Features
-from audio_features._atomic import atomic_write
 
 from .errors import ConfigError, ModelError
 from .fap_table import HEAD_FAPS
+from .model_files import TrainingClip, read_model_json, write_model_json
 
 MODEL_FORMAT = "visual-prosody-arx"
 MODEL_VERSION = 1
@@ -86,15 +84,6 @@ def spectral_radius(a_matrices: np.ndarray) -> float:
     companion[:k, :] = np.hstack(list(a_matrices))
     companion[k:, :-k] = np.eye((na - 1) * k)
     return float(np.max(np.abs(np.linalg.eigvals(companion))))
-
-
-@dataclass(frozen=True)
-class TrainingClip:
-    """A recording the model was trained on."""
-
-    name: str
-    frames: int
-    duration_s: float
 
 
 class ArxHeadModel:
@@ -314,15 +303,10 @@ class ArxHeadModel:
 
     def save(self, path: str | os.PathLike[str], *, extra: dict | None = None) -> None:
         """Write the model as JSON (plain data, never pickle), atomically."""
-        payload = self.to_dict()
-        if extra:
-            payload.update(extra)
-        with atomic_write(path) as handle:
-            json.dump(payload, handle, indent=1)
-            handle.write("\n")
+        write_model_json(self.to_dict(), path, extra=extra)
 
     @classmethod
-    def from_dict(cls, payload: dict, *, source: str = "<dict>") -> ArxHeadModel:
+    def from_dict(cls, payload: object, *, source: str = "<dict>") -> ArxHeadModel:
         """Rebuild a model from :meth:`to_dict` output, checking every field."""
 
         def fail(problem: str) -> ModelError:
@@ -361,8 +345,7 @@ class ArxHeadModel:
             fps = float(payload["fps"])
             if not (math.isfinite(fps) and fps > 0):
                 raise fail(f"fps {fps!r} must be positive")
-            training = [TrainingClip(str(c["name"]), int(c["frames"]), float(c["duration_s"]))
-                        for c in payload["training"]]
+            training = [TrainingClip.from_dict(c) for c in payload["training"]]
         except ModelError:
             raise
         except (KeyError, TypeError, ValueError, OverflowError, RecursionError) as error:
@@ -380,20 +363,7 @@ class ArxHeadModel:
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> ArxHeadModel:
         """Read a model file written by :meth:`save`; raises ModelError naming the file and the problem."""
-        name = str(path)
-        try:
-            text = Path(path).read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise ModelError(f"{name}: no such model file") from None
-        except (OSError, UnicodeDecodeError) as error:
-            raise ModelError(f"{name}: cannot be read ({error})") from None
-        try:
-            payload = json.loads(text)
-        except json.JSONDecodeError as error:
-            raise ModelError(f"{name}: not JSON (line {error.lineno}: {error.msg})") from None
-        except RecursionError:
-            raise ModelError(f"{name}: JSON nested too deeply to be a model file") from None
-        return cls.from_dict(payload, source=name)
+        return cls.from_dict(read_model_json(path), source=str(path))
 
 
 def default_model() -> ArxHeadModel:

@@ -7,7 +7,6 @@ the default generator, ``"format": "visual-prosody-arx"`` (``"kind": "arx"``) fo
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 from typing import Union
@@ -19,6 +18,7 @@ from .fap_table import HEAD_FAPS
 from .head import DEFAULT_MODEL_PATH as ARX_MODEL_PATH
 from .head import MODEL_FORMAT as ARX_FORMAT
 from .head import ArxHeadModel
+from .model_files import read_model_json
 from .speech_head import MODEL_FORMAT as PROSODIC_FORMAT
 from .speech_head import ProsodicHeadModel
 
@@ -26,8 +26,6 @@ HeadModel = Union[ArxHeadModel, ProsodicHeadModel]  # noqa: UP007 - a runtime al
 PROSODIC_MODEL_PATH = Path(__file__).with_name("models") / "default_head.json"
 #: Shipped models by name: ``prosodic`` (the default) and ``arx`` (the thesis's model).
 SHIPPED_MODELS = {"prosodic": PROSODIC_MODEL_PATH, "arx": ARX_MODEL_PATH}
-#: Largest model file read (the shipped ones are well under 100 kB).
-MAX_MODEL_BYTES = 16 << 20
 
 
 def load_head_model(source: str | os.PathLike[str]) -> HeadModel:
@@ -42,25 +40,7 @@ def load_head_model(source: str | os.PathLike[str]) -> HeadModel:
     if isinstance(text_source, str) and text_source in SHIPPED_MODELS:
         source = SHIPPED_MODELS[text_source]
     name = str(source)
-    path = Path(source)
-    try:
-        with open(path, "rb") as handle:
-            data = handle.read(MAX_MODEL_BYTES + 1)
-    except FileNotFoundError:
-        raise ModelError(f"{name}: no such model file (or give a shipped model: "
-                         f"{', '.join(SHIPPED_MODELS)})") from None
-    except OSError as error:
-        raise ModelError(f"{name}: cannot be read ({error.strerror or error})") from None
-    if len(data) > MAX_MODEL_BYTES:
-        raise ModelError(f"{name}: larger than {MAX_MODEL_BYTES >> 20} MiB; not a model file")
-    try:
-        payload = json.loads(data.decode("utf-8"))
-    except UnicodeDecodeError:
-        raise ModelError(f"{name}: not a text (JSON) model file") from None
-    except json.JSONDecodeError as error:
-        raise ModelError(f"{name}: not JSON (line {error.lineno}: {error.msg})") from None
-    except RecursionError:
-        raise ModelError(f"{name}: JSON nested too deeply to be a model file") from None
+    payload = read_model_json(source, shipped=tuple(SHIPPED_MODELS))
     kind = payload.get("format") if isinstance(payload, dict) else None
     if kind == PROSODIC_FORMAT:
         return ProsodicHeadModel.from_dict(payload, source=name)

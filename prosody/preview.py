@@ -474,35 +474,10 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
     -------
     Path of the written file.
     """
-    path = Path(output)
-    kind = path.suffix.lower()
-    if kind not in (".mp4", ".gif"):
-        raise ConfigError(f"{path}: the preview is written as .mp4 or .gif, not {kind or 'a file with no ending'!r}")
-    if not start_s >= 0 or (duration_s is not None and not duration_s > 0):
-        raise ConfigError(f"the excerpt needs start >= 0 and duration > 0, got {start_s!r} and {duration_s!r}")
-    first = round(start_s * stream.fps)
-    if first >= stream.n_frames:
-        raise ConfigError(f"start {start_s:g} s is past the end of the stream ({stream.duration_s:.2f} s)")
-    count = stream.n_frames - first if duration_s is None else min(stream.n_frames - first,
-                                                                    max(1, round(duration_s * stream.fps)))
     if scales is not None and not all(math.isfinite(v) and v > 0 for v in scales):
         raise ConfigError(f"strip scales must be positive numbers, got {scales!r}")
-    frames = render_frames(stream, width=width, exaggerate=exaggerate, first_frame=first, n_frames=count,
-                           scales=scales)
-    if progress is not None:
-        frames = _reporting(frames, progress, count)
-    if kind == ".gif":
-        _write_gif(frames, path, fps=stream.fps, n_frames=count)
-        return path
-    executable = find_ffmpeg() if ffmpeg == "auto" else ffmpeg
-    if executable is None:
-        raise PreviewError(f"{path}: MP4 needs ffmpeg; install it (or `pip install imageio-ffmpeg`), "
-                           "or write a .gif")
-    renderer = FaceRenderer(width)
-    _write_mp4(frames, path, fps=stream.fps, width=renderer.width, height=renderer.height, ffmpeg=executable,
-               audio=Path(audio) if audio is not None else None, start_s=first / stream.fps,
-               duration_s=count / stream.fps)
-    return path
+    return _write_video([(None, stream)], output, audio=audio, width=width, exaggerate=exaggerate,
+                        start_s=start_s, duration_s=duration_s, ffmpeg=ffmpeg, progress=progress, scales=scales)
 
 
 def write_side_by_side(streams: Mapping[str, FapStream], output: str | os.PathLike[str], *,
@@ -515,26 +490,36 @@ def write_side_by_side(streams: Mapping[str, FapStream], output: str | os.PathLi
     The curve strips share one scale, so equal heights mean equal motion. Parameters as
     :func:`write_preview`; ``streams`` maps labels to streams of one length and rate, drawn left to right.
     """
+    if not streams:
+        raise ConfigError("no stream to draw")
+    return _write_video(list(streams.items()), output, audio=audio, width=panel_width, exaggerate=exaggerate,
+                        start_s=start_s, duration_s=duration_s, ffmpeg=ffmpeg, progress=progress, scales=None)
+
+
+def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.PathLike[str], *,
+                 audio: str | os.PathLike[str] | None, width: int, exaggerate: float, start_s: float,
+                 duration_s: float | None, ffmpeg: str | None, progress: Callable[[int, int], None] | None,
+                 scales: tuple[float, float] | None) -> Path:
+    """The panels (label, stream) side by side as one .mp4 or .gif; the strips share ``scales`` (default:
+    what fits every stream)."""
     path = Path(output)
     kind = path.suffix.lower()
     if kind not in (".mp4", ".gif"):
         raise ConfigError(f"{path}: the video is written as .mp4 or .gif, not {kind or 'a file with no ending'!r}")
-    if not streams:
-        raise ConfigError("no stream to draw")
-    items = list(streams.items())
-    n, fps = items[0][1].n_frames, items[0][1].fps
-    if any(s.n_frames != n or s.fps != fps for _, s in items):
+    n, fps = panels[0][1].n_frames, panels[0][1].fps
+    if any(s.n_frames != n or s.fps != fps for _, s in panels):
         raise ConfigError("streams side by side must have one length and frame rate")
     if not start_s >= 0 or (duration_s is not None and not duration_s > 0):
         raise ConfigError(f"the excerpt needs start >= 0 and duration > 0, got {start_s!r} and {duration_s!r}")
     first = round(start_s * fps)
     if first >= n:
-        raise ConfigError(f"start {start_s:g} s is past the end of the streams ({n / fps:.2f} s)")
+        raise ConfigError(f"start {start_s:g} s is past the end of the stream ({n / fps:.2f} s)")
     count = n - first if duration_s is None else min(n - first, max(1, round(duration_s * fps)))
-    scales = strip_scales([s for _, s in items])
-    panels = [render_frames(s, width=panel_width, exaggerate=exaggerate, first_frame=first, n_frames=count,
-                            label=label, scales=scales) for label, s in items]
-    frames: Iterator[np.ndarray] = (np.hstack(row) for row in zip(*panels, strict=True))
+    shared = scales if scales is not None else strip_scales([s for _, s in panels])
+    drawn = [render_frames(s, width=width, exaggerate=exaggerate, first_frame=first, n_frames=count, label=label,
+                           scales=shared) for label, s in panels]
+    frames: Iterator[np.ndarray] = drawn[0] if len(drawn) == 1 else (np.hstack(row) for row in zip(*drawn,
+                                                                                                  strict=True))
     if progress is not None:
         frames = _reporting(frames, progress, count)
     if kind == ".gif":
@@ -544,8 +529,8 @@ def write_side_by_side(streams: Mapping[str, FapStream], output: str | os.PathLi
     if executable is None:
         raise PreviewError(f"{path}: MP4 needs ffmpeg; install it (or `pip install imageio-ffmpeg`), "
                            "or write a .gif")
-    renderer = FaceRenderer(panel_width)
-    _write_mp4(frames, path, fps=fps, width=renderer.width * len(items), height=renderer.height,
+    renderer = FaceRenderer(width)
+    _write_mp4(frames, path, fps=fps, width=renderer.width * len(panels), height=renderer.height,
                ffmpeg=executable, audio=Path(audio) if audio is not None else None, start_s=first / fps,
                duration_s=count / fps)
     return path

@@ -18,20 +18,18 @@ The motion is a displacement from the rest pose (0 on every axis): the pose a sp
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from audio_features import Features
-from audio_features._atomic import atomic_write
 
 from .errors import ConfigError, ModelError
 from .fap_table import HEAD_FAPS, RADIANS_PER_AU
 from .metrics import HEAD_LOWPASS_HZ, SPEED_ENVELOPE_S, centred_moving_average
+from .model_files import TrainingClip, write_model_json
 
 MODEL_FORMAT = "visual-prosody-head"
 MODEL_VERSION = 1
@@ -192,15 +190,6 @@ def _shaping_filter(velocities: Sequence[np.ndarray], fps: float) -> np.ndarray:
 def _finite_number(value: object) -> bool:
     """A JSON number that is finite (not a bool, not NaN or infinity)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-
-
-@dataclass(frozen=True)
-class TrainingClip:
-    """A recording the model was trained on."""
-
-    name: str
-    frames: int
-    duration_s: float
 
 
 class ProsodicHeadModel:
@@ -495,15 +484,10 @@ class ProsodicHeadModel:
 
     def save(self, path: str | os.PathLike[str], *, extra: dict | None = None) -> None:
         """Write the model as JSON (plain data, never pickle), atomically."""
-        payload = self.to_dict()
-        if extra:
-            payload.update(extra)
-        with atomic_write(path) as handle:
-            json.dump(payload, handle, indent=1, allow_nan=False)
-            handle.write("\n")
+        write_model_json(self.to_dict(), path, extra=extra)
 
     @classmethod
-    def from_dict(cls, payload: dict, *, source: str = "<dict>") -> ProsodicHeadModel:
+    def from_dict(cls, payload: object, *, source: str = "<dict>") -> ProsodicHeadModel:
         """Rebuild a model from :meth:`to_dict` output, checking every field."""
 
         def fail(problem: str) -> ModelError:
@@ -551,8 +535,7 @@ class ProsodicHeadModel:
                 if not _finite_number(value) or not value > 0:
                     raise fail(f"field {key!r} must be a positive number, got {value!r}")
                 setattr(model, key + "_", float(value))
-            model.training_ = [TrainingClip(str(c["name"]), int(c["frames"]), float(c["duration_s"]))
-                               for c in payload["training"]]
+            model.training_ = [TrainingClip.from_dict(c) for c in payload["training"]]
         except ModelError:
             raise
         except (KeyError, TypeError, ValueError, OverflowError) as error:

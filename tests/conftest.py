@@ -79,3 +79,13 @@ def make_features(f0_conditioned_hz, energy_db, *, fps: float = 30.0):
         duration_s=f0.shape[0] / fps,
         source="<synthetic>",
     )
+
+
+@pytest.fixture
+def speech(tmp_path) -> Path:
+    """1.7 s of a speech-like tone (140 Hz, an accent at 230 Hz, 150 Hz) at 16 kHz: 51 frames at 30 fps."""
+    import soundfile
+
+    path = tmp_path / "speech.wav"
+    soundfile.write(path, segments(16000, (0.6, 140, 0.5), (0.5, 230, 0.5), (0.6, 150, 0.5)), 16000)
+    return path

@@ -16,13 +16,6 @@ from prosody.cli import main
 SR = 16000
 
 
-@pytest.fixture
-def speech(tmp_path):
-    path = tmp_path / "speech.wav"
-    soundfile.write(path, segments(SR, (0.6, 140, 0.5), (0.5, 230, 0.5), (0.6, 150, 0.5)), SR)
-    return path
-
-
 def _run(*args: str, **kwargs) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "prosody", *args], capture_output=True, **kwargs)
 

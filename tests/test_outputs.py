@@ -12,20 +12,11 @@ import threading
 
 import numpy as np
 import pytest
-import soundfile
-from conftest import segments
 
 from audio_features._atomic import atomic_write
 from prosody.cli import main
 
 SR = 16000
-
-
-@pytest.fixture
-def speech(tmp_path):
-    path = tmp_path / "speech.wav"
-    soundfile.write(path, segments(SR, (0.6, 140, 0.5), (0.5, 230, 0.5), (0.6, 150, 0.5)), SR)
-    return path
 
 
 @pytest.mark.skipif(os.geteuid() != 0, reason="creating a device node needs root")

@@ -1,0 +1,70 @@
+"""What the head models' files share: the record of the recordings a model was trained on, and reading and
+writing the JSON itself (plain data, never pickle; bounded in size and depth; errors name the file)."""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from audio_features._atomic import atomic_write
+
+from .errors import ModelError
+
+#: Largest model file read (the shipped ones are well under 100 kB).
+MAX_MODEL_BYTES = 16 << 20
+
+
+@dataclass(frozen=True)
+class TrainingClip:
+    """A recording a model was trained on."""
+
+    name: str
+    frames: int
+    duration_s: float
+
+    @classmethod
+    def from_dict(cls, entry: dict) -> TrainingClip:
+        """From a model file's ``training`` entry; KeyError, TypeError, ValueError or OverflowError if it is
+        malformed (the model's reader turns them into a ModelError naming the file)."""
+        return cls(str(entry["name"]), int(entry["frames"]), float(entry["duration_s"]))
+
+
+def write_model_json(payload: dict, path: str | os.PathLike[str], *, extra: dict | None = None) -> None:
+    """Write a model's data (and ``extra`` fields, such as cross-validation figures) as JSON, atomically."""
+    if extra:
+        payload = {**payload, **extra}
+    with atomic_write(path) as handle:
+        json.dump(payload, handle, indent=1, allow_nan=False)
+        handle.write("\n")
+
+
+def read_model_json(path: str | os.PathLike[str], *, shipped: tuple[str, ...] = ()) -> object:
+    """The JSON data of a model file, read within :data:`MAX_MODEL_BYTES`.
+
+    Raises
+    ------
+    ModelError
+        The file is missing (the message lists the ``shipped`` model names), unreadable, too large, not
+        text, not JSON, or nested too deeply.
+    """
+    name = str(path)
+    try:
+        with open(Path(path), "rb") as handle:
+            data = handle.read(MAX_MODEL_BYTES + 1)
+    except FileNotFoundError:
+        also = f" (or give a shipped model: {', '.join(shipped)})" if shipped else ""
+        raise ModelError(f"{name}: no such model file{also}") from None
+    except OSError as error:
+        raise ModelError(f"{name}: cannot be read ({error.strerror or error})") from None
+    if len(data) > MAX_MODEL_BYTES:
+        raise ModelError(f"{name}: larger than {MAX_MODEL_BYTES >> 20} MiB; not a model file")
+    try:
+        return json.loads(data.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise ModelError(f"{name}: not a text (JSON) model file") from None
+    except json.JSONDecodeError as error:
+        raise ModelError(f"{name}: not JSON (line {error.lineno}: {error.msg})") from None
+    except RecursionError:
+        raise ModelError(f"{name}: JSON nested too deeply to be a model file") from None
