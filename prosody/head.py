@@ -144,8 +144,10 @@ class ArxHeadModel:
         for name, value, low in (("na", self.na, 0), ("nb", self.nb, 1), ("nk", self.nk, 0)):
             if not (isinstance(value, (int, np.integer)) and value >= low):
                 raise ConfigError(f"{name} must be a whole number >= {low}, got {value!r}")
-        if not self.ridge >= 0:
-            raise ConfigError(f"ridge must be >= 0, got {self.ridge!r}")
+        if not (math.isfinite(self.ridge) and self.ridge >= 0):
+            raise ConfigError(f"ridge must be a finite number >= 0, got {self.ridge!r}")
+        if not (math.isfinite(self.smoothing_s) and 0 < self.smoothing_s <= 60):
+            raise ConfigError(f"smoothing_s must be a number of seconds in (0, 60], got {self.smoothing_s!r}")
         if self.input_normalization not in ("recording", "global"):
             raise ConfigError(f"input_normalization must be 'recording' or 'global', got {self.input_normalization!r}")
 
@@ -322,7 +324,10 @@ class ArxHeadModel:
             model = cls(int(orders["na"]), int(orders["nb"]), int(orders["nk"]),
                         ridge=float(payload["ridge"]), smoothing_s=float(payload["smoothing_s"]),
                         input_normalization=str(payload["input_normalization"]))
-            model._check_orders()
+            try:
+                model._check_orders()
+            except ConfigError as error:
+                raise fail(str(error)) from None
             n_out, n_in = len(HEAD_FAPS), len(INPUT_NAMES)
             fields = {
                 "a": (model.na, n_out, n_out), "b": (model.nb, n_out, n_in), "c": (n_out,),
@@ -342,9 +347,11 @@ class ArxHeadModel:
                 raise fail("normalisation scales must be positive")
             if list(payload["inputs"]) != list(INPUT_NAMES) or list(payload["outputs"]) != list(HEAD_FAPS):
                 raise fail(f"inputs/outputs must be {list(INPUT_NAMES)} / {list(HEAD_FAPS)}")
-            fps = float(payload["fps"])
-            if not (math.isfinite(fps) and fps > 0):
-                raise fail(f"fps {fps!r} must be positive")
+            fps = payload["fps"]
+            if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not (math.isfinite(fps)
+                                                                                 and 0 < fps <= 1000):
+                raise fail(f"fps {fps!r} must be a number in (0, 1000]")
+            fps = float(fps)
             training = [TrainingClip.from_dict(c) for c in payload["training"]]
         except ModelError:
             raise
