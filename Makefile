@@ -29,7 +29,7 @@ lint: $(STAMP)
 	$(BIN)/mypy audio_features prosody
 
 bench: $(STAMP)
-	$(BIN)/python -m prosody.bench
+	$(BIN)/python benchmarks/bench.py
 
 evaluate: $(STAMP)
 	$(BIN)/python benchmarks/head_loco.py

@@ -20,12 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from prosody.controls import shift_offsets, shifted_features
-from prosody.head import ArxHeadModel, arx_inputs
-from prosody.metrics import head_metrics
-from prosody.perlin import perlin_curves
-from prosody.speech_head import ProsodicHeadModel
-from prosody.training import (
+from prosody.measures import head_metrics
+from prosody.motion.controls import shift_offsets, shifted_features
+from prosody.motion.head import ArxHeadModel, arx_inputs
+from prosody.motion.perlin import perlin_curves
+from prosody.motion.speech_head import ProsodicHeadModel
+from prosody.motion.training import (
     TrainingSet,
     average_head_metrics,
     find_pairs,

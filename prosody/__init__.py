@@ -1,8 +1,16 @@
 """Visual prosody from speech: head and eyebrow motion (MPEG-4 FAP streams) from audio.
 
-Entry points: :func:`prosody.pipeline.convert` (one recording, one condition), :func:`prosody.compare.compare`
-(the four conditions and their metrics), :func:`prosody.batch.run_batch` (folders), :mod:`prosody.study`
-(paired-comparison studies). The ``prosody`` command is a thin shell over them (:mod:`prosody.cli`).
+The package is in layers, each importing only those before it:
+
+- :mod:`prosody.errors`: the exceptions;
+- :mod:`prosody.fap`: the FAP table, streams, the .fap reader and writer, the exporters;
+- :mod:`prosody.measures`: how motion is measured against recorded motion;
+- :mod:`prosody.motion`: the eyebrow rules, Perlin noise, the head models, recorded motion, the conditions,
+  training;
+- :mod:`prosody.evaluation`: comparisons, reports, plots, previews, perceptual studies;
+- :mod:`prosody.jobs`: one recording (:func:`prosody.jobs.pipeline.convert`) and folders
+  (:func:`prosody.jobs.batch.run_batch`);
+- :mod:`prosody.cli`: the ``prosody`` command, a thin shell over them.
 """
 
 from importlib import metadata as _metadata

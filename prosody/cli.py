@@ -140,7 +140,7 @@ def _add_eyebrow_options(parser: argparse.ArgumentParser) -> None:
 
 def _eyebrow_rule(args: argparse.Namespace):
     from .errors import ConfigError
-    from .eyebrows import AccentRule, EyebrowRule
+    from .motion.eyebrows import AccentRule, EyebrowRule
 
     given = {name: getattr(args, name) for name in _THESIS_BROW_OPTIONS if getattr(args, name) is not None}
     flags = ", ".join(f"--{name.replace('_', '-')}" for name in given)
@@ -182,7 +182,7 @@ def _cmd_features(args: argparse.Namespace) -> int:
 
 
 def _motion_kwargs(args: argparse.Namespace) -> dict:
-    """The keyword arguments of :func:`prosody.pipeline.convert` set by :func:`_add_motion_options`."""
+    """The keyword arguments of :func:`prosody.jobs.pipeline.convert` set by :func:`_add_motion_options`."""
     gains = {"pitch": args.pitch_gain, "yaw": args.yaw_gain, "roll": args.roll_gain, "brows": args.brow_gain}
     disabled = [name.strip() for value in args.off for name in value.split(",") if name.strip()]
     return {"condition": args.condition, "ground_truth": args.ground_truth, "model": args.model, "seed": args.seed,
@@ -217,7 +217,7 @@ def _check_motion_options(args: argparse.Namespace) -> None:
 
 def _cmd_convert(args: argparse.Namespace) -> int:
     from .errors import ConfigError
-    from .pipeline import convert
+    from .jobs.pipeline import convert
 
     _check_motion_options(args)
     if args.output == "-":
@@ -269,16 +269,16 @@ def _frame_progress(output: str, verb: str = "drawn") -> Callable[[int, int], No
 def _cmd_preview(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from .preview import write_preview
+    from .evaluation.preview import write_preview
 
     _check_motion_options(args)
     audio = args.audio
     if Path(args.input).suffix.lower() == ".fap":
-        from .fapfile import read_fap
+        from .fap.fapfile import read_fap
 
         stream = read_fap(args.input).stream
     else:
-        from .pipeline import convert
+        from .jobs.pipeline import convert
 
         stream = convert(args.input, None, **_motion_kwargs(args))
         audio = audio or args.input
@@ -304,7 +304,7 @@ def _cmd_preview(args: argparse.Namespace) -> int:
 
 def _cmd_train(args: argparse.Namespace) -> int:
     from .errors import ConfigError
-    from .training import train
+    from .motion.training import train
 
     orders = {"na": args.na, "nb": args.nb, "nk": args.nk, "ridge": args.ridge}
     if args.kind != "arx":
@@ -318,7 +318,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from .compare import compare, write_comparison
+    from .evaluation.compare import compare, write_comparison
 
     comparison = compare(args.input, ground_truth=args.ground_truth, model=args.model, seed=args.seed,
                          seeds=args.seeds, normalize=args.normalize, eyebrow_rule=_eyebrow_rule(args),
@@ -338,7 +338,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:
-    from .batch import BatchOptions, Progress, find_audio_files, run_batch
+    from .jobs.batch import BatchOptions, Progress, find_audio_files, run_batch
 
     conditions = [name for value in args.condition for name in value.split(",") if name.strip()] or None
     options = BatchOptions(model=args.model, seed=args.seed, seeds=args.seeds, normalize=args.normalize,
@@ -368,7 +368,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
 
 
 def _cmd_study_plan(args: argparse.Namespace) -> int:
-    from .study import plan_study, write_plan
+    from .evaluation.study import plan_study, write_plan
 
     rows = plan_study(args.stimuli.split(","), seed=args.seed)
     write_plan(rows, args.output)
@@ -379,7 +379,7 @@ def _cmd_study_plan(args: argparse.Namespace) -> int:
 def _cmd_study_analyze(args: argparse.Namespace) -> int:
     from audio_features._atomic import atomic_write
 
-    from .study import analyze_ballots, missing_pairs, read_ballots, study_markdown
+    from .evaluation.study import analyze_ballots, missing_pairs, read_ballots, study_markdown
 
     ballots = read_ballots(args.input)
     notes = missing_pairs(ballots)
@@ -397,8 +397,8 @@ def _cmd_study_analyze(args: argparse.Namespace) -> int:
 
 
 def _cmd_inspect(args: argparse.Namespace) -> int:
-    from .fapfile import read_fap
-    from .inspect import inspect_json, inspect_summary
+    from .fap.fapfile import read_fap
+    from .fap.inspect import inspect_json, inspect_summary
 
     fap = read_fap(args.input)
     for warning in fap.warnings:

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 import soundfile
-from conftest import harmonic_tone, sine, sine_level_db
+from conftest import REPO, harmonic_tone, sine, sine_level_db
 
 from audio_features import (
     Audio,
@@ -223,7 +223,10 @@ def test_real_speech_float_wav_and_chunk_seams(shared_data) -> None:
 
 @pytest.mark.shared_data
 def test_ten_minutes_of_speech_in_chunks_equals_one_pass(tmp_path) -> None:
-    from prosody.bench import build_speech
+    import sys
+
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    from bench import build_speech
 
     path = build_speech(tmp_path / "long.wav", duration_s=600.0)
     whole = extract_features(path, chunk_s=3600.0)

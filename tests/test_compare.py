@@ -12,11 +12,12 @@ import pytest
 import soundfile
 from conftest import segments
 
-from prosody.batch import BatchOptions, find_audio_files, find_ground_truth, run_batch
 from prosody.cli import main
-from prosody.compare import compare
 from prosody.errors import ConfigError
-from prosody.metrics import (
+from prosody.evaluation.compare import compare
+from prosody.fap.stream import FapStream
+from prosody.jobs.batch import BatchOptions, find_audio_files, find_ground_truth, run_batch
+from prosody.measures import (
     canonical_correlations,
     fap_statistics,
     normalization_targets,
@@ -24,7 +25,6 @@ from prosody.metrics import (
     pearson,
     rmse,
 )
-from prosody.stream import FapStream
 
 SR = 16000
 
@@ -178,7 +178,7 @@ def corpus(tmp_path, rng) -> tuple[Path, Path]:
 
 
 def test_bootstrap_interval_of_known_samples() -> None:
-    from prosody.batch import bootstrap_interval
+    from prosody.jobs.batch import bootstrap_interval
 
     assert bootstrap_interval([]) is None
     assert bootstrap_interval([2.0]) == (2.0, 2.0)
@@ -325,16 +325,16 @@ def test_a_worker_that_dies_fails_only_its_own_file(tmp_path, monkeypatch) -> No
 
     if multiprocessing.get_start_method() != "fork":
         pytest.skip("the crash is injected into forked workers")
-    import prosody.compare
+    import prosody.evaluation.compare
 
-    real = prosody.compare.compare
+    real = prosody.evaluation.compare.compare
 
     def crashing(audio, **kwargs):
         if Path(audio).name == "crash.wav":
             os._exit(9)  # as the out-of-memory killer would
         return real(audio, **kwargs)
 
-    monkeypatch.setattr(prosody.compare, "compare", crashing)
+    monkeypatch.setattr(prosody.evaluation.compare, "compare", crashing)
     indir = tmp_path / "in"
     indir.mkdir()
     for name in ("a.wav", "b.wav", "crash.wav", "d.wav", "e.wav"):
@@ -353,7 +353,7 @@ def test_a_worker_that_dies_fails_only_its_own_file(tmp_path, monkeypatch) -> No
 def test_a_cluster_without_workers_stops_waiting_and_a_lost_scheduler_is_said(monkeypatch) -> None:
     from concurrent.futures import CancelledError, Future
 
-    import prosody.batch as batch
+    import prosody.jobs.batch as batch
 
     monkeypatch.setattr(batch, "NO_WORKER_TIMEOUT_S", 0.2)
     stuck, lost = Future(), Future()
@@ -381,7 +381,7 @@ def test_sigterm_leaves_no_half_written_file(tmp_path) -> None:
     import sys
     import time
 
-    from prosody.preview import find_ffmpeg
+    from prosody.evaluation.preview import find_ffmpeg
 
     if find_ffmpeg() is None:
         pytest.skip("the MP4 preview, written as it is drawn, needs ffmpeg")

@@ -15,7 +15,7 @@ MODULES = sorted(
     info.name
     for package in (audio_features, prosody)
     for info in pkgutil.walk_packages(package.__path__, prefix=package.__name__ + ".")
-    if info.name not in {"prosody.bench", "prosody.cli", "prosody.__main__"}
+    if info.name not in {"prosody.cli", "prosody.__main__"}
 )
 
 

@@ -12,9 +12,9 @@ from bvh import Bvh
 
 from prosody.cli import main
 from prosody.errors import ConfigError, FapWriteError
-from prosody.exporters import ARKIT_BLENDSHAPES, BROW_FULL_SCALE_ENS, format_for, livelink_timecode, write_stream
-from prosody.pipeline import apply_controls
-from prosody.stream import FapStream
+from prosody.fap.exporters import ARKIT_BLENDSHAPES, BROW_FULL_SCALE_ENS, format_for, livelink_timecode, write_stream
+from prosody.fap.stream import FapStream
+from prosody.jobs.pipeline import apply_controls
 
 
 @pytest.fixture

@@ -8,7 +8,7 @@ from conftest import make_features, segments
 
 from audio_features import Audio, extract_features
 from prosody.errors import ConfigError
-from prosody.eyebrows import EyebrowRule, eyebrow_raises
+from prosody.motion.eyebrows import EyebrowRule, eyebrow_raises
 
 SR = 16000
 

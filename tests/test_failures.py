@@ -124,7 +124,7 @@ def test_truncated_flac_is_reported_as_such(tmp_path, capsys) -> None:
 
 
 def test_an_mp3_whose_header_only_estimates_its_length_is_decoded_to_its_end(tmp_path) -> None:
-    from prosody.preview import find_ffmpeg
+    from prosody.evaluation.preview import find_ffmpeg
 
     ffmpeg = find_ffmpeg()
     if ffmpeg is None:
@@ -184,7 +184,7 @@ def test_channels_first_arrays_are_refused() -> None:
                                     dict(energy_relative_db=float("inf"))])
 def test_thesis_rule_refuses_meaningless_thresholds(kwargs) -> None:
     from prosody.errors import ConfigError
-    from prosody.eyebrows import EyebrowRule
+    from prosody.motion.eyebrows import EyebrowRule
 
     with pytest.raises(ConfigError):
         EyebrowRule(**kwargs)
@@ -193,8 +193,8 @@ def test_thesis_rule_refuses_meaningless_thresholds(kwargs) -> None:
 def test_grids_and_frames_of_impossible_size_are_refused(tmp_path) -> None:
     from audio_features import Audio, ParameterError
     from prosody.errors import ConfigError
-    from prosody.preview import render_frames
-    from prosody.stream import FapStream
+    from prosody.evaluation.preview import render_frames
+    from prosody.fap.stream import FapStream
 
     with pytest.raises(ParameterError, match="fps"):
         extract_features(Audio(harmonic_tone(200, 0.5, 16000), 16000), fps=1e9)
@@ -204,7 +204,7 @@ def test_grids_and_frames_of_impossible_size_are_refused(tmp_path) -> None:
 
 def test_arx_fit_refuses_widths_its_files_cannot_hold(tmp_path) -> None:
     from prosody.errors import ConfigError, ModelError
-    from prosody.head import ArxHeadModel
+    from prosody.motion.head import ArxHeadModel
 
     with pytest.raises(ConfigError, match="inputs must be"):
         ArxHeadModel().fit_arrays([np.zeros((50, 4))], [np.zeros((50, 3))])
@@ -226,7 +226,7 @@ def test_arx_fit_refuses_widths_its_files_cannot_hold(tmp_path) -> None:
 
 def test_head_csv_rows_off_the_30_fps_grid_are_refused(tmp_path) -> None:
     from prosody.errors import GroundTruthError
-    from prosody.ground_truth import read_head_csv
+    from prosody.motion.ground_truth import read_head_csv
 
     path = tmp_path / "c.head.csv"
     path.write_text("frame,time_s,rx_rad,ry_rad,rz_rad\n0,0.0,0,0,0\n1,0.04,0,0,0\n")  # 25 fps timing
@@ -236,8 +236,8 @@ def test_head_csv_rows_off_the_30_fps_grid_are_refused(tmp_path) -> None:
 
 def test_huge_csv_cells_are_one_line_errors(tmp_path) -> None:
     from prosody.errors import BallotError, GroundTruthError
-    from prosody.ground_truth import read_head_csv
-    from prosody.study import read_ballots
+    from prosody.evaluation.study import read_ballots
+    from prosody.motion.ground_truth import read_head_csv
 
     big = "x" * 200_000
     head = tmp_path / "c.head.csv"
@@ -251,7 +251,7 @@ def test_huge_csv_cells_are_one_line_errors(tmp_path) -> None:
 
 
 def test_ballots_take_the_short_condition_names(tmp_path) -> None:
-    from prosody.study import parse_ballots
+    from prosody.evaluation.study import parse_ballots
 
     ballots = parse_ballots("stimulus,subject,left,right,choice\ns,p,speech,truth,left\ns,p,none,random,right\n")
     assert [(b.left, b.right, b.chosen) for b in ballots] == [("SPEECH_DRIVEN", "GROUND_TRUTH", "SPEECH_DRIVEN"),

@@ -11,9 +11,9 @@ from hypothesis import strategies as st
 
 from prosody.cli import main
 from prosody.errors import ConfigError, FapFormatError, FapWriteError
-from prosody.fap_table import FAPS, N_FAPS, fap_info
-from prosody.fapfile import format_fap, read_fap, write_fap
-from prosody.stream import FapStream
+from prosody.fap.fapfile import format_fap, read_fap, write_fap
+from prosody.fap.stream import FapStream
+from prosody.fap.table import FAPS, N_FAPS, fap_info
 
 MASK_ZEROS = " ".join(["0"] * N_FAPS)
 
@@ -358,7 +358,7 @@ def test_an_endless_device_is_refused(tmp_path) -> None:
 
 def test_ground_truth_and_base_at_another_length_are_refused_before_resampling(tmp_path) -> None:
     from prosody.errors import GroundTruthError
-    from prosody.ground_truth import fit_to_grid
+    from prosody.motion.ground_truth import fit_to_grid
 
     slow = FapStream.from_curves({48: np.zeros(3)}, fps=1.0)  # 3 s at 1 fps
     with pytest.raises(GroundTruthError, match="lasts 3.00 s"):
@@ -367,7 +367,7 @@ def test_ground_truth_and_base_at_another_length_are_refused_before_resampling(t
 
 
 def test_header_names_are_ascii_and_short_enough_for_every_player(tmp_path) -> None:
-    from prosody.fapfile import FapNameWarning
+    from prosody.fap.fapfile import FapNameWarning
 
     stream = FapStream.from_curves({48: np.zeros(2)}, fps=30)
     with pytest.warns(FapNameWarning, match="written as"):

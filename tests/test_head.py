@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from prosody.errors import ConfigError, ModelError
-from prosody.head import DEFAULT_MODEL_PATH, ArxHeadModel, default_model, spectral_radius, trailing_mean
+from prosody.motion.head import DEFAULT_MODEL_PATH, ArxHeadModel, default_model, spectral_radius, trailing_mean
 
 TRUE_A = np.array([
     [[0.5, 0.1, 0.0], [0.0, 0.4, 0.1], [0.05, 0.0, 0.3]],
@@ -147,9 +147,9 @@ def test_shipped_default_model() -> None:
 
 @pytest.mark.shared_data
 def test_training_on_real_clips_beats_perlin_left_out(shared_data) -> None:
-    from prosody.metrics import pearson
-    from prosody.perlin import perlin_curves
-    from prosody.training import find_pairs, leave_one_out, load_training_set
+    from prosody.measures import pearson
+    from prosody.motion.perlin import perlin_curves
+    from prosody.motion.training import find_pairs, leave_one_out, load_training_set
 
     data = load_training_set(find_pairs(shared_data / "talking-heads"), report=lambda message: None)
     assert len(data.names) == 7

@@ -12,13 +12,10 @@ from conftest import make_features, segments
 
 from audio_features import Audio, F0Track, Features, Track, extract_features, read_features_csv
 from prosody.cli import main
-from prosody.conditions import Condition
-from prosody.controls import fitted_features, shift_offsets, shifted_features
 from prosody.errors import ConfigError, GroundTruthError, ModelError
-from prosody.eyebrows import AccentRule, EyebrowRule, NoRaiseWarning, accent_raises, brow_raises
-from prosody.ground_truth import ENS_PER_EYE_WIDTH, read_brows_csv, read_motion
-from prosody.head_models import SHIPPED_MODELS, default_head_model, load_head_model, rest_pose
-from prosody.metrics import (
+from prosody.fap.stream import FapStream
+from prosody.jobs.pipeline import apply_controls, convert
+from prosody.measures import (
     brow_events,
     brow_metrics,
     head_metrics,
@@ -26,9 +23,12 @@ from prosody.metrics import (
     speed_envelope,
     velocity_spectrum_distance_db,
 )
-from prosody.pipeline import apply_controls, convert
-from prosody.speech_head import ProsodicHeadModel, speech_presence
-from prosody.stream import FapStream
+from prosody.motion.conditions import Condition
+from prosody.motion.controls import fitted_features, shift_offsets, shifted_features
+from prosody.motion.eyebrows import AccentRule, EyebrowRule, NoRaiseWarning, accent_raises, brow_raises
+from prosody.motion.ground_truth import ENS_PER_EYE_WIDTH, read_brows_csv, read_motion
+from prosody.motion.head_models import SHIPPED_MODELS, default_head_model, load_head_model, rest_pose
+from prosody.motion.speech_head import ProsodicHeadModel, speech_presence
 
 SR = 16000
 FPS = 30.0
@@ -349,7 +349,7 @@ def test_no_voice_gives_no_raise_and_says_so() -> None:
     raises = brow_raises(_voice(np.zeros(60)))
     assert raises.events == () and not np.isfinite(raises.f0_threshold_hz)
     with pytest.warns(NoRaiseWarning, match="no voiced speech"):
-        from prosody.conditions import condition_stream
+        from prosody.motion.conditions import condition_stream
 
         condition_stream(Condition.SPEECH_DRIVEN, _voice(np.zeros(60)))
 
@@ -447,7 +447,7 @@ def test_brow_events_and_onset_agreement_on_known_bumps() -> None:
 @pytest.mark.shared_data
 def test_shipped_default_is_speech_driven_on_a_real_clip(shared_data) -> None:
     """In-sample (the default was trained on these clips): the timing must beat the control by far."""
-    from prosody.compare import compare
+    from prosody.evaluation.compare import compare
 
     clip = shared_data / "talking-heads" / "Obama_clip1"
     result = compare(clip.with_suffix(".wav"), ground_truth=clip.with_suffix(".head.csv"), seeds=3,
@@ -475,7 +475,7 @@ def test_the_generators_numpy_lowpass_matches_scipys_butterworth(rng) -> None:
     with the 4th-order zero-phase Butterworth that the measures use."""
     from scipy.signal import butter, sosfiltfilt
 
-    from prosody.speech_head import smooth_speed_envelope, zero_phase_lowpass
+    from prosody.motion.speech_head import smooth_speed_envelope, zero_phase_lowpass
 
     walk = np.cumsum(rng.standard_normal((900, 3)), axis=0) * 1e-3
     reference = sosfiltfilt(butter(4, 4.0, fs=FPS, output="sos"), walk, axis=0)
@@ -485,7 +485,7 @@ def test_the_generators_numpy_lowpass_matches_scipys_butterworth(rng) -> None:
 
 
 def test_compare_measures_the_thesis_model_beside_the_default(tmp_path, rng) -> None:
-    from prosody.compare import compare
+    from prosody.evaluation.compare import compare
 
     audio = tmp_path / "v.wav"
     soundfile.write(audio, segments(SR, (2.0, 140, 0.5), (1.0, 230, 0.5), (3.0, 150, 0.5), (2.0, 0, 0),

@@ -12,7 +12,7 @@ import soundfile
 
 from prosody.cli import main
 from prosody.errors import ConfigError
-from prosody.preview import (
+from prosody.evaluation.preview import (
     BROW_COLOR,
     MAX_GIF_FRAMES,
     FaceRenderer,
@@ -21,7 +21,7 @@ from prosody.preview import (
     render_frames,
     write_preview,
 )
-from prosody.stream import FapStream
+from prosody.fap.stream import FapStream
 
 WIDTH = 320
 
@@ -62,7 +62,7 @@ def test_brow_height_follows_fap_31_to_36_at_true_scale() -> None:
 
 
 def test_fap_31_raises_the_inner_end_of_the_characters_left_brow_only() -> None:
-    from prosody.preview import FacePose
+    from prosody.evaluation.preview import FacePose
 
     width = 640
     renderer = FaceRenderer(width)
@@ -110,7 +110,7 @@ def test_positive_roll_tilts_the_head_to_the_characters_right() -> None:
 
 def test_head_outline_is_the_ellipse_of_the_rotated_head() -> None:
     renderer = FaceRenderer(WIDTH)
-    from prosody.preview import FacePose
+    from prosody.evaluation.preview import FacePose
 
     still = renderer.head_outline(FacePose())
     a, b, _ = renderer.model.head_radii
@@ -210,7 +210,7 @@ def test_cli_preview_of_a_recording_and_of_a_fap_file(tmp_path: Path) -> None:
 def test_side_by_side_panels_share_one_strip_scale_and_keep_their_own_motion(tmp_path: Path) -> None:
     from PIL import Image
 
-    from prosody.preview import render_frames, strip_scales, write_side_by_side
+    from prosody.evaluation.preview import render_frames, strip_scales, write_side_by_side
 
     still = FapStream.from_curves({48: np.zeros(6), 31: np.zeros(6)}, fps=30)
     moving = FapStream.from_curves({48: np.full(6, 8000.0), 31: np.full(6, 20.0)}, fps=30)
@@ -242,7 +242,7 @@ def test_compare_video_has_the_conditions_side_by_side_with_the_audio(tmp_path: 
 
 
 def test_previews_to_be_compared_can_share_the_strip_scale(tmp_path: Path) -> None:
-    from prosody.preview import CurveStrip
+    from prosody.evaluation.preview import CurveStrip
 
     small = FapStream.from_curves({48: np.linspace(0, 1000, 30), 31: np.full(30, 5.0)}, fps=30)
     large = FapStream.from_curves({48: np.linspace(0, 8000, 30), 31: np.full(30, 20.0)}, fps=30)
@@ -251,7 +251,7 @@ def test_previews_to_be_compared_can_share_the_strip_scale(tmp_path: Path) -> No
     assert own.curves["pitch"].max() == pytest.approx(1.0)  # its own scale fills the strip
     assert shared.curves["pitch"].max() == pytest.approx(1000 / 8000)  # the shared one shows it smaller
     assert CurveStrip(large, width=200, height=60, scales=(20.0, 8000.0)).curves["pitch"].max() == pytest.approx(1)
-    from prosody.fapfile import write_fap
+    from prosody.fap.fapfile import write_fap
 
     write_fap(small, tmp_path / "small.fap")
     assert main(["preview", str(tmp_path / "small.fap"), "-o", str(tmp_path / "x.gif"), "--width", "64",

@@ -16,9 +16,9 @@ from hypothesis import strategies as st
 from audio_features import NoVoicedFramesWarning, extract_features
 from prosody.cli import main
 from prosody.errors import BallotError, FapFormatError, ModelError
-from prosody.fapfile import read_fap
-from prosody.head import DEFAULT_MODEL_PATH, ArxHeadModel
-from prosody.study import parse_ballots
+from prosody.evaluation.study import parse_ballots
+from prosody.fap.fapfile import read_fap
+from prosody.motion.head import DEFAULT_MODEL_PATH, ArxHeadModel
 
 
 @pytest.mark.parametrize("sample_rate_hz", [8000, 192000])
@@ -62,8 +62,8 @@ def test_unsupported_format_is_one_line(tmp_path, capsys) -> None:
 
 
 def test_interrupted_write_leaves_nothing(tmp_path, monkeypatch) -> None:
-    from prosody import fapfile
-    from prosody.stream import FapStream
+    from prosody.fap import fapfile
+    from prosody.fap.stream import FapStream
 
     stream = FapStream.from_curves({48: np.arange(100.0)}, fps=30)
 
@@ -81,8 +81,8 @@ def test_interrupted_write_leaves_nothing(tmp_path, monkeypatch) -> None:
 def test_written_files_get_the_usual_permissions(tmp_path) -> None:
     import os
 
-    from prosody.fapfile import write_fap
-    from prosody.stream import FapStream
+    from prosody.fap.fapfile import write_fap
+    from prosody.fap.stream import FapStream
 
     old_umask = os.umask(0o022)
     try:
@@ -178,7 +178,7 @@ def _nested_paths(payload, prefix=()):
 @FUZZ
 @given(data=st.data())
 def test_fuzz_nested_fields_of_both_model_kinds(tmp_path, data) -> None:
-    from prosody.head_models import PROSODIC_MODEL_PATH, load_head_model
+    from prosody.motion.head_models import PROSODIC_MODEL_PATH, load_head_model
 
     source = data.draw(st.sampled_from([PROSODIC_MODEL_PATH, DEFAULT_MODEL_PATH]))
     payload = json.loads(source.read_text())
@@ -201,7 +201,7 @@ def test_fuzz_nested_fields_of_both_model_kinds(tmp_path, data) -> None:
     # whatever loads must generate finite motion (at the model's rate or, resampled, at another)
     from conftest import make_features
 
-    from prosody.conditions import head_motion
+    from prosody.motion.conditions import head_motion
 
     features = make_features(150 + 30 * np.sin(np.arange(120) / 9), 60 + 5 * np.cos(np.arange(120) / 4))
     curves = head_motion(model, features, seed=1)
@@ -214,7 +214,7 @@ def test_fuzz_nested_fields_of_both_model_kinds(tmp_path, data) -> None:
                                st.sampled_from(["NO_PROSODY", "random", "SPEECH_DRIVEN", "truth"]),
                                st.sampled_from(["left", "right", "LEFT"])), min_size=1, max_size=40))
 def test_fuzz_ballots_that_are_analysed(rows) -> None:
-    from prosody.study import analyze_ballots
+    from prosody.evaluation.study import analyze_ballots
 
     text = "stimulus,subject,left,right,choice\n" + "\n".join(",".join(row) for row in rows)
     try:

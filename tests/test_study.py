@@ -11,7 +11,7 @@ import pytest
 
 from prosody.cli import main
 from prosody.errors import BallotError
-from prosody.study import CONDITIONS, analyze_ballots, confusion_matrix, parse_ballots, plan_study
+from prosody.evaluation.study import CONDITIONS, analyze_ballots, confusion_matrix, parse_ballots, plan_study
 
 HEADER = "stimulus,subject,left,right,choice\n"
 

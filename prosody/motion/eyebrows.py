@@ -21,7 +21,7 @@ import numpy as np
 
 from audio_features import Features
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 
 class NoRaiseWarning(UserWarning):

@@ -26,9 +26,9 @@ import numpy as np
 
 from audio_features import Features
 
-from .errors import ConfigError, ModelError
-from .fap_table import HEAD_FAPS, RADIANS_PER_AU
-from .metrics import HEAD_LOWPASS_HZ, SPEED_ENVELOPE_S, centred_moving_average
+from ..errors import ConfigError, ModelError
+from ..fap.table import HEAD_FAPS, RADIANS_PER_AU
+from ..measures import HEAD_LOWPASS_HZ, SPEED_ENVELOPE_S, centred_moving_average
 from .model_files import TrainingClip, write_model_json
 
 MODEL_FORMAT = "visual-prosody-head"
@@ -134,7 +134,7 @@ def zero_phase_lowpass(values: np.ndarray, *, fps: float, cutoff_hz: float = HEA
 
 
 def smooth_speed_envelope(angles_rad: np.ndarray, *, fps: float) -> np.ndarray:
-    """The speed envelope of :func:`prosody.metrics.speed_envelope` (4 Hz low-pass, central differences,
+    """The speed envelope of :func:`prosody.measures.speed_envelope` (4 Hz low-pass, central differences,
     norm over the axes, centred 0.5 s average), with the low-pass of :func:`zero_phase_lowpass`."""
     smooth = zero_phase_lowpass(angles_rad, fps=fps)
     if smooth.shape[0] < 2:
@@ -288,7 +288,7 @@ class ProsodicHeadModel:
             names: Sequence[str] | None = None) -> ProsodicHeadModel:
         """Fit on recordings: their features and recorded head motion, shape (n_frames, 3) in AU (the
         resting pose, e.g. each recording's median, already removed)."""
-        from .metrics import lowpass_head, speed_envelope  # training may import scipy.signal
+        from ..measures import lowpass_head, speed_envelope  # training may import scipy.signal
 
         self._check_settings()
         if len(features) != len(motion_au) or not features:

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import GroundTruthError
-from .fap_table import HEAD_FAPS, PROSODY_FAPS, RADIANS_PER_AU
-from .stream import FapStream
+from ..errors import GroundTruthError
+from ..fap.stream import FapStream
+from ..fap.table import HEAD_FAPS, PROSODY_FAPS, RADIANS_PER_AU
 
 #: Frame rate of the head.csv convention.
 HEAD_CSV_FPS = 30.0
@@ -154,7 +154,7 @@ def brows_beside(path: str | os.PathLike[str]) -> Path | None:
 def read_motion(path: str | os.PathLike[str]) -> FapStream:
     """Recorded prosody motion from a ``.head.csv`` (with the ``.brows.csv`` beside it, if any) or a
     ``.fap`` file (other FAPs dropped)."""
-    from .fapfile import read_fap
+    from ..fap.fapfile import read_fap
 
     name = str(path)
     if name.endswith(".csv"):

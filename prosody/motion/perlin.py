@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 #: Per-clip standard deviation of head rotation in ../shared/data/talking-heads (median pose removed),
 #: averaged over its seven clips, in AU: pitch 4281, yaw 7196, roll 5437.

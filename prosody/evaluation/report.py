@@ -6,7 +6,7 @@ import os
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
-from .fap_table import BY_NUMBER, PROSODY_FAPS
+from ..fap.table import BY_NUMBER, PROSODY_FAPS
 
 if TYPE_CHECKING:
     from .compare import Comparison

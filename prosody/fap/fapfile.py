@@ -24,9 +24,9 @@ import numpy as np
 
 from audio_features._atomic import atomic_write
 
-from .errors import FapFormatError, FapWriteError
-from .fap_table import N_FAPS
+from ..errors import FapFormatError, FapWriteError
 from .stream import FapStream
+from .table import N_FAPS
 
 #: Frame rate assumed for a stream with no header (MPEG-4 FAP streams are most often 25 fps).
 DEFAULT_HEADERLESS_FPS = 25.0

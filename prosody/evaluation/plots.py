@@ -15,7 +15,7 @@ import numpy as np
 
 from audio_features._atomic import atomic_write
 
-from .fap_table import BY_NUMBER, HEAD_FAPS, RADIANS_PER_AU
+from ..fap.table import BY_NUMBER, HEAD_FAPS, RADIANS_PER_AU
 
 if TYPE_CHECKING:
     from .compare import Comparison

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from audio_features._atomic import atomic_write
 
-from .errors import ModelError
+from ..errors import ModelError
 
 #: Largest model file read (the shipped ones are well under 100 kB).
 MAX_MODEL_BYTES = 16 << 20

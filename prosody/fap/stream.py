@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ConfigError
-from .fap_table import BY_NUMBER, N_FAPS
+from ..errors import ConfigError
+from .table import BY_NUMBER, N_FAPS
 
 
 def _fap_columns(faps: Iterable[int]) -> np.ndarray:

@@ -13,8 +13,8 @@ from typing import Union
 
 import numpy as np
 
-from .errors import ModelError
-from .fap_table import HEAD_FAPS
+from ..errors import ModelError
+from ..fap.table import HEAD_FAPS
 from .head import DEFAULT_MODEL_PATH as ARX_MODEL_PATH
 from .head import MODEL_FORMAT as ARX_FORMAT
 from .head import ArxHeadModel

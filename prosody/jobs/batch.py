@@ -29,9 +29,9 @@ import numpy as np
 from audio_features import AUDIO_EXTENSIONS, AudioFeaturesError
 from audio_features._atomic import atomic_write
 
-from .conditions import CONDITION_ORDER, Condition
-from .errors import ConfigError, ProsodyError
-from .fap_table import PROSODY_FAPS
+from ..errors import ConfigError, ProsodyError
+from ..fap.table import PROSODY_FAPS
+from ..motion.conditions import CONDITION_ORDER, Condition
 
 #: Ground-truth file endings looked up beside an audio file's stem, in order of preference.
 GROUND_TRUTH_SUFFIXES = (".head.csv", ".fap")
@@ -151,7 +151,7 @@ def _settings(options: BatchOptions, ground_truth: Path | None, audio: str) -> d
     """What makes an output folder current: the options, the paths, and the content of every input."""
     model = options.model
     if model is not None:
-        from .head_models import SHIPPED_MODELS
+        from ..motion.head_models import SHIPPED_MODELS
 
         model = str(SHIPPED_MODELS.get(model, model))
     return {**asdict(options), "conditions": list(options.conditions),
@@ -177,7 +177,7 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
     metrics.json was made with other settings or from inputs whose content has changed since; files an
     earlier run wrote there that the new settings do not write are removed.
     """
-    from .compare import compare, write_comparison
+    from ..evaluation.compare import compare, write_comparison
 
     started = time.perf_counter()
     folder = output_folder(outdir, Path(relative), keep_suffix=keep_suffix)
@@ -195,7 +195,7 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
             (folder / "metrics.json").unlink()  # from here on the folder is not complete
         if not conditions:
             raise ConfigError("only GROUND_TRUTH was asked for and no ground truth was found")
-        from .eyebrows import AccentRule, EyebrowRule
+        from ..motion.eyebrows import AccentRule, EyebrowRule
 
         rule = AccentRule() if options.brows == "accent" else EyebrowRule()
         with warnings.catch_warnings(record=True) as caught:
@@ -358,7 +358,7 @@ def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,
     if not (isinstance(jobs, int) and jobs >= 1):
         raise ConfigError(f"jobs must be a whole number >= 1, got {jobs!r}")
     if options.model is not None:
-        from .head_models import SHIPPED_MODELS, load_head_model
+        from ..motion.head_models import SHIPPED_MODELS, load_head_model
 
         load_head_model(options.model)  # a bad model is one error up front, not one per file
         if options.model not in SHIPPED_MODELS:
@@ -419,7 +419,7 @@ def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,
                 report(outcome)
     ordered = [outcomes[str(relative)] for relative in files]
     summary = summarize(ordered, indir=str(indir), outdir=str(out), options=options)
-    from .report import batch_markdown
+    from ..evaluation.report import batch_markdown
 
     with atomic_write(out / "summary.json", newline="\n") as handle:
         json.dump(summary, handle, indent=1, allow_nan=False)
@@ -477,12 +477,12 @@ def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions,
     ``options.seeds`` seeds. Keyed by file."""
     from audio_features import read_features_csv
 
-    from .compare import _average_head, empty_head_metrics
-    from .conditions import head_motion
-    from .controls import fitted_features
-    from .ground_truth import fit_to_grid, read_motion
-    from .head_models import is_stochastic, resolve_head_model
-    from .metrics import head_matrix, head_metrics
+    from ..evaluation.compare import _average_head, empty_head_metrics
+    from ..measures import head_matrix, head_metrics
+    from ..motion.conditions import head_motion
+    from ..motion.controls import fitted_features
+    from ..motion.ground_truth import fit_to_grid, read_motion
+    from ..motion.head_models import is_stochastic, resolve_head_model
 
     usable = [o for o in outcomes if o.metrics is not None and (Path(o.output) / FEATURES_FILE).is_file()]
     if len(usable) < 2 or Condition.SPEECH_DRIVEN.value not in options.conditions:

@@ -23,8 +23,8 @@ import numpy as np
 
 from audio_features._atomic import atomic_write
 
-from .conditions import CONDITION_ORDER
-from .errors import BallotError, ConfigError
+from ..errors import BallotError, ConfigError
+from ..motion.conditions import CONDITION_ORDER
 
 CONDITIONS = tuple(c.value for c in CONDITION_ORDER)
 PLAN_COLUMNS = ("order", "stimulus", "left", "right")

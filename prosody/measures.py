@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 
 from .errors import ConfigError
-from .fap_table import HEAD_FAPS, PROSODY_FAPS
-from .stream import FapStream
+from .fap.stream import FapStream
+from .fap.table import HEAD_FAPS, PROSODY_FAPS
 
 #: Spread below which a curve counts as constant (correlations are then undefined).
 _CONSTANT = 1e-9

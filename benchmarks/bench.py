@@ -1,7 +1,7 @@
-"""Benchmark (``make bench``): stage times on 10 minutes of real speech, the whole ``prosody convert`` as a
-ratio to Praat's pitch and intensity alone (both measured here, side by side, start-up included), the
-real-time factor, peak memory, the peak memory of converting a 2-hour 44.1 kHz recording, and batch
-throughput at 1 and 2 jobs.
+"""Benchmark (``make bench``, ``python benchmarks/bench.py``): stage times on 10 minutes of real speech,
+the whole ``prosody convert`` as a ratio to Praat's pitch and intensity alone (both measured here, side by
+side, start-up included), the real-time factor, peak memory, the peak memory of converting a 2-hour
+44.1 kHz recording, and batch throughput at 1 and 2 jobs.
 
 The speech is built from the recordings in ../shared/data (or ``PROSODY_SHARED_DATA``), repeated to 10
 minutes and written as 16 kHz WAV to a temporary folder.
@@ -28,7 +28,8 @@ T = TypeVar("T")
 # Linux carries the parent's peak into a child started by vfork and exec, so every child would show at least
 # the benchmark's own peak.)
 # (Kept free of imports beyond the function measured, so that the reference run pays for nothing else.)
-_PEAK_SNIPPET = ("import sys; from {module} import {function}; code = {function}({args!r}); "
+_PEAK_SNIPPET = ("import sys; sys.path.insert(0, {folder!r}); from {module} import {function}; "
+                 "code = {function}({args!r}); "
                  "status = open('/proc/self/status').read().split('VmHWM:')[1]; "
                  "print(int(status.split()[0]), file=sys.stderr); sys.exit(code or 0)")
 
@@ -86,7 +87,8 @@ def _timed(function: Callable[[], T]) -> tuple[float, T]:
 
 def _run_measured(module: str, function: str, args: list[str]) -> tuple[float, float]:
     """Run ``module.function(args)`` in a fresh interpreter: (wall seconds, peak resident MB)."""
-    code = _PEAK_SNIPPET.format(module=module, function=function, args=args)
+    code = _PEAK_SNIPPET.format(folder=str(Path(__file__).resolve().parent), module=module, function=function,
+                                args=args)
     started = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
     seconds = time.perf_counter() - started
@@ -111,12 +113,12 @@ def stage_times(path: Path, out: Path) -> dict[str, float]:
     import parselmouth
 
     from audio_features import F0Track, condition_f0, extract_features, load_audio
-    from prosody.eyebrows import accent_raises, eyebrow_raises
-    from prosody.fapfile import write_fap
-    from prosody.head import default_model
-    from prosody.head_models import default_head_model
-    from prosody.perlin import perlin_curves
-    from prosody.stream import FapStream
+    from prosody.fap.fapfile import write_fap
+    from prosody.fap.stream import FapStream
+    from prosody.motion.eyebrows import accent_raises, eyebrow_raises
+    from prosody.motion.head import default_model
+    from prosody.motion.head_models import default_head_model
+    from prosody.motion.perlin import perlin_curves
 
     times: dict[str, float] = {}
     times["load"], audio = _timed(lambda: load_audio(path))
@@ -154,7 +156,7 @@ def batch_throughput(path: Path, folder: Path, *, files: int = 12,
     import numpy as np
     import soundfile
 
-    from prosody.batch import run_batch
+    from prosody.jobs.batch import run_batch
 
     data, rate = soundfile.read(path, frames=int(clip_s * SAMPLE_RATE_HZ))
     indir = folder / "batch-in"
@@ -190,12 +192,12 @@ def main() -> int:
         # alternated and repeated, medians taken: the machine's load drifts
         praat_runs, convert_runs = [], []
         for _ in range(REPEATS):
-            praat_runs.append(_run_measured("prosody.bench", "praat_only", [str(speech)]))
+            praat_runs.append(_run_measured("bench", "praat_only", [str(speech)]))
             convert_runs.append(_run_measured("prosody.cli", "main",
                                               ["convert", str(speech), "-o", str(folder / "convert.fap")]))
         praat_s, praat_mb = (float(np.median(column)) for column in zip(*praat_runs, strict=True))
         convert_s, convert_mb = (float(np.median(column)) for column in zip(*convert_runs, strict=True))
-        import_s, _ = _run_measured("prosody.bench", "praat_only_import", [])
+        import_s, _ = _run_measured("bench", "praat_only_import", [])
         print(f"\nwhole runs in fresh interpreters (start-up included; median of {REPEATS}, alternated):")
         print(f"  Praat pitch + intensity alone      {praat_s:7.2f} s   peak {praat_mb:6.0f} MB")
         print(f"  prosody convert (speech-driven)    {convert_s:7.2f} s   peak {convert_mb:6.0f} MB")

@@ -18,14 +18,10 @@ import numpy as np
 from audio_features import Features, extract_features
 from audio_features._atomic import atomic_write
 
-from .conditions import CONDITION_ORDER, Condition, MissingMotionWarning, condition_stream, head_motion
-from .controls import shift_offsets, shifted_features
-from .errors import ConfigError
-from .eyebrows import BrowRule, EyebrowRaises, NoRaiseWarning, brow_raises, warn_if_no_raise
-from .fap_table import HEAD_FAPS
-from .ground_truth import fit_to_grid, read_motion
-from .head_models import HeadModel, is_stochastic, resolve_head_model
-from .metrics import (
+from ..errors import ConfigError
+from ..fap.stream import FapStream
+from ..fap.table import HEAD_FAPS
+from ..measures import (
     brow_metrics,
     fap_statistics,
     first_canonical_correlation,
@@ -34,7 +30,11 @@ from .metrics import (
     normalization_targets,
     normalize_stream,
 )
-from .stream import FapStream
+from ..motion.conditions import CONDITION_ORDER, Condition, MissingMotionWarning, condition_stream, head_motion
+from ..motion.controls import shift_offsets, shifted_features
+from ..motion.eyebrows import BrowRule, EyebrowRaises, NoRaiseWarning, brow_raises, warn_if_no_raise
+from ..motion.ground_truth import fit_to_grid, read_motion
+from ..motion.head_models import HeadModel, is_stochastic, resolve_head_model
 
 #: Version of the metrics.json layout (2: head measures per condition, controls, seeds).
 METRICS_VERSION = 2
@@ -351,7 +351,8 @@ def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, 
                      exaggerate: float = 1.0, progress: Callable[[int, int], None] | None = None) -> list[Path]:
     """Write the condition streams (.fap), the plots (PNG), the report (Markdown) and ``metrics.json``; with
     ``video``, also ``conditions.mp4``: the conditions' faces side by side, labelled, with the recording's
-    audio (``exaggerate`` multiplies the drawn motion; ``progress`` as in :func:`prosody.preview.write_preview`).
+    audio (``exaggerate`` multiplies the drawn motion; ``progress`` as in
+    :func:`prosody.evaluation.preview.write_preview`).
 
     ``metrics.json`` is written last: a folder holding it is complete. Every file is written atomically.
 
@@ -360,7 +361,7 @@ def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, 
     list of Path
         The files written.
     """
-    from .fapfile import write_fap
+    from ..fap.fapfile import write_fap
 
     folder = Path(outdir)
     folder.mkdir(parents=True, exist_ok=True)

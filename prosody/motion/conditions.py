@@ -9,12 +9,12 @@ import numpy as np
 
 from audio_features import Features
 
-from .errors import ConfigError, GroundTruthError
+from ..errors import ConfigError, GroundTruthError
+from ..fap.stream import FapStream
+from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
 from .eyebrows import BrowRule, EyebrowRaises, brow_raises, warn_if_no_raise
-from .fap_table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
 from .head_models import HeadModel, resolve_head_model
 from .perlin import PerlinSettings, perlin_curves
-from .stream import FapStream
 
 
 class Condition(str, enum.Enum):
@@ -87,7 +87,7 @@ def condition_stream(
         Head model for SPEECH_DRIVEN; the shipped prosodic generator when omitted.
     ground_truth : FapStream, optional
         Recorded motion on the features' grid (required for GROUND_TRUTH); see
-        :func:`prosody.ground_truth.fit_to_grid`.
+        :func:`prosody.motion.ground_truth.fit_to_grid`.
     eyebrow_rule : AccentRule or EyebrowRule, optional
         The speech-driven brows' rule: the accent rule (default) or the thesis's rule.
     perlin : PerlinSettings, optional

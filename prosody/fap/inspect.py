@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fap_table import BY_NUMBER
 from .fapfile import FapFile
+from .table import BY_NUMBER
 
 
 def _plain(value: float) -> int | float:

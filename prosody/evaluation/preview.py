@@ -29,9 +29,9 @@ import numpy as np
 
 from audio_features._atomic import atomic_path, atomic_write
 
-from .errors import ConfigError, ProsodyError
-from .fap_table import RADIANS_PER_AU
-from .stream import FapStream
+from ..errors import ConfigError, ProsodyError
+from ..fap.stream import FapStream
+from ..fap.table import RADIANS_PER_AU
 
 #: Frame widths drawn, in pixels (3840: a 4K frame; drawing is done at twice the size).
 MIN_WIDTH, MAX_WIDTH = 64, 3840

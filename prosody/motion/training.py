@@ -1,6 +1,6 @@
 """Training head models on a folder of paired recordings (audio + recorded head motion).
 
-Two kinds: ``prosodic`` (the default generator, :mod:`prosody.speech_head`), whose settings
+Two kinds: ``prosodic`` (the default generator, :mod:`prosody.motion.speech_head`), whose settings
 cross-validation chooses by the held-out speed-envelope and pitch correlations, each read against the
 mismatched-audio control; and ``arx`` (the thesis's model), whose orders it chooses by free-run error as
 before, now reporting the same head measures beside it.
@@ -20,12 +20,12 @@ import numpy as np
 
 from audio_features import AUDIO_EXTENSIONS, Features, extract_features
 
+from ..errors import ConfigError, GroundTruthError, ProsodyError
+from ..fap.table import HEAD_FAPS
+from ..measures import head_metrics, pearson
 from .controls import shift_offsets, shifted_features
-from .errors import ConfigError, GroundTruthError, ProsodyError
-from .fap_table import HEAD_FAPS
 from .ground_truth import fit_to_grid, read_motion
 from .head import ArxHeadModel, arx_inputs
-from .metrics import head_metrics, pearson
 from .speech_head import ProsodicHeadModel
 
 #: Kinds of head model ``train`` fits.
@@ -160,7 +160,7 @@ HEAD_MEASURES = ("speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db",
 
 
 def average_head_metrics(rows: Sequence[dict]) -> dict:
-    """The mean of :func:`prosody.metrics.head_metrics` results (None entries left out), same layout."""
+    """The mean of :func:`prosody.measures.head_metrics` results (None entries left out), same layout."""
     result: dict = {key: _mean_of(rows, key) for key in HEAD_MEASURES}
     result["std_ratio"] = {axis: _mean_of([row["std_ratio"] for row in rows], axis) for axis in ("48", "49", "50")}
     return result
@@ -197,7 +197,7 @@ def held_out_prosodic(data: TrainingSet, settings: dict | None = None, *, seeds:
                       controls: bool = True) -> HeldOut:
     """Fit the prosodic generator on all recordings but one and measure it on the one left out, for each
     recording, averaging over ``seeds`` seeds; with ``controls``, also driven by the held-out recording's own
-    features circularly shifted (:func:`prosody.controls.shift_offsets`)."""
+    features circularly shifted (:func:`prosody.motion.controls.shift_offsets`)."""
     if len(data.names) < 2:
         raise ConfigError("cross-validation needs at least two recordings")
     settings = dict(settings or {})

@@ -2,7 +2,7 @@
 
 Formats and their mapping from FAP units (SPEC section 1; AU = 1e-5 rad, ENS = eye-nose separation / 1024):
 
-- ``fap``: MPEG-4 FAP text (:mod:`prosody.fapfile`).
+- ``fap``: MPEG-4 FAP text (:mod:`prosody.fap.fapfile`).
 - ``csv``: ``frame,time_s`` then one column per active FAP, named ``fap<N>_<name>_<unit>``, in FAP units
   (``au``, ``ens``, ...), or with ``physical=True`` in radians (``rad``) and fractions of the reference
   distance (``ens0``, ...). A cell is empty where the FAP is masked off in that frame.
@@ -31,9 +31,9 @@ import numpy as np
 
 from audio_features._atomic import atomic_write
 
-from .errors import ConfigError, FapWriteError
-from .fap_table import BY_NUMBER, RADIANS_PER_AU
+from ..errors import ConfigError, FapWriteError
 from .stream import FapStream
+from .table import BY_NUMBER, RADIANS_PER_AU
 
 Writer = Callable[[FapStream, "str | os.PathLike[str]"], None]
 

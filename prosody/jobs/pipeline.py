@@ -8,14 +8,14 @@ from pathlib import Path
 
 from audio_features import Features, extract_features
 
-from .conditions import Condition, condition_stream
-from .errors import ConfigError
-from .eyebrows import BrowRule
-from .fapfile import read_fap
-from .ground_truth import fit_to_grid, read_motion
-from .head_models import HeadModel, resolve_head_model, rest_pose
-from .perlin import PerlinSettings
-from .stream import FapStream
+from ..errors import ConfigError
+from ..fap.fapfile import read_fap
+from ..fap.stream import FapStream
+from ..motion.conditions import Condition, condition_stream
+from ..motion.eyebrows import BrowRule
+from ..motion.ground_truth import fit_to_grid, read_motion
+from ..motion.head_models import HeadModel, resolve_head_model, rest_pose
+from ..motion.perlin import PerlinSettings
 
 #: Channels of the intensity controls and the FAPs each one drives.
 CHANNELS = {"pitch": (48,), "yaw": (49,), "roll": (50,), "brows": (31, 32, 33, 34)}
@@ -83,7 +83,7 @@ def convert(
     fps : float > 0
         Frame rate of the output.
     output_format : str, optional
-        A name of :data:`prosody.exporters.WRITERS` (fap, csv, csv-physical, json, bvh, livelink).
+        A name of :data:`prosody.fap.exporters.WRITERS` (fap, csv, csv-physical, json, bvh, livelink).
     gains : mapping, optional
         Intensity per channel (``pitch``, ``yaw``, ``roll``, ``brows``): 1 leaves it, 0.5 halves it.
     disabled : iterable of str
@@ -116,7 +116,7 @@ def convert(
         recorded = fit_to_grid(read_fap(base).stream, n_frames=stream.n_frames, fps=stream.fps, source=str(base))
         stream = stream.merged_over(recorded)
     if output is not None:
-        from .exporters import write_stream
+        from ..fap.exporters import write_stream
 
         write_stream(stream, output, output_format)
     return stream

@@ -22,8 +22,8 @@ import numpy as np
 
 from audio_features import Features
 
-from .errors import ConfigError, ModelError
-from .fap_table import HEAD_FAPS
+from ..errors import ConfigError, ModelError
+from ..fap.table import HEAD_FAPS
 from .model_files import TrainingClip, read_model_json, write_model_json
 
 MODEL_FORMAT = "visual-prosody-arx"
@@ -375,5 +375,5 @@ class ArxHeadModel:
 
 def default_model() -> ArxHeadModel:
     """The thesis's ARX model as shipped with the package (trained on the seven talking-head clips; see the
-    README). The default speech-driven head is :func:`prosody.head_models.default_head_model`."""
+    README). The default speech-driven head is :func:`prosody.motion.head_models.default_head_model`."""
     return ArxHeadModel.load(DEFAULT_MODEL_PATH)
