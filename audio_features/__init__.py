@@ -5,11 +5,19 @@ imports :mod:`prosody`.
 """
 
 from .audio import AUDIO_EXTENSIONS, Audio, load_audio
-from .errors import AudioFeaturesError, AudioLoadError, NoVoicedFramesWarning, ParameterError
+from .errors import (
+    AnalysisError,
+    AudioFeaturesError,
+    AudioLoadError,
+    NoVoicedFramesWarning,
+    ParameterError,
+    VisualProsodyError,
+)
 from .features import CSV_COLUMNS, Features, condition_f0, extract_features, read_features_csv
 from .tracks import F0Track, Track, frame_count
 
 __all__ = [
+    "AnalysisError",
     "AUDIO_EXTENSIONS",
     "CSV_COLUMNS",
     "Audio",
@@ -25,4 +33,5 @@ __all__ = [
     "frame_count",
     "load_audio",
     "read_features_csv",
+    "VisualProsodyError",
 ]

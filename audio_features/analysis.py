@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import AudioLoadError, ParameterError
+from .errors import AnalysisError, AudioLoadError, ParameterError
 
 #: Praat's autocorrelation pitch uses 3 periods of the floor pitch as its window.
 PITCH_PERIODS_PER_WINDOW = 3.0
@@ -76,7 +76,7 @@ def _frames_on_steps(xs: np.ndarray, values: np.ndarray, *, dt: float, sample_ra
     steps = np.rint(xs / dt).astype(np.int64)
     misalignment = np.abs(xs - steps * dt).max(initial=0.0)
     if misalignment > 1.01 / sample_rate_hz:  # pragma: no cover - guards the alignment arithmetic
-        raise RuntimeError(f"analysis frames missed the grid by {misalignment!r} s")
+        raise AnalysisError(f"analysis frames missed the grid by {misalignment!r} s")
     return dict(zip(steps.tolist(), values.tolist(), strict=False))
 
 

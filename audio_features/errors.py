@@ -1,13 +1,20 @@
-"""Exceptions raised by :mod:`audio_features`.
+"""Exceptions raised by :mod:`audio_features`, and the root of every error the project raises.
 
-Every error the package raises on purpose derives from :class:`AudioFeaturesError`; the ones caused by a
-bad value also derive from :class:`ValueError`, so callers' ``except ValueError`` keeps working.
+:class:`VisualProsodyError` is the one class a caller catches for everything both packages raise on purpose
+(it lives here because :mod:`audio_features` never imports :mod:`prosody`). Every error of this package
+derives from :class:`AudioFeaturesError`; the ones caused by a bad value also derive from :class:`ValueError`,
+so callers' ``except ValueError`` keeps working. :class:`ParameterError` is also the class of
+:mod:`prosody`'s bad parameters (``prosody.errors.ConfigError`` derives from it).
 """
 
 from __future__ import annotations
 
 
-class AudioFeaturesError(Exception):
+class VisualProsodyError(Exception):
+    """Base class of every error raised on purpose by :mod:`audio_features` and :mod:`prosody`."""
+
+
+class AudioFeaturesError(VisualProsodyError):
     """Base class of every error raised on purpose by :mod:`audio_features`."""
 
 
@@ -16,7 +23,11 @@ class AudioLoadError(AudioFeaturesError, ValueError):
 
 
 class ParameterError(AudioFeaturesError, ValueError):
-    """A parameter is outside its documented range."""
+    """A parameter is outside its documented range (a usage error: the command exits with code 2)."""
+
+
+class AnalysisError(AudioFeaturesError, RuntimeError):
+    """The analysis failed in a way no input should cause (a bug to report)."""
 
 
 class NoVoicedFramesWarning(UserWarning):

@@ -620,17 +620,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _run(handler: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
-    from audio_features import AudioFeaturesError
-    from audio_features import ParameterError as AudioParameterError
-
-    from .errors import ConfigError, ProsodyError
+    from .errors import ParameterError, VisualProsodyError
 
     try:
         return handler(args)
-    except (ConfigError, AudioParameterError) as error:
+    except ParameterError as error:  # prosody's ConfigError too
         print(f"prosody {args.command}: error: {error}", file=sys.stderr)
         return EXIT_USAGE
-    except (ProsodyError, AudioFeaturesError) as error:
+    except VisualProsodyError as error:
         print(f"prosody {args.command}: error: {error}", file=sys.stderr)
         return EXIT_FAILURE
     except BrokenPipeError:

@@ -1,18 +1,44 @@
 """Exceptions raised by :mod:`prosody`.
 
-Every error raised on purpose derives from :class:`ProsodyError`; those caused by a bad value also derive
-from :class:`ValueError`. The CLI turns them into one line on stderr and an exit code.
+One root catches everything the project raises on purpose: :class:`VisualProsodyError` (from
+:mod:`audio_features`, re-exported here). Every error of this package derives from :class:`ProsodyError`;
+those caused by a bad value also derive from :class:`ValueError`, a missing tool from :class:`OSError`. A bad
+parameter is a :class:`ConfigError`, which is also ``audio_features.ParameterError``: one class for both
+packages' bad parameters. The CLI turns them into one line on stderr and an exit code (2 for a bad parameter,
+1 for the rest).
 """
 
 from __future__ import annotations
 
+from audio_features.errors import ParameterError, VisualProsodyError
 
-class ProsodyError(Exception):
+__all__ = ["BallotError", "ConfigError", "FapFormatError", "FapIrregularityWarning", "FapWriteError",
+           "GroundTruthError", "ModelError", "ParameterError", "PreviewError", "ProsodyError", "UnknownFapError",
+           "VisualProsodyError"]
+
+
+class ProsodyError(VisualProsodyError):
     """Base class of every error raised on purpose by :mod:`prosody`."""
 
 
-class ConfigError(ProsodyError, ValueError):
+class ConfigError(ProsodyError, ParameterError):
     """A parameter or option is outside its documented range (a usage error: exit code 2)."""
+
+
+class UnknownFapError(ProsodyError, KeyError):
+    """A FAP number or name that MPEG-4 does not define."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0]) if self.args else ""
+
+
+class PreviewError(ProsodyError, OSError):
+    """A preview cannot be made: no ffmpeg, ffmpeg failed, or a GIF too long to hold."""
+
+
+class FapIrregularityWarning(UserWarning):
+    """A .fap file is irregular but readable (comments, 69-token masks, renumbered frames, ...); what was
+    done about it is said. ``read_fap(..., strict=True)`` makes these errors."""
 
 
 class FapFormatError(ProsodyError, ValueError):

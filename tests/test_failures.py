@@ -256,3 +256,20 @@ def test_ballots_take_the_short_condition_names(tmp_path) -> None:
     ballots = parse_ballots("stimulus,subject,left,right,choice\ns,p,speech,truth,left\ns,p,none,random,right\n")
     assert [(b.left, b.right, b.chosen) for b in ballots] == [("SPEECH_DRIVEN", "GROUND_TRUTH", "SPEECH_DRIVEN"),
                                                               ("NO_PROSODY", "RANDOM", "RANDOM")]
+
+
+def test_one_root_catches_what_either_package_raises(tmp_path) -> None:
+    from audio_features import ParameterError, VisualProsodyError
+    from prosody.errors import ConfigError, PreviewError, UnknownFapError
+    from prosody.fap.table import fap_info
+
+    with pytest.raises(VisualProsodyError):
+        load_audio(tmp_path / "missing.wav")
+    with pytest.raises(VisualProsodyError):
+        from prosody.motion.eyebrows import AccentRule
+
+        AccentRule(threshold_semitones=-1)
+    assert issubclass(ConfigError, ParameterError) and issubclass(ConfigError, ValueError)
+    assert issubclass(PreviewError, OSError) and issubclass(UnknownFapError, KeyError)
+    with pytest.raises(UnknownFapError, match="unknown FAP 99"):
+        fap_info(99)

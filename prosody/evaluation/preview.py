@@ -29,7 +29,7 @@ import numpy as np
 
 from audio_features._atomic import atomic_path, atomic_write
 
-from ..errors import ConfigError, ProsodyError
+from ..errors import ConfigError, PreviewError
 from ..fap.stream import FapStream
 from ..fap.table import RADIANS_PER_AU
 
@@ -53,10 +53,6 @@ _MOUTH = (170, 70, 70)
 #: Brow colour; kept apart from every other colour of the face so that tests can find the brows' pixels.
 BROW_COLOR = (20, 120, 30)
 _CURVE_COLORS = {"brows": BROW_COLOR, "pitch": (200, 60, 40), "yaw": (40, 90, 200), "roll": (150, 80, 170)}
-
-
-class PreviewError(ProsodyError):
-    """The preview could not be written (no ffmpeg for MP4, ffmpeg failed, a GIF too long)."""
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..errors import UnknownFapError
+
 #: Number of FAPs in a mask line.
 N_FAPS = 68
 #: Radians per angular unit (AU).
@@ -130,4 +132,4 @@ def fap_info(fap: int | str) -> FapInfo:
     try:
         return table[fap]  # type: ignore[index]
     except KeyError:
-        raise KeyError(f"unknown FAP {fap!r}: FAPs are numbered 1..{N_FAPS} or named as in MPEG-4") from None
+        raise UnknownFapError(f"unknown FAP {fap!r}: FAPs are numbered 1..{N_FAPS} or named as in MPEG-4") from None

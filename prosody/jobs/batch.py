@@ -29,7 +29,7 @@ import numpy as np
 from audio_features import AUDIO_EXTENSIONS, AudioFeaturesError
 from audio_features._atomic import atomic_write
 
-from ..errors import ConfigError, ProsodyError
+from ..errors import ConfigError, ProsodyError, VisualProsodyError
 from ..fap.table import PROSODY_FAPS
 from ..motion.conditions import CONDITION_ORDER, Condition
 
@@ -217,7 +217,7 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
                 with contextlib.suppress(FileNotFoundError):
                     (folder / name).unlink()
         outcome.metrics = comparison.metrics
-    except (ProsodyError, AudioFeaturesError, OSError, ValueError) as error:
+    except (VisualProsodyError, OSError, ValueError) as error:
         outcome.status, outcome.error = "failed", _one_line(error)
     except Exception as error:  # noqa: BLE001 - one broken file must never stop the others
         outcome.status, outcome.error = "failed", f"unexpected {type(error).__name__}: {_one_line(error)}"
