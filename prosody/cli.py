@@ -400,9 +400,7 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     from .fap.fapfile import read_fap
     from .fap.inspect import inspect_json, inspect_summary
 
-    fap = read_fap(args.input)
-    for warning in fap.warnings:
-        print(f"{args.input}: warning: {warning}", file=sys.stderr)
+    fap = read_fap(args.input, strict=args.strict)  # irregularities arrive as warnings, one line each
     if args.json:
         json.dump(inspect_json(fap), sys.stdout)
         sys.stdout.write("\n")
@@ -613,6 +611,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Read a .fap file liberally and describe it; irregularities are reported on stderr.",
     )
     inspect.add_argument("input", help=".fap file")
+    inspect.add_argument("--strict", action="store_true",
+                         help="refuse an irregular file (comments, 69-token masks, renumbered frames, ...) instead "
+                              "of reading it with a warning for each irregularity")
     inspect.add_argument("--json", action="store_true",
                          help='print {"version", "name", "fps", "frames", "faps": {"<n>": [value or null, ...]}}')
     inspect.set_defaults(handler=_cmd_inspect)

@@ -17,6 +17,10 @@ from prosody.fap.table import FAPS, N_FAPS, fap_info
 
 MASK_ZEROS = " ".join(["0"] * N_FAPS)
 
+# irregular files are read with a warning each (asserted where it matters): not errors in these tests
+pytestmark = pytest.mark.filterwarnings("ignore::prosody.errors.FapIrregularityWarning")
+
+
 
 def _mask_line(*faps: int, tokens: int = N_FAPS) -> str:
     return " ".join("1" if j + 1 in faps else "0" for j in range(tokens))
@@ -374,3 +378,22 @@ def test_header_names_are_ascii_and_short_enough_for_every_player(tmp_path) -> N
         text = format_fap(stream, name="é" * 3 + "x" * 300)
     header = text.splitlines()[0]
     assert header == "2.1 " + "___" + "x" * 97 + " 30 2" and header.isascii()
+
+
+def test_irregularities_are_a_warning_category_and_strict_refuses_them(tmp_path, capsys) -> None:
+    from prosody.errors import FapIrregularityWarning
+
+    path = _write(tmp_path, "# made by hand\n2.1 x 30 1\n" + _mask_line(48) + "\n1 10\n")
+    with pytest.warns(FapIrregularityWarning) as caught:
+        fap = read_fap(path)
+    messages = [str(w.message) for w in caught]
+    assert any("comment lines" in m for m in messages) and any("start at 1" in m for m in messages)
+    assert all(m.startswith(str(path)) for m in messages) and len(messages) == len(fap.warnings)
+    with pytest.raises(FapFormatError, match="strict reading"):
+        read_fap(path, strict=True)
+    assert main(["inspect", str(path), "--strict"]) == 1
+    strict_err = capsys.readouterr().err
+    assert "irregular .fap file (strict reading)" in strict_err and strict_err.count("\n") == 1
+    assert main(["inspect", str(path)]) == 0
+    err = capsys.readouterr().err
+    assert err.count("comment lines") == 1 and err.count("warning:") == 2  # each irregularity said once

@@ -20,6 +20,10 @@ from prosody.evaluation.study import parse_ballots
 from prosody.fap.fapfile import read_fap
 from prosody.motion.head import DEFAULT_MODEL_PATH, ArxHeadModel
 
+# irregular files are read with a warning each (asserted where it matters): not errors in these tests
+pytestmark = pytest.mark.filterwarnings("ignore::prosody.errors.FapIrregularityWarning")
+
+
 
 @pytest.mark.parametrize("sample_rate_hz", [8000, 192000])
 def test_extreme_sample_rates(tmp_path, sample_rate_hz) -> None:

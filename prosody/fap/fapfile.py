@@ -24,7 +24,7 @@ import numpy as np
 
 from audio_features._atomic import atomic_write
 
-from ..errors import FapFormatError, FapWriteError
+from ..errors import FapFormatError, FapIrregularityWarning, FapWriteError
 from .stream import FapStream
 from .table import N_FAPS
 
@@ -110,7 +110,8 @@ def _read_lines(path: str | os.PathLike[str], name: str) -> list[str]:
     return "".join(lines).splitlines()
 
 
-def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADERLESS_FPS) -> FapFile:
+def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADERLESS_FPS,
+             strict: bool = False) -> FapFile:
     """Read a .fap file.
 
     Parameters
@@ -119,6 +120,11 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
         The file. Bytes are decoded as Latin-1, so any byte sequence reads.
     default_fps : float > 0
         Frame rate for a stream without a header.
+    strict : bool
+        False (default): each irregularity the file has (comments, 69-token masks, renumbered frames, a wrong
+        header count, float values, ...) is read as described and issued as a
+        :class:`~prosody.errors.FapIrregularityWarning`, and listed in :attr:`FapFile.warnings`. True: the
+        first irregularity is a :class:`~prosody.errors.FapFormatError`.
 
     Returns
     -------
@@ -128,7 +134,7 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
     ------
     FapFormatError
         Missing file, unreadable header, a mask line that is not 68 (or 69) tokens of 0/1, a value line
-        whose count disagrees with its mask, or a non-numeric token.
+        whose count disagrees with its mask, or a non-numeric token; with ``strict``, any irregularity.
     """
     name = str(path)
     raw_lines = _read_lines(path, name)
@@ -248,6 +254,10 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
     stream = FapStream(
         np.array(values).reshape(-1, N_FAPS), np.array(masks, dtype=bool).reshape(-1, N_FAPS), fps, stream_name
     )
+    if strict and notes:
+        raise FapFormatError(name, None, f"irregular .fap file (strict reading): {notes[0]}")
+    for note in notes:
+        warnings.warn(f"{name}: {note}", FapIrregularityWarning, stacklevel=2)
     return FapFile(stream, name, version, header_frames, frame_numbers[0] if frame_numbers else None,
                    integer_values, tuple(notes))
 
