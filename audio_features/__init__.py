@@ -5,6 +5,7 @@ imports :mod:`prosody`.
 """
 
 from .audio import AUDIO_EXTENSIONS, Audio, load_audio
+from .defaults import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS
 from .errors import (
     AnalysisError,
     AudioFeaturesError,
@@ -13,13 +14,22 @@ from .errors import (
     ParameterError,
     VisualProsodyError,
 )
-from .features import CSV_COLUMNS, Features, condition_f0, extract_features, read_features_csv
+from .features import (
+    CSV_COLUMNS,
+    Features,
+    condition_f0,
+    extract_features,
+    read_features_csv,
+)
 from .tracks import F0Track, Track, frame_count
 
 __all__ = [
     "AnalysisError",
     "AUDIO_EXTENSIONS",
     "CSV_COLUMNS",
+    "DEFAULT_F0_CEILING_HZ",
+    "DEFAULT_F0_FLOOR_HZ",
+    "DEFAULT_FPS",
     "Audio",
     "AudioFeaturesError",
     "AudioLoadError",

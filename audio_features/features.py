@@ -15,6 +15,7 @@ import numpy as np
 from ._atomic import atomic_write
 from .analysis import analyse_grid, array_reader, sound_file_reader
 from .audio import ESTIMATED_LENGTH_FORMATS, Audio, check_shape, decode_failure, open_sound_file, truncation
+from .defaults import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS
 from .errors import AudioLoadError, NoVoicedFramesWarning, ParameterError
 from .tracks import F0Track, Track
 
@@ -297,9 +298,9 @@ def _read_all(sound, *, source: str, exact: bool) -> np.ndarray:
 def extract_features(
     source: str | os.PathLike[str] | Audio,
     *,
-    fps: float = 30.0,
-    f0_floor_hz: float = 75.0,
-    f0_ceiling_hz: float = 500.0,
+    fps: float = DEFAULT_FPS,
+    f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ,
+    f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ,
     intensity_min_pitch_hz: float = 100.0,
     chunk_s: float = 60.0,
     margin_s: float = 1.0,

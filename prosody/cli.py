@@ -13,6 +13,8 @@ import json
 import sys
 from collections.abc import Callable, Sequence
 
+from audio_features.defaults import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS
+
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
 
 
@@ -60,12 +62,12 @@ def _add_seeds_option(parser: argparse.ArgumentParser) -> None:
 
 
 def _add_analysis_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--fps", type=_positive_float, default=30.0,
+    parser.add_argument("--fps", type=_positive_float, default=DEFAULT_FPS,
                         help="frames per second of the output grid (default 30; frame k is at k/fps s)")
-    parser.add_argument("--f0-floor", type=_positive_float, default=75.0, metavar="HZ",
-                        help="lowest F0 the pitch tracker looks for, in Hz (default 75)")
-    parser.add_argument("--f0-ceiling", type=_positive_float, default=500.0, metavar="HZ",
-                        help="highest F0 the pitch tracker looks for, in Hz (default 500)")
+    parser.add_argument("--f0-floor", type=_positive_float, default=DEFAULT_F0_FLOOR_HZ, metavar="HZ",
+                        help=f"lowest F0 the pitch tracker looks for, in Hz (default {DEFAULT_F0_FLOOR_HZ:g})")
+    parser.add_argument("--f0-ceiling", type=_positive_float, default=DEFAULT_F0_CEILING_HZ, metavar="HZ",
+                        help=f"highest F0 the pitch tracker looks for, in Hz (default {DEFAULT_F0_CEILING_HZ:g})")
 
 
 def _add_generator_options(parser: argparse.ArgumentParser) -> None:
@@ -108,12 +110,15 @@ def _finite_float(text: str) -> float:
     return value
 
 
-#: Options of the thesis's eyebrow rule, with their defaults.
-_THESIS_BROW_OPTIONS = {"eyebrow_threshold": 207.0, "eyebrow_semitones": None, "energy_threshold": 45.0,
-                        "energy_relative": None}
+#: Options of the thesis's eyebrow rule and the EyebrowRule fields they set.
+_THESIS_BROW_OPTIONS = {"eyebrow_threshold": "threshold_hz", "eyebrow_semitones": "threshold_semitones",
+                        "energy_threshold": "energy_threshold_db", "energy_relative": "energy_relative_db"}
 
 
 def _add_eyebrow_options(parser: argparse.ArgumentParser) -> None:
+    from .motion.eyebrows import AccentRule, EyebrowRule
+
+    accent, thesis = AccentRule(), EyebrowRule()  # the defaults the help states are the rules' own
     group = parser.add_argument_group(
         "eyebrows", "The speech-driven brows rise on pitch accents judged against the speaker's own voice "
                     "(accent rule, the default), or follow the thesis's rule (--brows thesis): raise when the "
@@ -123,16 +128,16 @@ def _add_eyebrow_options(parser: argparse.ArgumentParser) -> None:
                             "--accent-semitones above the speaker's median pitch; for 0.3 to 1.2 s)")
     group.add_argument("--accent-semitones", type=_finite_float, default=None, metavar="ST",
                        help="accent rule: semitones above the speaker's median pitch that raise the brows "
-                            "(default 4; lower raises more often)")
+                            f"(default {accent.threshold_semitones:g}; lower raises more often)")
     group.add_argument("--eyebrow-threshold", type=_positive_float, default=None, metavar="HZ",
                        help="thesis rule: a rising crossing of the conditioned pitch through HZ raises the brows "
-                            "(default 207)")
+                            f"(default {thesis.threshold_hz:g})")
     group.add_argument("--eyebrow-semitones", type=_finite_float, default=None, metavar="ST",
                        help="thesis rule, speaker-relative threshold instead of --eyebrow-threshold: ST semitones "
                             "above the recording's median pitch (e.g. 4)")
     group.add_argument("--energy-threshold", type=_finite_float, default=None, metavar="DB",
-                       help="thesis rule: after 300 ms the raise lasts while energy >= DB, in dB re 2e-5 Pa "
-                            "(default 45)")
+                       help=f"thesis rule: after {thesis.min_hold_s * 1000:g} ms the raise lasts while energy >= DB, "
+                            f"in dB re 2e-5 Pa (default {thesis.energy_threshold_db:g})")
     group.add_argument("--energy-relative", type=_finite_float, default=None, metavar="DB",
                        help="thesis rule, calibrated for recording level instead of --energy-threshold: the "
                             "recording's median voiced energy + DB (e.g. -25)")
@@ -155,9 +160,7 @@ def _eyebrow_rule(args: argparse.Namespace):
     for pair in (("eyebrow_semitones", "eyebrow_threshold"), ("energy_relative", "energy_threshold")):
         if all(name in given for name in pair):
             raise ConfigError(f"--{pair[0].replace('_', '-')} replaces --{pair[1].replace('_', '-')}: give one")
-    values = {**_THESIS_BROW_OPTIONS, **given}
-    return EyebrowRule(threshold_hz=values["eyebrow_threshold"], threshold_semitones=values["eyebrow_semitones"],
-                       energy_threshold_db=values["energy_threshold"], energy_relative_db=values["energy_relative"])
+    return EyebrowRule(**{_THESIS_BROW_OPTIONS[name]: value for name, value in given.items()})
 
 
 # commands -----------------------------------------------------------------------------------------------
@@ -311,8 +314,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
         given = [f"--{name}" for name, value in orders.items() if value is not None]
         if given:
             raise ConfigError(f"{', '.join(given)} set(s) the ARX model's orders: add --kind arx")
-    defaults = {"na": 1, "nb": 5, "nk": 0, "ridge": 0.1}
-    orders = {name: defaults[name] if value is None else value for name, value in orders.items()}
+    from .motion.head import ARX_DEFAULTS
+
+    orders = {name: ARX_DEFAULTS[name] if value is None else value for name, value in orders.items()}
     train(args.data, args.output, kind=args.kind, cv=args.cv, fps=args.fps, **orders)
     return EXIT_OK
 
@@ -507,7 +511,8 @@ def build_parser() -> argparse.ArgumentParser:
     arx.add_argument("--nb", type=int, default=None, help="input lags (default 5)")
     arx.add_argument("--nk", type=int, default=None, help="input delay in frames (default 0)")
     arx.add_argument("--ridge", type=float, default=None, help="ridge penalty (default 0.1)")
-    train.add_argument("--fps", type=_positive_float, default=30.0, help="frame rate (default 30)")
+    train.add_argument("--fps", type=_positive_float, default=DEFAULT_FPS,
+                       help=f"frame rate (default {DEFAULT_FPS:g})")
     train.set_defaults(handler=_cmd_train)
 
     compare = commands.add_parser(

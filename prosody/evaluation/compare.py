@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from audio_features import Features, extract_features
+from audio_features import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS, Features, extract_features
 from audio_features._atomic import atomic_write
 
 from ..errors import ConfigError
@@ -176,9 +176,9 @@ def compare(
     targets: Mapping[int, tuple[float, float]] | None = None,
     conditions: Iterable[Condition | str] | None = None,
     eyebrow_rule: BrowRule | None = None,
-    fps: float = 30.0,
-    f0_floor_hz: float = 75.0,
-    f0_ceiling_hz: float = 500.0,
+    fps: float = DEFAULT_FPS,
+    f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ,
+    f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ,
     features: Features | None = None,
 ) -> Comparison:
     """Compute every condition for a recording and compare them.

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from audio_features import AUDIO_EXTENSIONS, AudioFeaturesError
+from audio_features import AUDIO_EXTENSIONS, DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS, AudioFeaturesError
 from audio_features._atomic import atomic_write
 
 from ..errors import ConfigError, ProsodyError, VisualProsodyError
@@ -51,9 +51,9 @@ class BatchOptions:
     model: str | None = None
     seed: int = 0
     normalize: bool = False
-    fps: float = 30.0
-    f0_floor_hz: float = 75.0
-    f0_ceiling_hz: float = 500.0
+    fps: float = DEFAULT_FPS
+    f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ
+    f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ
     plots: bool = False
     seeds: int = 10
     brows: str = "accent"

@@ -6,7 +6,7 @@ import os
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
-from audio_features import Features, extract_features
+from audio_features import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS, Features, extract_features
 
 from ..errors import ConfigError
 from ..fap.fapfile import read_fap
@@ -49,9 +49,9 @@ def convert(
     model: HeadModel | str | os.PathLike[str] | None = None,
     base: str | os.PathLike[str] | None = None,
     seed: int = 0,
-    fps: float = 30.0,
-    f0_floor_hz: float = 75.0,
-    f0_ceiling_hz: float = 500.0,
+    fps: float = DEFAULT_FPS,
+    f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ,
+    f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ,
     eyebrow_rule: BrowRule | None = None,
     perlin: PerlinSettings | None = None,
     output_format: str | None = None,

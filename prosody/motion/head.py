@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from audio_features import Features
+from audio_features import DEFAULT_FPS, Features
 
 from ..errors import ConfigError, ModelError
 from ..fap.table import HEAD_FAPS
@@ -32,6 +32,9 @@ INPUT_NAMES = ("energy_db", "f0_conditioned_hz", "energy_x_f0", "energy_db_mean_
 #: Largest spectral radius accepted for the free-running model (1 would not decay).
 MAX_SPECTRAL_RADIUS = 0.995
 DEFAULT_MODEL_PATH = Path(__file__).with_name("models") / "default_arx.json"
+#: Default orders and ridge penalty of the ARX model (the model, training and the command share them).
+DEFAULT_NA, DEFAULT_NB, DEFAULT_NK, DEFAULT_RIDGE = 1, 5, 0, 0.1
+ARX_DEFAULTS = {"na": DEFAULT_NA, "nb": DEFAULT_NB, "nk": DEFAULT_NK, "ridge": DEFAULT_RIDGE}
 
 
 def trailing_mean(values: np.ndarray, window: int) -> np.ndarray:
@@ -125,7 +128,8 @@ class ArxHeadModel:
     #: The name model files and ``--model`` use for this kind.
     kind = "arx"
 
-    def __init__(self, na: int = 1, nb: int = 5, nk: int = 0, ridge: float = 0.1, smoothing_s: float = 1.0,
+    def __init__(self, na: int = DEFAULT_NA, nb: int = DEFAULT_NB, nk: int = DEFAULT_NK, ridge: float = DEFAULT_RIDGE,
+                 smoothing_s: float = 1.0,
                  input_normalization: str = "recording"):
         self.na = na
         self.nb = nb
@@ -152,7 +156,7 @@ class ArxHeadModel:
             raise ConfigError(f"input_normalization must be 'recording' or 'global', got {self.input_normalization!r}")
 
     # fitting --------------------------------------------------------------------------------------------
-    def fit_arrays(self, inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], *, fps: float = 30.0,
+    def fit_arrays(self, inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], *, fps: float = DEFAULT_FPS,
                    names: Sequence[str] | None = None) -> ArxHeadModel:
         """Fit on raw input arrays (n_t, n_inputs) and outputs (n_t, n_outputs), one pair per recording."""
         self._check_orders()

@@ -18,14 +18,14 @@ from typing import Any
 
 import numpy as np
 
-from audio_features import AUDIO_EXTENSIONS, Features, extract_features
+from audio_features import AUDIO_EXTENSIONS, DEFAULT_FPS, Features, extract_features
 
 from ..errors import ConfigError, GroundTruthError, ProsodyError
 from ..fap.table import HEAD_FAPS
 from ..measures import head_metrics, pearson
 from .controls import shift_offsets, shifted_features
 from .ground_truth import fit_to_grid, read_motion
-from .head import ArxHeadModel, arx_inputs
+from .head import DEFAULT_NA, DEFAULT_NB, DEFAULT_NK, DEFAULT_RIDGE, ArxHeadModel, arx_inputs
 from .speech_head import ProsodicHeadModel
 
 #: Kinds of head model ``train`` fits.
@@ -48,7 +48,7 @@ class TrainingSet:
     motion_au: list[np.ndarray] = field(default_factory=list)
     features: list[Features] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
-    fps: float = 30.0
+    fps: float = DEFAULT_FPS
 
 
 def find_pairs(directory: str | os.PathLike[str]) -> list[tuple[Path, Path]]:
@@ -65,7 +65,7 @@ def find_pairs(directory: str | os.PathLike[str]) -> list[tuple[Path, Path]]:
     return pairs
 
 
-def load_training_set(pairs: Iterable[tuple[Path, Path]], *, fps: float = 30.0,
+def load_training_set(pairs: Iterable[tuple[Path, Path]], *, fps: float = DEFAULT_FPS,
                       report: Callable[[str], None] | None = None, **analysis: Any) -> TrainingSet:
     """Extract features and read motion for each pair; a pair that fails or whose durations disagree by
     more than two frames is reported by name and skipped, never silently trimmed."""
@@ -109,7 +109,8 @@ class CrossValidation:
     pitch_r: float | None = None
 
 
-def leave_one_out(data: TrainingSet, *, na: int, nb: int, nk: int, ridge: float = 0.1) -> CrossValidation:
+def leave_one_out(data: TrainingSet, *, na: int, nb: int, nk: int,
+                  ridge: float = DEFAULT_RIDGE) -> CrossValidation:
     """Fit on all recordings but one, run free on the one left out; average over recordings."""
     if len(data.names) < 2:
         raise ConfigError("cross-validation needs at least two recordings")
@@ -255,7 +256,8 @@ def held_out_summary(result: HeldOut) -> dict:
 
 
 def train(directory: str | os.PathLike[str], output: str | os.PathLike[str], *, kind: str = "prosodic",
-          cv: bool = False, na: int = 1, nb: int = 5, nk: int = 0, ridge: float = 0.1, fps: float = 30.0,
+          cv: bool = False, na: int = DEFAULT_NA, nb: int = DEFAULT_NB, nk: int = DEFAULT_NK,
+          ridge: float = DEFAULT_RIDGE, fps: float = DEFAULT_FPS,
           report: Callable[[str], None] | None = None) -> ArxHeadModel | ProsodicHeadModel:
     """Train a head model on every pair in ``directory`` and save it to ``output`` (JSON).
 
