@@ -263,6 +263,10 @@ def test_train_prosodic_with_cv_stores_held_out_figures(tmp_path, rng) -> None:
     assert set(cv["settings"]) == {"pitch_share", "speed_iterations"}
     assert set(cv["mean"]) == {"speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db", "std_ratio"}
     assert payload["settings"]["pitch_share"] == cv["settings"]["pitch_share"]
+    diagnostics = payload["diagnostics"]
+    assert diagnostics["ljung_box_lags"] == 10
+    assert set(diagnostics["ljung_box_p"]) == {"speed_envelope", "pitch"}
+    assert set(diagnostics["ljung_box_p"]["pitch"]) == {"clip0", "clip1", "clip2"}
 
 
 def test_random_channels_are_independent_and_never_repeat() -> None:

@@ -164,3 +164,29 @@ def test_training_on_real_clips_beats_perlin_left_out(shared_data) -> None:
     assert speech_r > 0.05  # modest, as head motion is only partly predictable from speech
     assert speech_r > perlin_r + 0.05
     assert all(r > 0 for r in result.pearson_per_axis)
+
+
+def test_diagnostics_of_a_simulated_system_poles_and_white_residuals(rng) -> None:
+    from prosody.motion.training import TrainingSet, diagnostics
+
+    inputs, outputs, _, _ = _simulate(rng, n=3000, noise_std=0.5)
+    model = ArxHeadModel(na=2, nb=2, nk=1, ridge=0.0, input_normalization="global").fit_arrays(inputs, outputs)
+    # the poles of y[t] = A1 y[t-1] + A2 y[t-2]: the eigenvalues of the true companion matrix
+    companion = np.zeros((6, 6))
+    companion[:3, :] = np.hstack(list(TRUE_A))
+    companion[3:, :3] = np.eye(3)
+    expected = np.sort_complex(np.linalg.eigvals(companion))
+    np.testing.assert_allclose(np.sort_complex(model.poles()), expected, atol=0.02)
+    data = TrainingSet(["a", "b", "c"], inputs, outputs)
+    report = diagnostics(model, data)
+    # the simulated noise is white: the residuals' Ljung-Box p-values are not small
+    p_values = [p for axis in report["ljung_box_p"].values() for p in axis.values()]
+    # (p-values of white residuals are uniform on [0, 1]: at most one of nine below 0.01, as chance allows)
+    assert len(p_values) == 9 and sum(p < 0.01 for p in p_values) <= 1 and np.median(p_values) > 0.1
+    assert report["largest_pole_modulus"] == pytest.approx(np.abs(expected).max(), abs=0.02)
+    # residuals that follow each other (an output smoothed over time) are caught
+    smooth = [np.cumsum(y, axis=0) * 0.01 + y for y in outputs]
+    drifting = ArxHeadModel(na=1, nb=1, nk=1, input_normalization="global").fit_arrays(inputs, smooth)
+    small = [p for axis in diagnostics(drifting, TrainingSet(["a", "b", "c"], inputs, smooth))["ljung_box_p"].values()
+             for p in axis.values()]
+    assert max(small) < 0.01

@@ -141,6 +141,16 @@ def test_analyze_cli_writes_exact_shape_and_report(tmp_path, capsys) -> None:
     assert results["scores"]["clip"] == {name: 8 for name in CONDITIONS}  # always left: 4 lefts x 2 subjects
     assert len(results["ttests"]) == 12
     for test in results["ttests"]:
-        assert set(test) == {"stimulus", "a", "b", "mean", "sd", "se", "ci_low", "ci_high", "t", "df", "p"}
+        assert set(test) == {"stimulus", "a", "b", "mean", "sd", "se", "ci_low", "ci_high", "t", "df", "p", "p_holm"}
     text = report.read_text()
     assert "## clip" in text and "| SPEECH_DRIVEN | 8 |" in text
+
+
+def test_holm_correction_by_hand() -> None:
+    from prosody.evaluation.study import _add_holm
+
+    # Holm: sort p ascending, multiply the k-th smallest by (m - k + 1), keep the running maximum, cap at 1
+    tests = [{"stimulus": "s", "p": p} for p in (0.04, 0.01, 0.03, None)] + [{"stimulus": "t", "p": 0.2}]
+    _add_holm(tests)
+    assert [t["p_holm"] for t in tests[:3]] == pytest.approx([0.06, 0.03, 0.06])  # 0.01*3, 0.03*2, max(.04, .06)
+    assert tests[3]["p_holm"] is None and tests[4]["p_holm"] == pytest.approx(0.2)  # its own family of one

@@ -220,7 +220,8 @@ def analyze_ballots(ballots: Sequence[Ballot]) -> dict:
     -------
     dict
         ``{"scores": {stimulus: {condition: int}}, "ttests": [{"stimulus", "a", "b", "mean", "sd", "se",
-        "ci_low", "ci_high", "t", "df", "p"}]}``; a comes before b in NO_PROSODY, RANDOM, SPEECH_DRIVEN,
+        "ci_low", "ci_high", "t", "df", "p", "p_holm"}]}`` (``p_holm``: Holm-corrected over the stimulus's
+        six tests); a comes before b in NO_PROSODY, RANDOM, SPEECH_DRIVEN,
         GROUND_TRUTH order and the differences are a minus b over the subjects who judged the stimulus.
     """
     by_stimulus: dict[str, list[Ballot]] = {}
@@ -238,7 +239,24 @@ def analyze_ballots(ballots: Sequence[Ballot]) -> dict:
         for i, j in itertools.combinations(range(len(CONDITIONS)), 2):
             tests.append({"stimulus": stimulus, "a": CONDITIONS[i], "b": CONDITIONS[j],
                           **paired_t_test(per_subject[:, i], per_subject[:, j])})
+    _add_holm(tests)
     return {"scores": scores, "ttests": tests}
+
+
+def _add_holm(tests: list[dict]) -> None:
+    """``p_holm``: each stimulus's six p-values corrected together by Holm's step-down method
+    (statsmodels), so that a study reads its pairwise comparisons at a family-wise 5 %; None where p is."""
+    from statsmodels.stats.multitest import multipletests
+
+    by_stimulus: dict[str, list[dict]] = {}
+    for test in tests:
+        test["p_holm"] = None
+        if test["p"] is not None:
+            by_stimulus.setdefault(test["stimulus"], []).append(test)
+    for family in by_stimulus.values():
+        corrected = multipletests([test["p"] for test in family], method="holm")[1]
+        for test, value in zip(family, corrected, strict=True):
+            test["p_holm"] = float(value)
 
 
 def confusion_matrix(ballots: Sequence[Ballot], stimulus: str) -> np.ndarray:
@@ -278,10 +296,11 @@ def study_markdown(ballots: Sequence[Ballot], results: dict, *, notes: Sequence[
             lines.append(f"| {name} | " + " | ".join(str(v) for v in matrix[i]) + " |")
         lines += ["", "| condition | score |", "|---|---|"]
         lines += [f"| {name} | {scores[name]} |" for name in CONDITIONS]
-        lines += ["", "| a − b | mean | sd | se | 95% CI | t | df | p |", "|---|---|---|---|---|---|---|---|"]
+        lines += ["", "| a − b | mean | sd | se | 95% CI | t | df | p | p (Holm) |",
+                  "|---|---|---|---|---|---|---|---|---|"]
         for test in tests_by_stimulus.get(stimulus, []):
             ci = ("–" if test["ci_low"] is None else f"[{test['ci_low']:.2f}, {test['ci_high']:.2f}]")
             lines.append(f"| {test['a']} − {test['b']} | {number(test['mean'])} | {number(test['sd'])} | "
                          f"{number(test['se'])} | {ci} | {number(test['t'])} | {test['df']} | "
-                         f"{number(test['p'], 4)} |")
+                         f"{number(test['p'], 4)} | {number(test.get('p_holm'), 4)} |")
     return "\n".join(lines) + "\n"

@@ -256,6 +256,28 @@ class ArxHeadModel:
                 history = np.concatenate([y, history[:-k]])
         return out * self.output_scale_
 
+    def one_step_residuals(self, inputs: np.ndarray, outputs: np.ndarray) -> np.ndarray:
+        """Residuals (n, 3) of the fitted regression on one recording: recorded outputs (AU) less the one-step
+        prediction from the recorded past outputs and the inputs, in units of the training spread."""
+        self._check_fitted()
+        un = (self._per_recording(np.asarray(inputs, float)) - self.input_mean_) / self.input_std_
+        yn = np.asarray(outputs, float) / self.output_scale_
+        regressors = _lagged(un, yn, na=self.na, nb=self.nb, nk=self.nk)
+        theta = np.vstack([*(a.T for a in self.a_), *(b.T for b in self.b_), self.c_[None, :]])
+        start = max(self.na, self.nk + self.nb - 1)
+        return (yn - regressors @ theta)[start:]
+
+    def poles(self) -> np.ndarray:
+        """Eigenvalues of the free run's companion matrix (all inside the unit circle for a stable model)."""
+        self._check_fitted()
+        k = len(HEAD_FAPS)
+        if self.na == 0:
+            return np.zeros(0, dtype=complex)
+        companion = np.zeros((self.na * k, self.na * k))
+        companion[:k, :] = np.hstack(list(self.a_))
+        companion[k:, :-k] = np.eye((self.na - 1) * k)
+        return np.linalg.eigvals(companion)
+
     def rest_pose_au(self) -> np.ndarray:
         """The pose the model settles to when every input sits at its recording's average (per-recording
         normalisation) or at the training average ("global"): the steady state of the free run, AU (3,).

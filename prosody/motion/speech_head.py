@@ -367,6 +367,24 @@ class ProsodicHeadModel:
             total += smooth[np.clip(index + offset, 0, max(n - 1, 0))] @ scaled - float(mean[part] @ scaled)
         return total
 
+    def regression_residuals(self, features: Features, motion_au: np.ndarray) -> dict[str, np.ndarray]:
+        """Residuals of the two fitted regressions on one recording: the speed envelope (relative to its mean)
+        and the pitch (in units of its spread), recorded less predicted, before any gating."""
+        from ..measures import lowpass_head, speed_envelope
+
+        self._check_fitted()
+        radians = np.asarray(motion_au, float) * RADIANS_PER_AU
+        envelope = speed_envelope(radians, fps=self.fps_)
+        pitch = lowpass_head(radians, fps=self.fps_)[:, 0]
+        envelope = envelope / envelope.mean() if envelope.mean() > 0 else envelope
+        pitch = (pitch - pitch.mean()) / pitch.std() if pitch.std() > 0 else pitch
+        return {
+            "speed_envelope": envelope - self._linear(features, ENVELOPE_FEATURES, self.envelope_weights_,
+                                                      self.envelope_mean_, self.envelope_std_),
+            "pitch": pitch - self._linear(features, PITCH_FEATURES, self.pitch_weights_, self.pitch_mean_,
+                                          self.pitch_std_),
+        }
+
     def predicted_envelope(self, features: Features) -> np.ndarray:
         """Predicted head speed relative to the average while speaking (1 = average), with the idle floor
         and the fall to idle where there is no speech; shape (n_frames,)."""

@@ -240,6 +240,42 @@ def select_prosodic(data: TrainingSet, *, grid: dict[str, Sequence[float]] | Non
     return sorted(results, key=lambda r: -r.score)
 
 
+#: Lags of the Ljung-Box test on a fitted regression's residuals (a third of a second at 30 fps).
+LJUNG_BOX_LAGS = 10
+
+
+def _ljung_box(residuals: np.ndarray) -> float | None:
+    """Ljung-Box p-value (statsmodels) that the residuals are uncorrelated up to :data:`LJUNG_BOX_LAGS`."""
+    from statsmodels.stats.diagnostic import acorr_ljungbox
+
+    residuals = np.asarray(residuals, float)
+    if residuals.size <= LJUNG_BOX_LAGS + 1 or residuals.std() == 0:
+        return None
+    return float(acorr_ljungbox(residuals, lags=[LJUNG_BOX_LAGS])["lb_pvalue"].iloc[0])
+
+
+def diagnostics(model: ArxHeadModel | ProsodicHeadModel, data: TrainingSet) -> dict:
+    """What a model file keeps about its fit: the Ljung-Box p-value of each fitted regression's residuals on
+    each training recording (small: the residuals are correlated in time, so the regressions' own standard
+    errors would be too small; the held-out measures are the figures to trust), and for an ARX model its poles.
+    """
+    if isinstance(model, ArxHeadModel):
+        per_axis: dict[str, dict[str, float | None]] = {str(fap): {} for fap in HEAD_FAPS}
+        for name, inputs, motion in zip(data.names, data.inputs, data.motion_au, strict=True):
+            residuals = model.one_step_residuals(inputs, motion)
+            for axis, fap in enumerate(HEAD_FAPS):
+                per_axis[str(fap)][name] = _ljung_box(residuals[:, axis])
+        poles = model.poles()
+        return {"ljung_box_lags": LJUNG_BOX_LAGS, "ljung_box_p": per_axis,
+                "poles": [[float(pole.real), float(pole.imag)] for pole in poles],
+                "largest_pole_modulus": float(np.abs(poles).max()) if poles.size else 0.0}
+    regressions: dict[str, dict[str, float | None]] = {"speed_envelope": {}, "pitch": {}}
+    for name, features, motion in zip(data.names, data.features, data.motion_au, strict=True):
+        for key, residuals in model.regression_residuals(features, motion).items():
+            regressions[key][name] = _ljung_box(residuals)
+    return {"ljung_box_lags": LJUNG_BOX_LAGS, "ljung_box_p": regressions}
+
+
 def held_out_summary(result: HeldOut) -> dict:
     """The JSON form of a held-out evaluation: settings, seeds, means, and the per-recording tables."""
     keys = ("speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db")
@@ -306,6 +342,7 @@ def _train_loaded(data: TrainingSet, directory: str | os.PathLike[str], output: 
                    f"pitch r {_signed(final.mean('pitch_r'))} "
                    f"(mismatched audio {_signed(final.mean('pitch_r', control=True))})")
         model = ProsodicHeadModel(**settings).fit(data.features, data.motion_au, names=data.names)
+        extra["diagnostics"] = diagnostics(model, data)
         model.save(output, extra=extra)
         report(f"{output}: prosodic head model trained on {len(data.names)} recordings "
                f"({sum(c.duration_s for c in model.training_):.1f} s)")
@@ -319,6 +356,7 @@ def _train_loaded(data: TrainingSet, directory: str | os.PathLike[str], output: 
         report(f"chosen orders na={na} nb={nb} nk={nk}, ridge {ridge:g} (free-run RMSE {best.rmse_au:.0f} AU)")
     model = ArxHeadModel(na, nb, nk, ridge=ridge).fit_arrays(data.inputs, data.motion_au, fps=fps,
                                                              names=data.names)
+    extra["diagnostics"] = diagnostics(model, data)
     model.save(output, extra=extra)
     report(f"{output}: trained on {len(data.names)} recordings "
            f"({sum(c.duration_s for c in model.training_):.1f} s), spectral radius {model.spectral_radius_:.3f}")
