@@ -207,9 +207,9 @@ def paired_t_test(a: np.ndarray, b: np.ndarray) -> dict[str, float | int | None]
     result: dict[str, float | int | None] = {"mean": mean, "sd": sd, "se": se, "ci_low": None, "ci_high": None,
                                              "t": None, "df": n - 1, "p": None}
     if n > 1 and se > 0:
-        t = mean / se
+        test = stats.ttest_rel(np.asarray(a, float), np.asarray(b, float))  # two-tailed, df = n - 1
         half = _t_quantile_975(n - 1) * se
-        result.update(ci_low=mean - half, ci_high=mean + half, t=t, p=float(2 * stats.t.sf(abs(t), n - 1)))
+        result.update(ci_low=mean - half, ci_high=mean + half, t=float(test.statistic), p=float(test.pvalue))
     return result
 
 
