@@ -12,6 +12,7 @@ import dataclasses
 import json
 import sys
 from collections.abc import Callable, Sequence
+from typing import Any
 
 from audio_features.defaults import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS
 
@@ -248,25 +249,39 @@ def _cmd_convert(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+class _ProgressBar:
+    """The command's one progress bar (tqdm) on a terminal, fed as a ``progress(done, total)`` callback;
+    nothing in pipes or CI. Lines said while it runs are printed above it."""
+
+    def __init__(self, description: str, unit: str) -> None:
+        import os
+
+        self.description, self.unit = description, unit
+        self.bar: Any = None  # a tqdm bar once the first report arrives
+        self.enabled = sys.stderr.isatty() and not os.environ.get("CI")
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.enabled:
+            return
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc=self.description, unit=self.unit, file=sys.stderr, leave=False)
+        self.bar.update(done - self.bar.n)
+        if done >= total:
+            self.bar.close()
+
+    def say(self, line: str) -> None:
+        if self.bar is not None and not self.bar.disable:
+            self.bar.write(line, file=sys.stderr)
+        else:
+            print(line, file=sys.stderr)
+
+
 def _frame_progress(output: str, verb: str = "drawn") -> Callable[[int, int], None] | None:
-    """A once-a-second 'frames drawn' line on a terminal; nothing in pipes or CI."""
-    import os
-    import time
-
-    if not sys.stderr.isatty() or os.environ.get("CI"):
-        return None
-    last = [0.0]
-
-    def show(done: int, total: int) -> None:
-        now = time.monotonic()
-        if now - last[0] >= 1.0 or done == total:
-            last[0] = now
-            sys.stderr.write(f"\r{output}: {done}/{total} frames {verb} ({100 * done // max(total, 1)}%)")
-            if done == total:
-                sys.stderr.write("\n")
-            sys.stderr.flush()
-
-    return show
+    """A bar of frames analysed or drawn on a terminal; None in pipes or CI."""
+    bar = _ProgressBar(f"{output}: frames {verb}", "frame")
+    return bar if bar.enabled else None
 
 
 def _cmd_preview(args: argparse.Namespace) -> int:
@@ -317,7 +332,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from .motion.head import ARX_DEFAULTS
 
     orders = {name: ARX_DEFAULTS[name] if value is None else value for name, value in orders.items()}
-    train(args.data, args.output, kind=args.kind, cv=args.cv, fps=args.fps, **orders)
+    train(args.data, args.output, kind=args.kind, cv=args.cv, fps=args.fps,
+          report=lambda line: print(line, file=sys.stderr), **orders)
     return EXIT_OK
 
 
@@ -342,26 +358,25 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:
-    from .jobs.batch import BatchOptions, Progress, find_audio_files, run_batch
+    from .jobs.batch import BatchOptions, find_audio_files, run_batch
 
     conditions = [name for value in args.condition for name in value.split(",") if name.strip()] or None
     options = BatchOptions(model=args.model, seed=args.seed, seeds=args.seeds, normalize=args.normalize,
                            plots=args.plots, brows=args.brows, **_analysis_kwargs(args))
     if conditions:
         options = dataclasses.replace(options, conditions=tuple(conditions))
-    progress = Progress(len(find_audio_files(args.input)))
+    total = len(find_audio_files(args.input))
+    progress = _ProgressBar(f"{args.output}", "file")
+    finished = [0]
 
     def on_outcome(outcome) -> None:
+        # warnings and failures are always said, on their own lines, above the bar
         for note in outcome.warnings:
-            if progress.enabled:
-                sys.stderr.write("\r" + " " * 80 + "\r")
-            print(f"prosody batch: warning: {outcome.file}: {note}", file=sys.stderr)
+            progress.say(f"prosody batch: warning: {outcome.file}: {note}")
         if outcome.status == "failed":
-            # failures are always said, on their own line, whatever the progress display does
-            if progress.enabled:
-                sys.stderr.write("\r" + " " * 80 + "\r")
-            print(f"prosody batch: error: {outcome.file}: {outcome.error}", file=sys.stderr)
-        progress.advance(outcome)
+            progress.say(f"prosody batch: error: {outcome.file}: {outcome.error}")
+        finished[0] += 1
+        progress(finished[0], total)
 
     summary = run_batch(args.input, args.output, ground_truth_dir=args.ground_truth_dir, options=options,
                         jobs=args.jobs, scheduler=args.scheduler, force=args.force, on_outcome=on_outcome)

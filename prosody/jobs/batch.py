@@ -14,7 +14,6 @@ import hashlib
 import json
 import os
 import re
-import sys
 import time
 import warnings
 from collections.abc import Callable, Iterable, Iterator
@@ -303,26 +302,6 @@ def make_executor(*, jobs: int = 1, scheduler: str | None = None) -> Iterator[Ex
             yield pool
     else:
         yield None
-
-
-class Progress:
-    """A one-line progress bar on a terminal; silent when stderr is not one (pipes, CI)."""
-
-    def __init__(self, total: int, *, stream=None, enabled: bool | None = None) -> None:
-        self.total, self.done, self.stream = total, 0, stream or sys.stderr
-        is_tty = getattr(self.stream, "isatty", lambda: False)()
-        self.enabled = enabled if enabled is not None else bool(is_tty and not os.environ.get("CI"))
-
-    def advance(self, outcome: FileOutcome) -> None:
-        self.done += 1
-        if self.enabled:
-            width = 30
-            filled = int(width * self.done / max(1, self.total))
-            name = outcome.file if len(outcome.file) <= 40 else "..." + outcome.file[-37:]
-            self.stream.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} {name:<40}")
-            if self.done == self.total:
-                self.stream.write("\n")
-            self.stream.flush()
 
 
 def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,

@@ -9,8 +9,8 @@ before, now reporting the same head measures beside it.
 from __future__ import annotations
 
 import itertools
+import logging
 import os
-import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +28,8 @@ from .ground_truth import fit_to_grid, read_motion
 from .head import DEFAULT_NA, DEFAULT_NB, DEFAULT_NK, DEFAULT_RIDGE, ArxHeadModel, arx_inputs
 from .speech_head import ProsodicHeadModel
 
+#: Where training reports its progress when no ``report`` callable is given (the library never prints).
+_LOG = logging.getLogger("prosody.training")
 #: Kinds of head model ``train`` fits.
 MODEL_KINDS = ("prosodic", "arx")
 #: Settings of the prosodic generator tried by cross-validation (the rest keep their defaults).
@@ -69,7 +71,7 @@ def load_training_set(pairs: Iterable[tuple[Path, Path]], *, fps: float = DEFAUL
                       report: Callable[[str], None] | None = None, **analysis: Any) -> TrainingSet:
     """Extract features and read motion for each pair; a pair that fails or whose durations disagree by
     more than two frames is reported by name and skipped, never silently trimmed."""
-    report = report or (lambda message: print(message, file=sys.stderr))
+    report = report or _LOG.info
     pairs = list(pairs)
     data = TrainingSet(fps=fps)
     for index, (audio, motion_path) in enumerate(pairs, start=1):
@@ -139,7 +141,7 @@ def select_orders(data: TrainingSet, *, grid: dict[str, Sequence[float]] | None 
                   report: Callable[[str], None] | None = None) -> list[CrossValidation]:
     """Score every combination of orders and ridge penalties; best (lowest free-run RMSE) first."""
     chosen: dict[str, Sequence[float]] = dict(grid or DEFAULT_ORDER_GRID)
-    report = report or (lambda message: print(message, file=sys.stderr))
+    report = report or _LOG.info
     combos = list(itertools.product(chosen["na"], chosen["nb"], chosen["nk"], chosen["ridge"]))
     results = []
     for index, (na, nb, nk, ridge) in enumerate(combos, start=1):
@@ -309,7 +311,7 @@ def train(directory: str | os.PathLike[str], output: str | os.PathLike[str], *, 
     """
     if kind not in MODEL_KINDS:
         raise ConfigError(f"kind must be one of {', '.join(MODEL_KINDS)}, got {kind!r}")
-    report = report or (lambda message: print(message, file=sys.stderr))
+    report = report or _LOG.info
     pairs = find_pairs(directory)
     if not pairs:
         raise ConfigError(f"{directory}: no <name>.wav with <name>.head.csv or <name>.fap found")
