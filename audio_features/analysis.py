@@ -36,7 +36,8 @@ SegmentReader = Callable[[int, int], np.ndarray]
 """``read(start_sample, n_samples)`` -> mono float64 samples, zeros outside the recording."""
 
 
-@dataclass(frozen=True)
+# arrays inside: equality is identity (numpy's == is elementwise), so it stays hashable
+@dataclass(frozen=True, eq=False)
 class GridAnalysis:
     """Raw analysis results on the frame grid (before F0 conditioning)."""
 

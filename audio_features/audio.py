@@ -23,7 +23,8 @@ MAX_SAMPLE_RATE_HZ = 768000
 ESTIMATED_LENGTH_FORMATS = frozenset({"MP3", "MPEG"})
 
 
-@dataclass(frozen=True)
+# arrays inside: equality is identity (numpy's == is elementwise), so it stays hashable
+@dataclass(frozen=True, eq=False)
 class Audio:
     """Mono audio in memory.
 

@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from ._atomic import atomic_write
 from .analysis import analyse_grid, array_reader, sound_file_reader
+from .atomic import atomic_write
 from .audio import ESTIMATED_LENGTH_FORMATS, Audio, check_shape, decode_failure, open_sound_file, truncation
 from .defaults import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS
 from .errors import AudioLoadError, NoVoicedFramesWarning, ParameterError
@@ -31,7 +31,8 @@ _SCAN_BLOCK = 1 << 20
 IN_MEMORY_SAMPLES = 1 << 24
 
 
-@dataclass(frozen=True)
+# arrays inside: equality is identity (numpy's == is elementwise), so it stays hashable
+@dataclass(frozen=True, eq=False)
 class Features:
     """Acoustic tracks of one recording, all on the same frame grid.
 

@@ -33,7 +33,8 @@ def frame_count(duration_s: float, *, fps: float) -> int:
     return int(np.ceil(duration_s * fps - 1e-9))
 
 
-@dataclass(frozen=True)
+# arrays inside: equality is identity (numpy's == is elementwise), so it stays hashable
+@dataclass(frozen=True, eq=False)
 class Track:
     """A scalar signal sampled on the frame grid.
 
@@ -69,7 +70,8 @@ class Track:
         return np.arange(self.n_frames) / self.fps
 
 
-@dataclass(frozen=True)
+# arrays inside: equality is identity (numpy's == is elementwise), so it stays hashable
+@dataclass(frozen=True, eq=False)
 class F0Track(Track):
     """F0 on the frame grid, with NaN where the frame is unvoiced.
 

@@ -396,7 +396,7 @@ def _cmd_study_plan(args: argparse.Namespace) -> int:
 
 
 def _cmd_study_analyze(args: argparse.Namespace) -> int:
-    from audio_features._atomic import atomic_write
+    from audio_features.atomic import atomic_write
 
     from .evaluation.study import analyze_ballots, missing_pairs, read_ballots, study_markdown
 

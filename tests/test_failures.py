@@ -273,3 +273,15 @@ def test_one_root_catches_what_either_package_raises(tmp_path) -> None:
     assert issubclass(PreviewError, OSError) and issubclass(UnknownFapError, KeyError)
     with pytest.raises(UnknownFapError, match="unknown FAP 99"):
         fap_info(99)
+
+
+def test_results_holding_arrays_compare_by_identity_and_hash() -> None:
+    from audio_features import Audio
+    from prosody.fap.stream import FapStream
+
+    features = extract_features(Audio(harmonic_tone(200, 0.5, 16000), 16000))
+    stream = FapStream.from_curves({48: np.zeros(3)}, fps=30)
+    for value in (features, features.f0, features.energy, stream):
+        assert value == value and hash(value) == hash(value)  # no "truth value of an array is ambiguous"
+    assert {features, stream} == {features, stream}
+    assert FapStream.from_curves({48: np.zeros(3)}, fps=30) != stream  # equal content, another object

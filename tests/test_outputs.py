@@ -13,7 +13,7 @@ import threading
 import numpy as np
 import pytest
 
-from audio_features._atomic import atomic_write
+from audio_features.atomic import atomic_write
 from prosody.cli import main
 
 SR = 16000

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from audio_features import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS, Features, extract_features
-from audio_features._atomic import atomic_write
+from audio_features.atomic import atomic_write
 
 from ..errors import ConfigError
 from ..fap.stream import FapStream
@@ -45,7 +45,8 @@ SUMMARY_SEEDS = 10
 NORMALIZED_CONDITIONS = (Condition.RANDOM, Condition.SPEECH_DRIVEN, Condition.GROUND_TRUTH)
 
 
-@dataclass(frozen=True)
+# arrays inside: equality is identity (numpy's == is elementwise), so it stays hashable
+@dataclass(frozen=True, eq=False)
 class Comparison:
     """The conditions of one recording and how they compare.
 

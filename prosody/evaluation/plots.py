@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from audio_features._atomic import atomic_write
+from audio_features.atomic import atomic_write
 
 from ..fap.table import BY_NUMBER, HEAD_FAPS, RADIANS_PER_AU
 

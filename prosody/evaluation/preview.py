@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from audio_features._atomic import atomic_path, atomic_write
+from audio_features.atomic import atomic_path, atomic_write
 
 from ..errors import ConfigError, PreviewError
 from ..fap.stream import FapStream

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from audio_features._atomic import atomic_write
+from audio_features.atomic import atomic_write
 
 from ..errors import BallotError, ConfigError
 from ..motion.conditions import CONDITION_ORDER

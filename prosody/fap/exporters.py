@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from audio_features._atomic import atomic_write
+from audio_features.atomic import atomic_write
 
 from ..errors import ConfigError, FapWriteError
 from .stream import FapStream

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from audio_features._atomic import atomic_write
+from audio_features.atomic import atomic_write
 
 from ..errors import FapFormatError, FapIrregularityWarning, FapWriteError
 from .stream import FapStream
@@ -43,7 +43,8 @@ _HIGH_LEVEL_WIDTHS = {1: 4, 2: 6}
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 
 
-@dataclass(frozen=True)
+# arrays inside: equality is identity (numpy's == is elementwise), so it stays hashable
+@dataclass(frozen=True, eq=False)
 class FapFile:
     """A .fap file as read: the stream plus what the file said about itself.
 

@@ -20,7 +20,8 @@ def _fap_columns(faps: Iterable[int]) -> np.ndarray:
     return np.array(columns, dtype=int)
 
 
-@dataclass(frozen=True)
+# arrays inside: equality is identity (numpy's == is elementwise), so it stays hashable
+@dataclass(frozen=True, eq=False)
 class FapStream:
     """Frames of MPEG-4 facial animation parameters.
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from audio_features import AUDIO_EXTENSIONS, DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS, AudioFeaturesError
-from audio_features._atomic import atomic_write
+from audio_features.atomic import atomic_write
 
 from ..errors import ConfigError, ProsodyError, VisualProsodyError
 from ..fap.table import PROSODY_FAPS

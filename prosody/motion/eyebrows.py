@@ -120,7 +120,8 @@ class EyebrowRule:
         return level + self.energy_relative_db
 
 
-@dataclass(frozen=True)
+# arrays inside: equality is identity (numpy's == is elementwise), so it stays hashable
+@dataclass(frozen=True, eq=False)
 class EyebrowRaises:
     """Result of the rule: the displacement (ENS) per frame and the raise events.
 

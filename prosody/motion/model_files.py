@@ -8,7 +8,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from audio_features._atomic import atomic_write
+from audio_features.atomic import atomic_write
 
 from ..errors import ModelError
 
