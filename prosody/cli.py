@@ -640,16 +640,36 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: How the library's messages name Python arguments, and the options that set them on the command line.
+_FLAGS = (
+    ("AccentRule(threshold_semitones=...)", "--accent-semitones ST"),
+    ("EyebrowRule(threshold_semitones=...)", "--brows thesis --eyebrow-semitones ST"),
+    ("eyebrow_rule=AccentRule()", "--brows accent"),
+    ("ground_truth=FILE", "--ground-truth FILE"),
+    ("output_format=NAME", "--format NAME"),
+    ("start_s= and duration_s=", "--start and --duration"),
+    ("fps=25 or 30, or FapStream.resampled", "--fps 25 or 30"),
+    ("scheduler=", "--scheduler"),
+)
+
+
+def _as_flags(message: str) -> str:
+    """A library message with its Python argument names replaced by the command's options."""
+    for python, flag in _FLAGS:
+        message = message.replace(python, flag)
+    return message
+
+
 def _run(handler: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
     from .errors import ParameterError, VisualProsodyError
 
     try:
         return handler(args)
     except ParameterError as error:  # prosody's ConfigError too
-        print(f"prosody {args.command}: error: {error}", file=sys.stderr)
+        print(f"prosody {args.command}: error: {_as_flags(str(error))}", file=sys.stderr)
         return EXIT_USAGE
     except VisualProsodyError as error:
-        print(f"prosody {args.command}: error: {error}", file=sys.stderr)
+        print(f"prosody {args.command}: error: {_as_flags(str(error))}", file=sys.stderr)
         return EXIT_FAILURE
     except BrokenPipeError:
         raise  # the reader of our output went away: main() ends quietly
@@ -667,7 +687,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     def show(message, category, filename, lineno, file=None, line=None):
         # a warning is a note to the user, one line, not a source listing
-        print(f"prosody {args.command}: warning: {message}", file=sys.stderr)
+        print(f"prosody {args.command}: warning: {_as_flags(str(message))}", file=sys.stderr)
 
     import signal
 

@@ -92,3 +92,16 @@ def test_batch_with_a_file_name_that_is_not_utf8(tmp_path) -> None:
     assert main(["batch", str(indir), "-o", str(out), "--condition", "none", "--seeds", "1"]) == 0
     assert (out / "summary.md").exists() and (out / "summary.json").exists()
     assert b"take_\xff.wav" in (out / "summary.md").read_bytes()
+
+
+def test_library_messages_name_python_arguments_and_the_command_names_its_options(tmp_path, speech, capsys) -> None:
+    from prosody.errors import ConfigError
+    from prosody.jobs.pipeline import convert
+
+    with pytest.raises(ConfigError, match=r"output_format=NAME"):
+        convert(speech, tmp_path / "x.unknown")
+    assert main(["convert", str(speech), "-o", str(tmp_path / "x.unknown")]) == 2
+    err = capsys.readouterr().err
+    assert "--format NAME" in err and "output_format" not in err
+    assert main(["convert", str(speech), "-o", str(tmp_path / "x.fap"), "--condition", "truth"]) == 2
+    assert "--ground-truth FILE" in capsys.readouterr().err

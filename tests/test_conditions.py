@@ -95,7 +95,7 @@ def test_condition_names_parse() -> None:
     assert Condition.parse("GROUND_TRUTH") is Condition.GROUND_TRUTH
     with pytest.raises(ConfigError, match="unknown condition"):
         Condition.parse("loud")
-    with pytest.raises(ConfigError, match="ground-truth"):
+    with pytest.raises(ConfigError, match="ground_truth=FILE"):
         condition_stream(Condition.GROUND_TRUTH, make_features(np.full(5, 100.0), np.full(5, 50.0)))
 
 

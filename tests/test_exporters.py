@@ -36,7 +36,7 @@ def _rows(path):
 def test_format_from_extension_and_name() -> None:
     assert format_for("a.fap") == "fap" and format_for("a.CSV") == "csv" and format_for("a.livelink.csv") == "livelink"
     assert format_for("a.bvh") == "bvh" and format_for("a.json") == "json" and format_for("a.txt", "csv") == "csv"
-    with pytest.raises(ConfigError, match="give --format"):
+    with pytest.raises(ConfigError, match="give output_format=NAME"):
         format_for("a.txt")
 
 

@@ -387,7 +387,7 @@ def _write_gif(frames: Iterator[np.ndarray], path: Path, *, fps: float, n_frames
     if n_frames > MAX_GIF_FRAMES:
         raise PreviewError(f"{path}: a GIF of {n_frames} frames is too long (at most {MAX_GIF_FRAMES}, "
                            f"{MAX_GIF_FRAMES / fps:.0f} s at {fps:g} fps); write .mp4, or choose an excerpt "
-                           "with --start and --duration")
+                           "with start_s= and duration_s=")
     images = [Image.fromarray(frame).quantize(colors=64, method=Image.Quantize.MEDIANCUT) for frame in frames]
     if not images:
         raise PreviewError(f"{path}: nothing to draw (the excerpt has no frames)")

@@ -127,7 +127,7 @@ def _head_section(metrics: Mapping) -> list[str]:
     conditions = metrics["conditions"]
     if not any((block.get("head") or {}).get("std_ratio", {}).get("48") is not None for block in conditions.values()):
         return ["", "## Head motion", "", "No recorded head motion was given, so the head measures are undefined "
-                "(give --ground-truth FILE)."]
+                "(give the recorded motion: --ground-truth FILE, or ground_truth= in Python)."]
     seeds = metrics.get("seeds", 1)
     lines = ["", "## Head motion against the recording", "",
              "How much the head moves over time (speed envelope: angular speed averaged over 0.5 s, angles "

@@ -183,7 +183,7 @@ def format_for(path: str | os.PathLike[str], format_name: str | None = None) -> 
             return candidate
     known = ", ".join(ending for ending, _ in endings)
     raise ConfigError(f"cannot tell the output format of {str(path)!r} from its extension ({known}); "
-                      "give --format")
+                      "give output_format=NAME")
 
 
 def write_stream(stream: FapStream, path: str | os.PathLike[str], format_name: str | None = None) -> str:

@@ -289,7 +289,7 @@ def _fap_lines(stream: FapStream, *, name: str | None = None) -> Iterator[str]:
     if stream.fps != int(stream.fps):
         raise FapWriteError(
             f"frame rate {stream.fps!r} is not an integer: the .fap header carries integer fps; write at an "
-            "integer rate (convert --fps 25 or 30; in Python, FapStream.resampled)"
+            "integer rate (fps=25 or 30, or FapStream.resampled)"
         )
     if stream.n_frames == 0:
         raise FapWriteError("the stream has no frame: players cannot play an empty .fap file")

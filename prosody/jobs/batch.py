@@ -278,7 +278,7 @@ def make_executor(*, jobs: int = 1, scheduler: str | None = None) -> Iterator[Ex
         try:
             from distributed import Client
         except ImportError:
-            raise ConfigError("--scheduler needs Dask distributed: pip install 'visual-prosody[cluster]'") from None
+            raise ConfigError("scheduler= needs Dask distributed: pip install 'visual-prosody[cluster]'") from None
         try:
             client = Client(scheduler, timeout="20s")
         except (OSError, TimeoutError, ValueError) as error:

@@ -110,7 +110,7 @@ def condition_stream(
         curves.update(head_motion(model, features, seed=seed))
         return FapStream.from_curves(curves, fps=fps, name=name, n_frames=n)
     if ground_truth is None:
-        raise ConfigError("the GROUND_TRUTH condition needs recorded motion (--ground-truth FILE)")
+        raise ConfigError("the GROUND_TRUTH condition needs recorded motion (ground_truth=FILE)")
     if ground_truth.n_frames != n or ground_truth.fps != fps:
         raise GroundTruthError("recorded motion must be on the features' frame grid (use fit_to_grid)")
     stream = ground_truth.select(PROSODY_FAPS).renamed(name)

@@ -36,11 +36,11 @@ def no_raise_message(raises: EyebrowRaises) -> str | None:
         return "no eyebrow raise: the recording has no voiced speech to raise them on"
     if raises.rule == "accent":
         return (f"no eyebrow raise: the voice never went above {raises.f0_threshold_hz:.0f} Hz (the accent "
-                "threshold) at speaking loudness; a lower threshold raises more often (AccentRule "
-                "threshold_semitones, --accent-semitones on the command line; default 4)")
+                "threshold) at speaking loudness; a lower threshold raises more often "
+                "(AccentRule(threshold_semitones=...), default 4)")
     return (f"no eyebrow raise: the pitch never rose through {raises.f0_threshold_hz:.0f} Hz (the thesis's rule "
-            "suits voices that reach it); the accent rule follows any voice (--brows accent), or set a "
-            "speaker-relative threshold (EyebrowRule threshold_semitones, --eyebrow-semitones)")
+            "suits voices that reach it); the accent rule follows any voice (eyebrow_rule=AccentRule()), or set "
+            "a speaker-relative threshold (EyebrowRule(threshold_semitones=...))")
 
 
 def warn_if_no_raise(raises: EyebrowRaises) -> None:
