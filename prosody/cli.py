@@ -36,24 +36,23 @@ def _positive_float(text: str) -> float:
     return value
 
 
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if not 0 <= value < 2**63:
-        raise argparse.ArgumentTypeError(f"expected a whole number from 0 to 2**63-1, got {text!r}")
-    return value
+def _whole_number(low: int, high: int, shown: str) -> Callable[[str], int]:
+    """An argparse type: a whole number in [low, high] (``shown`` is how the range is said)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"expected a whole number from {shown}, got {text!r}")
+        return value
+
+    return parse
 
 
-def _seeds(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if not 1 <= value <= 1000:
-        raise argparse.ArgumentTypeError(f"expected a whole number from 1 to 1000, got {text!r}")
-    return value
+_seed = _whole_number(0, 2**63 - 1, "0 to 2**63-1")
+_seeds = _whole_number(1, 1000, "1 to 1000")
 
 
 def _add_seeds_option(parser: argparse.ArgumentParser) -> None:

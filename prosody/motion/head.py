@@ -78,15 +78,21 @@ def _lagged(inputs: np.ndarray, outputs: np.ndarray | None, *, na: int, nb: int,
     return np.hstack(columns)
 
 
-def spectral_radius(a_matrices: np.ndarray) -> float:
-    """Largest eigenvalue modulus of the companion matrix of ``y[t] = sum A_i y[t-i]``."""
+def companion_poles(a_matrices: np.ndarray) -> np.ndarray:
+    """Eigenvalues of the companion matrix of ``y[t] = sum A_i y[t-i]`` (empty without feedback)."""
     na, k, _ = a_matrices.shape
     if na == 0:
-        return 0.0
+        return np.zeros(0, dtype=complex)
     companion = np.zeros((na * k, na * k))
     companion[:k, :] = np.hstack(list(a_matrices))
     companion[k:, :-k] = np.eye((na - 1) * k)
-    return float(np.max(np.abs(np.linalg.eigvals(companion))))
+    return np.linalg.eigvals(companion)
+
+
+def spectral_radius(a_matrices: np.ndarray) -> float:
+    """Largest eigenvalue modulus of the companion matrix of ``y[t] = sum A_i y[t-i]``."""
+    poles = companion_poles(a_matrices)
+    return float(np.max(np.abs(poles))) if poles.size else 0.0
 
 
 class ArxHeadModel:
@@ -270,13 +276,7 @@ class ArxHeadModel:
     def poles(self) -> np.ndarray:
         """Eigenvalues of the free run's companion matrix (all inside the unit circle for a stable model)."""
         self._check_fitted()
-        k = len(HEAD_FAPS)
-        if self.na == 0:
-            return np.zeros(0, dtype=complex)
-        companion = np.zeros((self.na * k, self.na * k))
-        companion[:k, :] = np.hstack(list(self.a_))
-        companion[k:, :-k] = np.eye((self.na - 1) * k)
-        return np.linalg.eigvals(companion)
+        return companion_poles(self.a_)
 
     def rest_pose_au(self) -> np.ndarray:
         """The pose the model settles to when every input sits at its recording's average (per-recording
