@@ -616,7 +616,8 @@ def build_parser() -> argparse.ArgumentParser:
         "analyze", help="score ballots and run paired t-tests",
         description="BALLOTS.csv has the columns stimulus,subject,left,right,choice (choice: left or right). "
                     "Writes {\"scores\": {stimulus: {condition: points}}, \"ttests\": [...]}: one paired t-test "
-                    "of per-subject scores (a minus b, 95% CI, two-tailed p) for each pair of conditions per "
+                    "of per-subject scores (a minus b, 95% CI, two-tailed p, and p_holm: Holm-corrected over the "
+                    "stimulus's six tests) for each pair of conditions per "
                     "stimulus. Incomplete, duplicated or unknown-condition rows are reported by line number.",
     )
     analyze.add_argument("input", metavar="BALLOTS.csv", help="ballot file")

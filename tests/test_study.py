@@ -7,6 +7,7 @@ import itertools
 import json
 from collections import Counter
 
+import numpy as np
 import pytest
 
 from prosody.cli import main
@@ -144,6 +145,32 @@ def test_analyze_cli_writes_exact_shape_and_report(tmp_path, capsys) -> None:
         assert set(test) == {"stimulus", "a", "b", "mean", "sd", "se", "ci_low", "ci_high", "t", "df", "p", "p_holm"}
     text = report.read_text()
     assert "## clip" in text and "| SPEECH_DRIVEN | 8 |" in text
+
+
+def test_holm_agrees_with_statsmodels(rng) -> None:
+    from statsmodels.stats.multitest import multipletests
+
+    from prosody.evaluation.study import holm
+
+    for size in (1, 2, 6, 13):
+        p_values = rng.uniform(0, 0.2, size) ** 2
+        p_values[0] = p_values[-1]  # ties too
+        np.testing.assert_allclose(holm(p_values), multipletests(p_values, method="holm")[1], rtol=1e-12)
+
+
+def test_vectorised_t_tests_equal_one_at_a_time(rng) -> None:
+    from scipy import stats
+
+    from prosody.evaluation.study import paired_t_tests
+
+    a, b = rng.integers(0, 5, (12, 7)).astype(float), rng.integers(0, 5, (12, 7)).astype(float)
+    b[:, 3] = a[:, 3]  # no difference at all: undefined
+    for k, result in enumerate(paired_t_tests(a, b)):
+        if k == 3:
+            assert result["t"] is None and result["p"] is None and result["sd"] == 0
+            continue
+        single = stats.ttest_rel(a[:, k], b[:, k])
+        assert result["t"] == pytest.approx(single.statistic) and result["p"] == pytest.approx(single.pvalue)
 
 
 def test_holm_correction_by_hand() -> None:

@@ -192,25 +192,13 @@ def _t_quantile_975(df: int) -> float:
 
 
 def paired_t_test(a: np.ndarray, b: np.ndarray) -> dict[str, float | int | None]:
-    """Paired t-test of ``a - b``: mean, sd (n - 1), se, 95% CI, t, df = n - 1, two-tailed p.
+    """Paired t-test of ``a - b`` (``scipy.stats.ttest_rel``): mean, sd (n - 1), se, 95% CI, t, df = n - 1,
+    two-tailed p.
 
     ``t`` and ``p`` (and the CI) are None where undefined: fewer than two subjects, or no spread in the
     differences.
     """
-    from scipy import stats
-
-    difference = np.asarray(a, float) - np.asarray(b, float)
-    n = difference.size
-    mean = float(difference.mean())
-    sd = float(difference.std(ddof=1)) if n > 1 else 0.0
-    se = sd / math.sqrt(n) if n > 1 else 0.0
-    result: dict[str, float | int | None] = {"mean": mean, "sd": sd, "se": se, "ci_low": None, "ci_high": None,
-                                             "t": None, "df": n - 1, "p": None}
-    if n > 1 and se > 0:
-        test = stats.ttest_rel(np.asarray(a, float), np.asarray(b, float))  # two-tailed, df = n - 1
-        half = _t_quantile_975(n - 1) * se
-        result.update(ci_low=mean - half, ci_high=mean + half, t=float(test.statistic), p=float(test.pvalue))
-    return result
+    return paired_t_tests(np.asarray(a, float)[:, None], np.asarray(b, float)[:, None])[0]
 
 
 def analyze_ballots(ballots: Sequence[Ballot]) -> dict:
@@ -228,34 +216,87 @@ def analyze_ballots(ballots: Sequence[Ballot]) -> dict:
     for ballot in ballots:  # one pass: the work grows with the ballots, not with ballots x stimuli
         by_stimulus.setdefault(ballot.stimulus, []).append(ballot)
     column = {name: i for i, name in enumerate(CONDITIONS)}
+    pairs = list(itertools.combinations(range(len(CONDITIONS)), 2))
     scores: dict[str, dict[str, int]] = {}
-    tests = []
+    tests: list[dict] = []
+    # the tests of all stimuli judged by the same number of subjects run as one vectorised call
+    groups: dict[int, list[tuple[int, np.ndarray, np.ndarray]]] = {}
     for stimulus, mine in by_stimulus.items():
         subjects = {subject: i for i, subject in enumerate(dict.fromkeys(ballot.subject for ballot in mine))}
         per_subject = np.zeros((len(subjects), len(CONDITIONS)), dtype=int)
         for ballot in mine:
             per_subject[subjects[ballot.subject], column[ballot.chosen]] += 1
         scores[stimulus] = {name: int(per_subject[:, i].sum()) for i, name in enumerate(CONDITIONS)}
-        for i, j in itertools.combinations(range(len(CONDITIONS)), 2):
-            tests.append({"stimulus": stimulus, "a": CONDITIONS[i], "b": CONDITIONS[j],
-                          **paired_t_test(per_subject[:, i], per_subject[:, j])})
+        for i, j in pairs:
+            groups.setdefault(len(subjects), []).append((len(tests), per_subject[:, i], per_subject[:, j]))
+            tests.append({"stimulus": stimulus, "a": CONDITIONS[i], "b": CONDITIONS[j]})
+    for members in groups.values():
+        indices = [index for index, _, _ in members]
+        results = paired_t_tests(np.column_stack([a for _, a, _ in members]),
+                                 np.column_stack([b for _, _, b in members]))
+        for index, result in zip(indices, results, strict=True):
+            tests[index].update(result)
     _add_holm(tests)
     return {"scores": scores, "ttests": tests}
 
 
-def _add_holm(tests: list[dict]) -> None:
-    """``p_holm``: each stimulus's six p-values corrected together by Holm's step-down method
-    (statsmodels), so that a study reads its pairwise comparisons at a family-wise 5 %; None where p is."""
-    from statsmodels.stats.multitest import multipletests
+def paired_t_tests(a: np.ndarray, b: np.ndarray) -> list[dict[str, float | int | None]]:
+    """:func:`paired_t_test` of each column of ``a`` (n, k) against the same column of ``b``, in one
+    ``scipy.stats.ttest_rel`` call."""
+    from scipy import stats
 
+    a = np.asarray(a, float).reshape(a.shape[0], -1)
+    b = np.asarray(b, float).reshape(b.shape[0], -1)
+    n = a.shape[0]
+    difference = a - b
+    mean = difference.mean(axis=0)
+    sd = difference.std(axis=0, ddof=1) if n > 1 else np.zeros(difference.shape[1])
+    se = sd / math.sqrt(n) if n > 1 else np.zeros(difference.shape[1])
+    defined = se > 0
+    t = np.full(mean.shape, np.nan)
+    p = np.full(mean.shape, np.nan)
+    if n > 1 and defined.any():
+        test = stats.ttest_rel(a[:, defined], b[:, defined], axis=0)  # two-tailed, df = n - 1
+        t[defined], p[defined] = test.statistic, test.pvalue
+    half = _t_quantile_975(n - 1) * se if n > 1 else np.zeros_like(se)
+    results: list[dict[str, float | int | None]] = []
+    for k in range(mean.size):
+        ok = bool(defined[k])
+        results.append({"mean": float(mean[k]), "sd": float(sd[k]), "se": float(se[k]),
+                        "ci_low": float(mean[k] - half[k]) if ok else None,
+                        "ci_high": float(mean[k] + half[k]) if ok else None,
+                        "t": float(t[k]) if ok else None, "df": n - 1, "p": float(p[k]) if ok else None})
+    return results
+
+
+def holm(p_values: Sequence[float]) -> np.ndarray:
+    """Holm's step-down correction of one family of p-values: the k-th smallest times (m - k + 1), made
+    non-decreasing, capped at 1 (the same as ``statsmodels.stats.multitest.multipletests(p, method="holm")``,
+    which the tests check, without its garbage collection on every call: 27 ms a family).
+
+    Examples
+    --------
+    >>> holm([0.04, 0.01, 0.03]).round(6).tolist()
+    [0.06, 0.03, 0.06]
+    """
+    values = np.asarray(p_values, float)
+    order = np.argsort(values, kind="stable")
+    scaled = values[order] * np.arange(values.size, 0, -1)
+    corrected = np.empty_like(values)
+    corrected[order] = np.minimum(np.maximum.accumulate(scaled), 1.0)
+    return corrected
+
+
+def _add_holm(tests: list[dict]) -> None:
+    """``p_holm``: each stimulus's six p-values corrected together by Holm's step-down method, so that a
+    study reads its pairwise comparisons at a family-wise 5 %; None where p is."""
     by_stimulus: dict[str, list[dict]] = {}
     for test in tests:
         test["p_holm"] = None
         if test["p"] is not None:
             by_stimulus.setdefault(test["stimulus"], []).append(test)
     for family in by_stimulus.values():
-        corrected = multipletests([test["p"] for test in family], method="holm")[1]
-        for test, value in zip(family, corrected, strict=True):
+        for test, value in zip(family, holm([test["p"] for test in family]), strict=True):
             test["p_holm"] = float(value)
 
 
