@@ -20,14 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-from prosody.measures import head_metrics
+from prosody.measures import average_head_metrics, head_metrics
 from prosody.motion.controls import shift_offsets, shifted_features
 from prosody.motion.head import ArxHeadModel, arx_inputs
 from prosody.motion.perlin import perlin_curves
 from prosody.motion.speech_head import ProsodicHeadModel
 from prosody.motion.training import (
     TrainingSet,
-    average_head_metrics,
     find_pairs,
     held_out_prosodic,
     load_training_set,

@@ -3,7 +3,7 @@ canonical correlation, and the thesis's mean/spread normalisation."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -358,3 +358,42 @@ def brow_metrics(generated_ens: np.ndarray, recorded_ens: np.ndarray, *, fps: fl
         "median_raise_s": median_s(ours),
         "recorded_median_raise_s": median_s(theirs),
     }
+
+
+# averaging measures over runs (seeds, control offsets, recordings) ------------------------------------------
+HEAD_MEASURES = ("speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db", "yaw_r", "roll_r")
+BROW_MEASURES = ("raise_r", "raises", "recorded_raises", "median_raise_s", "recorded_median_raise_s")
+
+
+def mean_of(rows: Sequence[dict], key: str) -> float | None:
+    """Mean of ``row[key]`` over the rows where it is not None; None if it is None everywhere."""
+    values = [row[key] for row in rows if row.get(key) is not None]
+    return float(np.mean(values)) if values else None
+
+
+def empty_head_metrics() -> dict:
+    """The head block where it is undefined (no recorded head to compare with)."""
+    return {**dict.fromkeys(HEAD_MEASURES), "std_ratio": dict.fromkeys(("48", "49", "50"))}
+
+
+def empty_brow_metrics() -> dict:
+    """The brow block where it is undefined (no recorded brows, or a condition without brows)."""
+    return {**dict.fromkeys(BROW_MEASURES), "onsets": dict.fromkeys(("precision", "recall", "f1"))}
+
+
+def average_head_metrics(rows: Sequence[dict]) -> dict:
+    """The mean of :func:`head_metrics` results (None entries left out), in the same layout."""
+    if not rows:
+        return empty_head_metrics()
+    result: dict = {key: mean_of(rows, key) for key in HEAD_MEASURES}
+    result["std_ratio"] = {axis: mean_of([row["std_ratio"] for row in rows], axis) for axis in ("48", "49", "50")}
+    return result
+
+
+def average_brow_metrics(rows: Sequence[dict]) -> dict:
+    """The mean of :func:`brow_metrics` results (None entries left out), in the same layout."""
+    if not rows:
+        return empty_brow_metrics()
+    result: dict = {key: mean_of(rows, key) for key in BROW_MEASURES}
+    result["onsets"] = {key: mean_of([row["onsets"] for row in rows], key) for key in ("precision", "recall", "f1")}
+    return result

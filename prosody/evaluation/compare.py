@@ -22,7 +22,11 @@ from ..errors import ConfigError
 from ..fap.stream import FapStream
 from ..fap.table import HEAD_FAPS
 from ..measures import (
+    average_brow_metrics,
+    average_head_metrics,
     brow_metrics,
+    empty_brow_metrics,
+    empty_head_metrics,
     fap_statistics,
     first_canonical_correlation,
     head_matrix,
@@ -75,48 +79,6 @@ class Comparison:
         return self.streams.get(Condition.GROUND_TRUTH)
 
 
-def _average_head(rows: list[dict]) -> dict:
-    """The mean of head-measure dicts, None where every value is None."""
-
-    def mean(values: list) -> float | None:
-        present = [v for v in values if v is not None]
-        return float(np.mean(present)) if present else None
-
-    if not rows:
-        return empty_head_metrics()
-    keys = ("speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db", "yaw_r", "roll_r")
-    result: dict = {key: mean([row[key] for row in rows]) for key in keys}
-    result["std_ratio"] = {axis: mean([row["std_ratio"][axis] for row in rows]) for axis in ("48", "49", "50")}
-    return result
-
-
-def empty_head_metrics() -> dict:
-    """The head block where it is undefined (no recorded head to compare with)."""
-    return {"speed_envelope_r": None, "pitch_r": None, "std_ratio": {"48": None, "49": None, "50": None},
-            "velocity_spectrum_distance_db": None, "yaw_r": None, "roll_r": None}
-
-
-def empty_brow_metrics() -> dict:
-    """The brow block where it is undefined (no recorded brows, or a condition without brows)."""
-    return {"raise_r": None, "onsets": {"precision": None, "recall": None, "f1": None}, "raises": None,
-            "recorded_raises": None, "median_raise_s": None, "recorded_median_raise_s": None}
-
-
-def _average_brows(rows: list[dict]) -> dict:
-    """The mean of brow-measure dicts (None entries left out), same layout."""
-
-    def mean(values: list) -> float | None:
-        present = [v for v in values if v is not None]
-        return float(np.mean(present)) if present else None
-
-    if not rows:
-        return empty_brow_metrics()
-    result: dict = {key: mean([row[key] for row in rows]) for key in
-                    ("raise_r", "raises", "recorded_raises", "median_raise_s", "recorded_median_raise_s")}
-    result["onsets"] = {key: mean([row["onsets"][key] for row in rows]) for key in ("precision", "recall", "f1")}
-    return result
-
-
 def brow_curve(stream: FapStream) -> np.ndarray | None:
     """The inner-brow raise of a stream (mean of FAP 31 and 32 where both are active, else FAP 31), ENS;
     None if the stream has no inner brow throughout."""
@@ -131,10 +93,10 @@ def brow_curve(stream: FapStream) -> np.ndarray | None:
 def _measure(runs: list[FapStream], truth_head: np.ndarray | None, truth_brow: np.ndarray | None, *,
              fps: float) -> tuple[dict, dict]:
     """Head and brow measures of several runs of one condition against the recording, averaged."""
-    head = (_average_head([head_metrics(head_matrix(run), truth_head, fps=fps) for run in runs])
+    head = (average_head_metrics([head_metrics(head_matrix(run), truth_head, fps=fps) for run in runs])
             if truth_head is not None else empty_head_metrics())
     brows = [brow_curve(run) for run in runs]
-    brow = (_average_brows([brow_metrics(curve, truth_brow, fps=fps) for curve in brows if curve is not None])
+    brow = (average_brow_metrics([brow_metrics(curve, truth_brow, fps=fps) for curve in brows if curve is not None])
             if truth_brow is not None else empty_brow_metrics())
     return head, brow
 
@@ -327,9 +289,9 @@ def compare(
         entry: dict = {"kind": other_model.kind, "head": empty_head_metrics(),
                        "mismatched_audio": empty_head_metrics()}
         if truth_head is not None:
-            entry["head"] = _average_head([head_metrics(head_of(features, s), truth_head, fps=features.fps)
+            entry["head"] = average_head_metrics([head_metrics(head_of(features, s), truth_head, fps=features.fps)
                                            for s in run_seeds])
-            entry["mismatched_audio"] = _average_head([
+            entry["mismatched_audio"] = average_head_metrics([
                 head_metrics(head_of(shifted_features(features, offset), s), truth_head, fps=features.fps)
                 for s in run_seeds for offset in shift_offsets(features.n_frames, fps=features.fps)])
         others[str(label)] = entry

@@ -456,8 +456,7 @@ def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions,
     ``options.seeds`` seeds. Keyed by file."""
     from audio_features import read_features_csv
 
-    from ..evaluation.compare import _average_head, empty_head_metrics
-    from ..measures import head_matrix, head_metrics
+    from ..measures import average_head_metrics, empty_head_metrics, head_matrix, head_metrics
     from ..motion.conditions import head_motion
     from ..motion.controls import fitted_features
     from ..motion.ground_truth import fit_to_grid, read_motion
@@ -496,7 +495,7 @@ def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions,
                 curves = head_motion(model, driven, seed=seed)
                 rows.append(head_metrics(np.column_stack([curves[fap] for fap in (48, 49, 50)]), recorded,
                                          fps=own.fps))
-        result[outcome.file] = _average_head(rows) if rows else empty_head_metrics()
+        result[outcome.file] = average_head_metrics(rows) if rows else empty_head_metrics()
     return result
 
 

@@ -22,7 +22,7 @@ from audio_features import AUDIO_EXTENSIONS, DEFAULT_FPS, Features, extract_feat
 
 from ..errors import ConfigError, GroundTruthError, ProsodyError
 from ..fap.table import HEAD_FAPS
-from ..measures import head_metrics, pearson
+from ..measures import average_head_metrics, head_metrics, mean_of, pearson
 from .controls import shift_offsets, shifted_features
 from .ground_truth import fit_to_grid, read_motion
 from .head import DEFAULT_NA, DEFAULT_NB, DEFAULT_NK, DEFAULT_RIDGE, ArxHeadModel, arx_inputs
@@ -129,12 +129,7 @@ def leave_one_out(data: TrainingSet, *, na: int, nb: int, nk: int,
     mean_r = np.mean(correlations, axis=0)
     return CrossValidation(na, nb, nk, ridge, float(np.mean(errors)), (float(mean_r[0]), float(mean_r[1]),
                                                                   float(mean_r[2])),
-                           _mean_of(measures, "speed_envelope_r"), _mean_of(measures, "pitch_r"))
-
-
-def _mean_of(rows: Sequence[dict], key: str) -> float | None:
-    values = [row[key] for row in rows if row.get(key) is not None]
-    return float(np.mean(values)) if values else None
+                           mean_of(measures, "speed_envelope_r"), mean_of(measures, "pitch_r"))
 
 
 def select_orders(data: TrainingSet, *, grid: dict[str, Sequence[float]] | None = None,
@@ -158,17 +153,6 @@ def _signed(value: float | None) -> str:
     return "-" if value is None else f"{value:+.3f}"
 
 
-#: The head measures averaged by cross-validation (std_ratio is averaged per axis).
-HEAD_MEASURES = ("speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db", "yaw_r", "roll_r")
-
-
-def average_head_metrics(rows: Sequence[dict]) -> dict:
-    """The mean of :func:`prosody.measures.head_metrics` results (None entries left out), same layout."""
-    result: dict = {key: _mean_of(rows, key) for key in HEAD_MEASURES}
-    result["std_ratio"] = {axis: _mean_of([row["std_ratio"] for row in rows], axis) for axis in ("48", "49", "50")}
-    return result
-
-
 def _head_array(curves: dict[int, np.ndarray]) -> np.ndarray:
     return np.column_stack([curves[fap] for fap in HEAD_FAPS])
 
@@ -185,7 +169,7 @@ class HeldOut:
 
     def mean(self, key: str, *, control: bool = False) -> float | None:
         table = self.controls if control else self.per_recording
-        return _mean_of(list(table.values()), key)
+        return mean_of(list(table.values()), key)
 
     @property
     def score(self) -> float:
@@ -285,7 +269,7 @@ def held_out_summary(result: HeldOut) -> dict:
         "settings": result.settings,
         "seeds": result.seeds,
         "mean": {key: result.mean(key) for key in keys}
-        | {"std_ratio": {axis: _mean_of([r["std_ratio"] for r in result.per_recording.values()], axis)
+        | {"std_ratio": {axis: mean_of([r["std_ratio"] for r in result.per_recording.values()], axis)
                          for axis in ("48", "49", "50")}},
         "mean_mismatched_audio": {key: result.mean(key, control=True) for key in keys},
         "per_recording": result.per_recording,
