@@ -1,0 +1,297 @@
+"""Live conversion: audio that is still arriving in, FAP frames out as soon as each is known.
+
+:class:`LiveConverter` is the one entry point (the ``prosody stream`` command is a shell over it): push audio
+in pieces of any size, get back the frames that became final. Frame ``k`` uses audio up to
+``k / fps + lookahead`` and nothing later, so its latency is the look-ahead plus half an analysis window
+(about 34 ms) plus the time to compute it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from audio_features import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS
+from audio_features.pcm import PcmDecoder, PcmFormat, read_wav_header
+from audio_features.streaming import StreamingAnalyser
+
+from ..errors import ConfigError
+from ..fap.stream import FapStream
+from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
+from ..motion.conditions import Condition
+from ..motion.eyebrows import BrowRule
+from ..motion.live import LiveHeadModel, LivePerlin, live_brows
+from ..motion.model_files import read_model_json
+from .pipeline import CHANNELS
+
+#: Look-ahead of the live head and brows by default, in ms (the measured trade: see the README).
+DEFAULT_LOOKAHEAD_MS = 100.0
+#: Shipped live head models by the look-ahead they read, in ms.
+LIVE_MODELS_DIR = Path(__file__).resolve().parents[1] / "motion" / "models"
+SHIPPED_LOOKAHEADS_MS = (0, 100, 200, 300, 500)
+
+
+def shipped_live_model_path(lookahead_ms: float) -> Path:
+    return LIVE_MODELS_DIR / f"live_head_{int(lookahead_ms)}ms.json"
+
+
+def live_head_model(model: LiveHeadModel | str | os.PathLike[str] | None, *, lookahead_ms: float) -> LiveHeadModel:
+    """The live head model to stream with: the given one, a file, or the shipped model that reads the most
+    look-ahead within ``lookahead_ms``."""
+    if isinstance(model, LiveHeadModel):
+        return model
+    if model is None or os.fspath(model) == "prosodic":
+        usable = [ms for ms in SHIPPED_LOOKAHEADS_MS if ms <= lookahead_ms + 1e-9]
+        if not usable:
+            raise ConfigError(f"lookahead_ms must be >= 0, got {lookahead_ms!r}")
+        return LiveHeadModel.load(shipped_live_model_path(max(usable)))
+    if os.fspath(model) == "arx":
+        raise ConfigError("the thesis's ARX model is fitted on whole recordings and is not offered live; stream "
+                          "with the default head, or a model from 'prosody train --kind live'")
+    return LiveHeadModel.from_dict(read_model_json(model), source=str(model))
+
+
+@dataclass(frozen=True)
+class LiveFrame:
+    """One output frame: its index, time, and FAP -> value (FAP units) of the channels that are on."""
+
+    frame: int
+    time_s: float
+    faps: dict[int, float]
+
+    def to_json(self) -> str:
+        """``{"frame": k, "time_s": t, "faps": {"31": v, ...}}`` on one line."""
+        return json.dumps({"frame": self.frame, "time_s": round(self.time_s, 6),
+                           "faps": {str(fap): round(value, 3) for fap, value in self.faps.items()}},
+                          separators=(",", ":"))
+
+
+class LiveConverter:
+    """Audio in, FAP frames out, causally.
+
+    Parameters
+    ----------
+    sample_rate_hz : int in [8000, 768000]
+        Rate of the audio that will be pushed (mono float, full scale +-1).
+    condition : {"speech", "random", "none"} or Condition
+        ``speech``: live brows (accent rule by default) and the live head; ``random``: Perlin noise;
+        ``none``: still.
+    model : LiveHeadModel, path or None
+        The live head model (default: the shipped one for the look-ahead).
+    lookahead_ms : float >= 0, in ms
+        Audio after each frame that the frame may use (rounded to whole frames).
+    seed : int >= 0
+        Seed of the head's motion and of the random condition.
+    eyebrow_rule : AccentRule or EyebrowRule, optional
+        The brows' rule (default: the accent rule).
+    gains, disabled
+        Intensity per channel and channels left out, as :func:`prosody.jobs.pipeline.convert`.
+
+    Examples
+    --------
+    >>> t = np.arange(32000) / 16000
+    >>> converter = LiveConverter(16000)
+    >>> frames = converter.push(0.5 * np.sin(2 * np.pi * 150 * t)) + converter.finish()
+    >>> len(frames), sorted(frames[0].faps)
+    (60, [31, 32, 33, 34, 48, 49, 50])
+    """
+
+    def __init__(self, sample_rate_hz: int, *, condition: Condition | str = Condition.SPEECH_DRIVEN,
+                 model: LiveHeadModel | str | os.PathLike[str] | None = None,
+                 lookahead_ms: float = DEFAULT_LOOKAHEAD_MS, seed: int = 0, fps: float = DEFAULT_FPS,
+                 f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ, f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ,
+                 eyebrow_rule: BrowRule | None = None, gains: Mapping[str, float] | None = None,
+                 disabled: Iterable[str] = ()) -> None:
+        chosen = condition if isinstance(condition, Condition) else Condition.parse(condition)
+        if chosen is Condition.GROUND_TRUTH:
+            raise ConfigError("recorded motion (condition truth) has no live form; choose speech, random or none")
+        if not (isinstance(lookahead_ms, (int, float)) and math.isfinite(lookahead_ms) and 0 <= lookahead_ms <= 2000):
+            raise ConfigError(f"lookahead_ms must be a number in [0, 2000], got {lookahead_ms!r}")
+        self.condition = chosen
+        self.analyser = StreamingAnalyser(sample_rate_hz, fps=fps, f0_floor_hz=f0_floor_hz,
+                                          f0_ceiling_hz=f0_ceiling_hz)
+        self.fps = self.analyser.fps
+        self.lookahead_frames = int(round(lookahead_ms / 1000 * self.fps))
+        gains = dict(gains or {})
+        disabled = list(disabled)
+        unknown = [name for name in [*gains, *disabled] if name not in CHANNELS]
+        if unknown:
+            raise ConfigError(f"unknown channel(s) {', '.join(map(repr, unknown))}; choose from {', '.join(CHANNELS)}")
+        for name, gain in gains.items():
+            if not math.isfinite(gain):
+                raise ConfigError(f"gain of {name!r} must be a finite number, got {gain!r}")
+        self._gain = {fap: float(gains.get(name, 1.0)) for name, faps in CHANNELS.items() for fap in faps}
+        off = {fap for name in disabled for fap in CHANNELS[name]}
+        self.faps = tuple(fap for fap in PROSODY_FAPS if fap not in off)
+        if not self.faps:
+            raise ConfigError("every channel is off: the frames would be empty")
+        self._head = self._brows = self._perlin = None
+        if chosen is Condition.SPEECH_DRIVEN:
+            head_model = live_head_model(model, lookahead_ms=lookahead_ms)
+            if head_model.fps_ != self.fps:
+                raise ConfigError(f"the live head model runs at {head_model.fps_:g} fps; stream at fps="
+                                  f"{head_model.fps_:g} or train a live model at {self.fps:g} fps")
+            self.head_model = head_model
+            self._head = head_model.start(lookahead=self.lookahead_frames, seed=seed)
+            self._brows = live_brows(eyebrow_rule, fps=self.fps, lookahead=self.lookahead_frames)
+        elif chosen is Condition.RANDOM:
+            self._perlin = LivePerlin(fps=self.fps, seed=seed)
+        self._next = 0
+        self.finished = False
+
+    @property
+    def latency_s(self) -> float:
+        """Audio after a frame's time needed before the frame is given out (look-ahead and analysis window)."""
+        return self.lookahead_frames / self.fps + self.analyser.latency_s()
+
+    def _frames(self, f0: np.ndarray, energy: np.ndarray, *, final: bool) -> list[LiveFrame]:
+        values: list[dict[int, float]] = []
+        if self.condition is Condition.SPEECH_DRIVEN:
+            assert self._head is not None and self._brows is not None
+            brows, heads = [], []
+            for f, e in zip(f0.tolist(), energy.tolist(), strict=True):
+                brow, head = self._brows.push(f, e), self._head.push(f, e)
+                if brow is not None:
+                    brows.append(brow)
+                    heads.append(head)
+            if final:
+                brows += self._brows.finish()
+                heads += self._head.finish()
+            for brow, head in zip(brows, heads, strict=True):
+                values.append({**dict.fromkeys(EYEBROW_FAPS, brow),
+                               **{fap: float(head[axis]) for axis, fap in enumerate(HEAD_FAPS)}})
+        else:
+            for k in range(self._next, self._next + f0.size):
+                values.append(self._perlin.frame(k) if self._perlin is not None
+                              else dict.fromkeys(PROSODY_FAPS, 0.0))
+        frames = []
+        for value in values:
+            k = self._next
+            self._next += 1
+            frames.append(LiveFrame(k, k / self.fps, {fap: value[fap] * self._gain[fap] for fap in self.faps}))
+        return frames
+
+    def push(self, samples: np.ndarray) -> list[LiveFrame]:
+        """Add audio (mono float, full scale +-1); the frames that became final, possibly none."""
+        if self.finished:
+            raise ConfigError("push() after finish(): make a new LiveConverter for new audio")
+        f0, energy = self.analyser.push(samples)
+        return self._frames(f0, energy, final=False)
+
+    def finish(self) -> list[LiveFrame]:
+        """The audio has ended: the frames still waiting for their look-ahead."""
+        if self.finished:
+            return []
+        self.finished = True
+        f0, energy = self.analyser.finish()
+        return self._frames(f0, energy, final=True)
+
+
+def frames_to_stream(frames: list[LiveFrame], *, fps: float, name: str, faps: Iterable[int]) -> FapStream:
+    """The frames of a whole stream as a :class:`FapStream` (to write a .fap or another format)."""
+    faps = list(faps)
+    curves = {fap: np.array([frame.faps[fap] for frame in frames], dtype=float) for fap in faps}
+    return FapStream.from_curves(curves, fps=fps, name=name, n_frames=len(frames))
+
+
+# audio sources --------------------------------------------------------------------------------------------
+#: Samples read at a time from a file (10 ms at 16 kHz).
+FILE_BLOCK_S = 0.01
+
+
+def file_chunks(path: str | os.PathLike[str], *, realtime: bool = False,
+                block_s: float = FILE_BLOCK_S) -> tuple[int, Iterator[np.ndarray]]:
+    """``(sample rate, chunks)`` of an audio file read in blocks, mixed to mono; with ``realtime``, each
+    block is given no sooner than the time it ends at (a demo of live input from a file)."""
+    import soundfile
+
+    from audio_features.audio import check_shape, open_sound_file
+
+    sound = open_sound_file(path)
+    check_shape(sound.frames, source=str(path), sample_rate_hz=sound.samplerate)
+    rate = int(sound.samplerate)
+    block = max(1, int(round(block_s * rate)))
+
+    def chunks() -> Iterator[np.ndarray]:
+        start = time.monotonic()
+        done = 0
+        with sound:
+            try:
+                for data in sound.blocks(blocksize=block, dtype="float64", always_2d=True):
+                    done += data.shape[0]
+                    if realtime:
+                        delay = start + done / rate - time.monotonic()
+                        if delay > 0:
+                            time.sleep(delay)
+                    yield data[:, 0] if data.shape[1] == 1 else data.mean(axis=1)
+            except (soundfile.SoundFileError, RuntimeError) as error:
+                from audio_features.errors import AudioLoadError
+
+                raise AudioLoadError(f"{path}: decoding failed ({error})") from None
+
+    return rate, chunks()
+
+
+class IncompleteSampleWarning(UserWarning):
+    """A byte stream ended inside a sample frame; the incomplete sample was dropped."""
+
+
+def byte_chunks(stream, *, raw: PcmFormat | None = None, source: str = "<stdin>",
+                read_size: int = 4096) -> tuple[int, Iterator[np.ndarray]]:
+    """``(sample rate, chunks)`` of audio arriving on a binary stream: a WAV stream (its header read
+    first; a length the header does not know is read to the end) or, with ``raw``, headerless samples.
+    Chunks are given as soon as bytes arrive."""
+    import warnings
+
+    read = getattr(stream, "read1", stream.read)
+    limit: int | None = None
+    if raw is None:
+        raw, limit = read_wav_header(stream.read, source=source)
+    decoder = PcmDecoder(raw)
+
+    def chunks() -> Iterator[np.ndarray]:
+        remaining = limit
+        while remaining is None or remaining > 0:
+            data = read(read_size if remaining is None else min(read_size, remaining))
+            if not data:
+                break
+            if remaining is not None:
+                remaining -= len(data)
+            samples = decoder.decode(data)
+            if samples.size:
+                yield samples
+        if decoder.pending_bytes:
+            warnings.warn(f"{source}: the stream ended inside a sample; its last {decoder.pending_bytes} byte(s) "
+                          "were dropped", IncompleteSampleWarning, stacklevel=2)
+
+    return raw.sample_rate_hz, chunks()
+
+
+def microphone_chunks(*, sample_rate_hz: int = 16000, block_s: float = FILE_BLOCK_S) -> tuple[int, Iterator[np.ndarray]]:
+    """``(sample rate, chunks)`` from the default input device (needs the ``sounddevice`` package)."""
+    try:
+        import sounddevice
+    except (ImportError, OSError) as error:
+        raise ConfigError(f"--mic needs the sounddevice package and PortAudio ({error}); install "
+                          "'visual-prosody[mic]'") from None
+    import queue
+
+    blocks: queue.Queue[np.ndarray] = queue.Queue()
+
+    def callback(indata, frames, time_info, status) -> None:  # runs on PortAudio's thread
+        blocks.put(indata[:, 0].astype(np.float64).copy())
+
+    def chunks() -> Iterator[np.ndarray]:
+        with sounddevice.InputStream(samplerate=sample_rate_hz, channels=1, dtype="float32",
+                                     blocksize=max(1, int(block_s * sample_rate_hz)), callback=callback):
+            while True:
+                yield blocks.get()
+
+    return sample_rate_hz, chunks()

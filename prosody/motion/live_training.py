@@ -1,0 +1,117 @@
+"""Training and leave-one-recording-out measurement of the live head (:class:`prosody.motion.live.LiveHeadModel`).
+
+The live model is trained on the acoustic frames the live analysis gives
+(:func:`audio_features.streaming.stream_file`), the same ones it will see when streaming.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from audio_features import DEFAULT_FPS
+from audio_features.streaming import stream_file
+
+from ..errors import ConfigError, GroundTruthError, ProsodyError
+from ..fap.table import HEAD_FAPS
+from ..measures import average_head_metrics, head_metrics
+from .controls import shift_offsets
+from .ground_truth import fit_to_grid, read_motion
+from .live import LiveHeadModel
+from .training import CV_SEEDS, HeldOut, _signed, find_pairs, held_out_summary
+
+_LOG = logging.getLogger("prosody.training")
+
+
+@dataclass(frozen=True)
+class StreamedRecording:
+    """A paired recording as the live head sees it: streamed F0 (NaN unvoiced) and energy per frame, and
+    the recorded head motion (n_frames, 3) in AU, resting pose removed."""
+
+    name: str
+    f0_hz: np.ndarray
+    energy_db: np.ndarray
+    motion_au: np.ndarray
+
+
+def load_streamed(pairs: Iterable[tuple[Path, Path]], *, fps: float = DEFAULT_FPS,
+                  report: Callable[[str], None] | None = None) -> list[StreamedRecording]:
+    """Analyse each pair's audio as a stream and read its motion; a pair that fails is reported and skipped."""
+    report = report or _LOG.info
+    pairs = list(pairs)
+    recordings = []
+    for index, (audio, motion_path) in enumerate(pairs, start=1):
+        try:
+            f0, energy = stream_file(str(audio), fps=fps)
+            motion = fit_to_grid(read_motion(motion_path), n_frames=f0.size, fps=fps, source=str(motion_path))
+            if not all(fap in motion.active_faps for fap in HEAD_FAPS):
+                raise GroundTruthError(f"{motion_path}: no head rotation (FAP 48-50) in the recorded motion")
+        except (ProsodyError, ValueError) as error:  # audio errors derive from ValueError
+            report(f"[{index}/{len(pairs)}] skipped {audio.stem}: {error}")
+            continue
+        recordings.append(StreamedRecording(audio.stem, f0, energy, motion.curves(HEAD_FAPS)))
+        report(f"[{index}/{len(pairs)}] {audio.stem}: {f0.size} frames")
+    return recordings
+
+
+def fit_live(recordings: Sequence[StreamedRecording], *, fps: float = DEFAULT_FPS, **settings) -> LiveHeadModel:
+    return LiveHeadModel(**settings).fit([r.f0_hz for r in recordings], [r.energy_db for r in recordings],
+                                         [r.motion_au for r in recordings], fps=fps,
+                                         names=[r.name for r in recordings])
+
+
+def held_out_live(recordings: Sequence[StreamedRecording], *, fps: float = DEFAULT_FPS, seeds: int = CV_SEEDS,
+                  **settings) -> HeldOut:
+    """Fit on all recordings but one, measure on the one left out (``seeds`` seeds), for each recording;
+    the control is the same model driven by the held-out recording's own frames circularly shifted."""
+    if len(recordings) < 2:
+        raise ConfigError("cross-validation needs at least two recordings")
+    per_recording, controls = {}, {}
+    for held, recording in enumerate(recordings):
+        model = fit_live([r for i, r in enumerate(recordings) if i != held], fps=fps, **settings)
+        f0, energy, recorded = recording.f0_hz, recording.energy_db, recording.motion_au
+        own, mismatched = [], []
+        for seed in range(seeds):
+            own.append(head_metrics(model.generate_frames(f0, energy, seed=seed), recorded, fps=fps))
+            for offset in shift_offsets(f0.size, fps=fps):
+                index = (np.arange(f0.size) - offset) % f0.size
+                moved = model.generate_frames(f0[index], energy[index], seed=seed)
+                mismatched.append(head_metrics(moved, recorded, fps=fps))
+        per_recording[recording.name] = average_head_metrics(own)
+        controls[recording.name] = average_head_metrics(mismatched)
+    return HeldOut(dict(settings), seeds, per_recording, controls)
+
+
+def train_live(directory: str | os.PathLike[str], output: str | os.PathLike[str], *, lookahead_ms: float = 100.0,
+               cv: bool = False, fps: float = DEFAULT_FPS,
+               report: Callable[[str], None] | None = None) -> LiveHeadModel:
+    """Train a live head model reading ``lookahead_ms`` ahead on every pair in ``directory`` and save it;
+    with ``cv`` its leave-one-recording-out measures and their control are stored in the file."""
+    report = report or _LOG.info
+    pairs = find_pairs(directory)
+    if not pairs:
+        raise ConfigError(f"{directory}: no <name>.wav with <name>.head.csv or <name>.fap found")
+    recordings = load_streamed(pairs, fps=fps, report=report)
+    if not recordings:
+        raise GroundTruthError(f"{directory}: every pair was skipped; nothing to train on")
+    settings = {"lookahead_s": lookahead_ms / 1000}
+    extra: dict = {}
+    try:
+        if cv:
+            result = held_out_live(recordings, fps=fps, **settings)
+            extra["cross_validation"] = held_out_summary(result)
+            report(f"held out over {result.seeds} seeds: speed-envelope r {_signed(result.mean('speed_envelope_r'))} "
+                   f"(mismatched audio {_signed(result.mean('speed_envelope_r', control=True))}), pitch r "
+                   f"{_signed(result.mean('pitch_r'))} (mismatched audio {_signed(result.mean('pitch_r', control=True))})")
+        model = fit_live(recordings, fps=fps, **settings)
+    except ConfigError as error:
+        raise GroundTruthError(f"{directory}: {error}") from None
+    model.save(output, extra=extra)
+    report(f"{output}: live head model ({lookahead_ms:g} ms look-ahead) trained on {len(recordings)} recordings "
+           f"({sum(r.f0_hz.size for r in recordings) / fps:.1f} s)")
+    return model
