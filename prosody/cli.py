@@ -51,6 +51,16 @@ def _whole_number(low: int, high: int, shown: str) -> Callable[[str], int]:
     return parse
 
 
+def _lookahead(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of milliseconds, got {text!r}") from None
+    if not 0 <= value <= 2000:
+        raise argparse.ArgumentTypeError(f"expected milliseconds from 0 to 2000, got {text!r}")
+    return value
+
+
 _seed = _whole_number(0, 2**63 - 1, "0 to 2**63-1")
 _seeds = _whole_number(1, 1000, "1 to 1000")
 
@@ -319,11 +329,150 @@ def _cmd_preview(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_stream(args: argparse.Namespace) -> int:
+    import os
+    import time
+    from pathlib import Path
+
+    from audio_features.atomic import atomic_write
+
+    from .errors import ConfigError
+    from .jobs.stream import LiveConverter, frames_to_stream
+
+    if args.mic and args.input is not None:
+        raise ConfigError("give an input or --mic, not both")
+    if args.input is None and not args.mic and args.listen is None:
+        raise ConfigError("give an input (a file, or - for standard input), --mic, or --listen to serve the page "
+                          "for browsers' microphones")
+    if args.output is None and args.listen is None:
+        raise ConfigError("give -o OUT (- for one JSON line per frame on standard output), or --listen")
+    if args.realtime and (args.input in (None, "-")):
+        raise ConfigError("--realtime paces a file; standard input and microphones arrive at their own pace")
+    raw = args.raw_rate is not None or args.raw_format is not None or args.raw_channels is not None
+    if raw and args.input != "-":
+        raise ConfigError("--raw-rate, --raw-format and --raw-channels describe standard input (-): a file says "
+                          "its own format")
+    if args.input is None and args.output is not None:
+        raise ConfigError("-o writes the frames of the input; with --listen alone, each browser gets the frames of "
+                          "its own microphone")
+    if args.condition == "truth":
+        raise ConfigError("--condition truth (recorded motion) has no live form; choose speech, random or none")
+    if args.format is not None and args.output in (None, "-"):
+        raise ConfigError("--format names the format of an output file; -o - always writes JSON lines")
+    _check_motion_options(args)
+    options = _motion_kwargs(args)
+    options.pop("ground_truth")
+    lookahead_ms = args.lookahead_ms
+
+    def make_converter(rate: int) -> LiveConverter:
+        return LiveConverter(rate, lookahead_ms=lookahead_ms, **options)
+
+    server = None
+    if args.listen is not None:
+        from .jobs.server import FrameServer, parse_address
+
+        host, port = parse_address(args.listen)
+        server = FrameServer(host, port, make_converter=make_converter,
+                             report=lambda line: print(f"prosody stream: {line}", file=sys.stderr, flush=True))
+        server.start()
+        print(f"prosody stream: serving the face at {server.url} (frames over a WebSocket on the same address)",
+              file=sys.stderr, flush=True)
+
+    if args.input is None and not args.mic:
+        try:
+            while True:
+                time.sleep(3600)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            assert server is not None
+            server.close()
+        print(f"prosody stream: stopped after serving {server.clients_served} client(s)", file=sys.stderr)
+        return EXIT_OK
+
+    rate, chunks = _stream_source(args)
+    converter = make_converter(rate)
+    to_stdout = args.output == "-"
+    frames: list = []  # kept only when a file is written at the end
+    count = 0
+    interrupted = False
+
+    def emit(new: list) -> None:
+        nonlocal count
+        if not new:
+            return
+        count += len(new)
+        if server is not None:
+            server.publish(new)
+        if to_stdout:
+            sys.stdout.write("".join(frame.to_json() + "\n" for frame in new))
+            sys.stdout.flush()
+        elif args.output is not None:
+            frames.extend(new)
+
+    try:
+        try:
+            for samples in chunks:
+                emit(converter.push(samples))
+        except KeyboardInterrupt:
+            interrupted = True  # Ctrl-C ends the stream like the end of input: the last frames are flushed
+        emit(converter.finish())
+        if args.output not in (None, "-"):
+            name = Path(args.input).stem if args.input not in (None, "-") else "stream"
+            if args.output.lower().endswith(".jsonl") and args.format is None:
+                with atomic_write(args.output, newline="\n") as handle:
+                    handle.write("".join(frame.to_json() + "\n" for frame in frames))
+            else:
+                from .fap.exporters import write_stream
+
+                stream = frames_to_stream(frames, fps=converter.fps, name=name, faps=converter.faps)
+                write_stream(stream, args.output, args.format)
+    finally:
+        if server is not None:
+            server.close()
+    where = "standard output" if to_stdout else (args.output or os.devnull)
+    ended = "stopped by Ctrl-C" if interrupted else "end of input"
+    print(f"prosody stream: {where}: {count} frames at {converter.fps:g} fps ({ended}; look-ahead "
+          f"{converter.lookahead_frames / converter.fps * 1000:.0f} ms)", file=sys.stderr)
+    return EXIT_OK
+
+
+def _stream_source(args: argparse.Namespace):
+    """(sample rate, chunks) of the stream command's input."""
+    from audio_features.pcm import PcmFormat
+
+    from .jobs.stream import byte_chunks, file_chunks, microphone_chunks
+
+    if args.mic:
+        return microphone_chunks(sample_rate_hz=args.mic_rate)
+    if args.input == "-":
+        raw = None
+        if args.raw_rate is not None or args.raw_format is not None or args.raw_channels is not None:
+            if args.raw_rate is None:
+                from .errors import ConfigError
+
+                raise ConfigError("raw samples on standard input need --raw-rate HZ")
+            raw = PcmFormat(args.raw_rate, args.raw_format or "s16le", args.raw_channels or 1)
+        return byte_chunks(sys.stdin.buffer, raw=raw, source="<stdin>")
+    return file_chunks(args.input, realtime=args.realtime)
+
+
 def _cmd_train(args: argparse.Namespace) -> int:
     from .errors import ConfigError
     from .motion.training import train
 
     orders = {"na": args.na, "nb": args.nb, "nk": args.nk, "ridge": args.ridge}
+    if args.lookahead_ms is not None and args.kind != "live":
+        raise ConfigError("--lookahead-ms sets the live head model's look-ahead: add --kind live")
+    if args.kind == "live":
+        from .motion.live_training import train_live
+
+        given = [f"--{name}" for name, value in orders.items() if value is not None]
+        if given:
+            raise ConfigError(f"{', '.join(given)} set(s) the ARX model's orders: add --kind arx")
+        train_live(args.data, args.output, lookahead_ms=100.0 if args.lookahead_ms is None else args.lookahead_ms,
+                   cv=args.cv, fps=args.fps, report=lambda line: print(line, file=sys.stderr))
+        return EXIT_OK
     if args.kind != "arx":
         given = [f"--{name}" for name, value in orders.items() if value is not None]
         if given:
@@ -502,19 +651,75 @@ def build_parser() -> argparse.ArgumentParser:
     _add_eyebrow_options(preview)
     preview.set_defaults(handler=_cmd_preview)
 
+    stream = commands.add_parser(
+        "stream", help="animate live audio frame by frame (a pipe, a microphone, or a file), optionally served "
+                       "to browsers",
+        description="Compute the prosody FAPs causally, each frame as soon as the audio up to its look-ahead has "
+                    "arrived: frame k (at k/fps s) uses the audio up to k/fps + the look-ahead and nothing later, "
+                    "and is given out about the look-ahead plus 35 ms after its audio (plus the time the audio "
+                    "takes to reach the command). The brows (accent rule by default) and the head (a live form of "
+                    "the default head model, trained for that look-ahead) are those of 'convert' computed without "
+                    "the future: the speaker's median pitch and level are learnt as the stream goes, so the first "
+                    "second or so of voice moves little. Ends at the end of the input or on Ctrl-C, the last "
+                    "frames flushed.",
+    )
+    stream.add_argument("input", nargs="?", default=None,
+                        help="audio file, or - for standard input: a WAV stream (its header may not know the "
+                             "length) or raw samples with --raw-rate")
+    stream.add_argument("-o", "--output", default=None,
+                        help="- writes one JSON line per frame to standard output as each frame is ready: "
+                             '{"frame": k, "time_s": t, "faps": {"31": v, ..., "50": v}} (FAP units; channels that '
+                             "are off are absent); a file (.fap, .csv, .json, .bvh, .livelink.csv, .jsonl) is "
+                             "written when the stream ends")
+    stream.add_argument("--format", default=None,
+                        choices=["fap", "csv", "csv-physical", "json", "bvh", "livelink"],
+                        help="format of the output file, overriding its ending")
+    stream.add_argument("--lookahead-ms", type=_lookahead, default=100.0, metavar="MS",
+                        help="audio after each frame that the frame may use, in ms (default 100: the most that "
+                             "keeps the median delay near 150 ms; more makes the head follow the speech better, "
+                             "0 gives the least delay; rounded to whole frames)")
+    source = stream.add_argument_group("input")
+    source.add_argument("--mic", action="store_true",
+                        help="read the default microphone (needs the sounddevice package: "
+                             "pip install 'visual-prosody[mic]')")
+    source.add_argument("--mic-rate", type=int, default=16000, metavar="HZ",
+                        help="sample rate asked of the microphone (default 16000)")
+    source.add_argument("--realtime", action="store_true",
+                        help="read a file no faster than it plays (a demo of live input)")
+    source.add_argument("--raw-rate", type=int, default=None, metavar="HZ",
+                        help="standard input holds raw samples at HZ instead of a WAV stream")
+    source.add_argument("--raw-format", default=None, choices=["s16le", "s24le", "s32le", "f32le", "f64le", "u8"],
+                        help="sample format of raw input (default s16le: 16-bit signed little-endian)")
+    source.add_argument("--raw-channels", type=int, default=None, metavar="N",
+                        help="interleaved channels of raw input, mixed to mono (default 1)")
+    stream.add_argument("--listen", default=None, metavar="HOST:PORT",
+                        help="also serve the frames over a WebSocket, and at http://HOST:PORT/ a page that draws "
+                             "the face moving with them and can send the browser's microphone (127.0.0.1 when "
+                             "HOST is left out; another address lets anyone who can reach it watch the stream and "
+                             "send audio to this machine); port 0 picks a free one")
+    _add_motion_options(stream)
+    _add_analysis_options(stream)
+    _add_eyebrow_options(stream)
+    stream.set_defaults(handler=_cmd_stream)
+
     train = commands.add_parser(
         "train", help="train a head-motion model on paired recordings",
         description="Fit a head model on every <name>.wav in DIR that has a <name>.head.csv (columns "
                     "frame,time_s,rx_rad,ry_rad,rz_rad at 30 fps) or a <name>.fap beside it. A pair whose "
                     "durations differ by more than two frames is reported and skipped. --kind prosodic (the "
                     "default) learns how much the head moves and how it nods from the speech, and the size and "
-                    "tempo of the recorded motion; --kind arx fits the thesis's linear ARX model. Use the file "
-                    "with --model in convert, compare, batch and preview.",
+                    "tempo of the recorded motion; --kind arx fits the thesis's linear ARX model; --kind live fits "
+                    "the causal form of the prosodic model for 'prosody stream'. Use the file with --model in "
+                    "convert, compare, batch and preview (live models: in stream).",
     )
     train.add_argument("--data", required=True, metavar="DIR", help="folder of paired recordings")
     train.add_argument("-o", "--output", required=True, help="model file to write (.json)")
-    train.add_argument("--kind", default="prosodic", choices=["prosodic", "arx"],
-                       help="which model to fit (default prosodic)")
+    train.add_argument("--kind", default="prosodic", choices=["prosodic", "arx", "live"],
+                       help="which model to fit (default prosodic; live: the causal form of the prosodic model "
+                            "that 'prosody stream' uses, trained on the audio analysed as a stream)")
+    train.add_argument("--lookahead-ms", type=_lookahead, default=None, metavar="MS",
+                       help="--kind live: audio after each frame the model reads, in ms (default 100); stream "
+                            "with at least this --lookahead-ms")
     train.add_argument("--cv", action="store_true",
                        help="leave-one-recording-out cross-validation: for prosodic, choose its settings by the "
                             "held-out speed-envelope and pitch correlations above the mismatched-audio control "

@@ -114,8 +114,9 @@ class _Delayed:
 class LiveAccentBrows:
     """The accent rule (:class:`prosody.motion.eyebrows.AccentRule`), causally.
 
-    The octave-error filter is the median of the frame's semitones with those of up to two voiced frames
-    before and two after it within the look-ahead; the raise's height grows with the accent's peak so far.
+    The octave-error filter is the median of five voiced frames' semitones: the frame, two before and two
+    after it, or, where the look-ahead does not reach the later ones, more before it; the raise's height
+    grows with the accent's peak so far.
     """
 
     def __init__(self, rule: AccentRule | None = None, *, fps: float, lookahead: int) -> None:
@@ -123,7 +124,7 @@ class LiveAccentBrows:
         self.fps = fps
         self._frames = _Delayed(lookahead=lookahead, behind=8)
         self._levels = SpeakerLevels()
-        self._voiced_before: deque[float] = deque(maxlen=2)  # semitones (re 1 Hz) of the last voiced frames
+        self._voiced_before: deque[float] = deque(maxlen=4)  # semitones (re 1 Hz) of the last voiced frames
         self._shortest = int(round(self.rule.min_hold_s * fps))
         self._longest = max(self._shortest, int(round(self.rule.max_hold_s * fps)))
         self._was_accented = False
@@ -151,16 +152,16 @@ class LiveAccentBrows:
     def _semitones(self, k: int) -> float:
         """Octave-filtered semitones of voiced frame ``k`` re 1 Hz: a median over voiced neighbours."""
         f0, _ = self._frames.at(k)
-        values = [*self._voiced_before, 12 * math.log2(f0)]
-        after = 0
+        after: list[float] = []
         for j in range(k + 1, self._frames.received):
             f0_after, _ = self._frames.at(j)
             if not math.isnan(f0_after):
-                values.append(12 * math.log2(f0_after))
-                after += 1
-                if after == 2:
+                after.append(12 * math.log2(f0_after))
+                if len(after) == 2:
                     break
-        return float(np.median(values))
+        # five voiced frames, as offline; those the look-ahead does not reach are replaced by earlier ones
+        before = list(self._voiced_before)[len(self._voiced_before) - (4 - len(after)):]
+        return float(np.median([*before, 12 * math.log2(f0), *after]))
 
     def _give(self) -> float:
         rule = self.rule

@@ -1,0 +1,273 @@
+"""Frames over a WebSocket, and the page that draws them.
+
+:class:`FrameServer` listens on one address for both: a plain HTTP ``GET /`` gets the page (a drawn face,
+the same geometry as ``prosody preview``), and a WebSocket upgrade on any path joins the stream. Each
+client gets:
+
+- every frame of the command's own input, as ``{"type": "frame", "source": "input", "frame", "time_s",
+  "faps"}`` text messages;
+- if it sends audio of its own (the page's microphone button), frames of that audio, ``"source": "client"``,
+  to it alone. It first sends ``{"type": "start", "sample_rate": HZ, "encoding": "f32le"|"s16le"}`` and then
+  binary messages of mono samples; ``{"type": "stop"}`` flushes its last frames.
+
+A client that stops reading has its oldest frames dropped (it is told once, on stderr), a client that sends
+what is not audio is told why and its message ignored, and a client that goes away is reported once: the
+server keeps serving the others throughout.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import threading
+from collections.abc import Callable
+from importlib import resources
+
+import numpy as np
+
+from audio_features.errors import VisualProsodyError
+from audio_features.pcm import PcmDecoder, PcmFormat
+
+from ..errors import ConfigError
+from .stream import LiveConverter, LiveFrame
+
+#: Frames kept for a client that is not reading (10 s at 30 fps); older ones are dropped.
+CLIENT_QUEUE_FRAMES = 300
+#: Largest message a client may send (1 MiB: over 5 s of 48 kHz float audio).
+MAX_MESSAGE_BYTES = 1 << 20
+
+
+def page_html() -> bytes:
+    """The page served at ``/``."""
+    return resources.files("prosody.jobs").joinpath("face.html").read_bytes()
+
+
+def parse_address(text: str) -> tuple[str, int]:
+    """``HOST:PORT``, ``:PORT`` or ``PORT`` (host 127.0.0.1); ``[::1]:PORT`` for IPv6.
+
+    Examples
+    --------
+    >>> parse_address("8765"), parse_address("0.0.0.0:80"), parse_address("[::1]:9000")
+    (('127.0.0.1', 8765), ('0.0.0.0', 80), ('::1', 9000))
+    """
+    host, _, port = text.rpartition(":")
+    host = host.strip("[]") or "127.0.0.1"
+    try:
+        number = int(port)
+    except ValueError:
+        raise ConfigError(f"listen address {text!r} must be HOST:PORT, e.g. 127.0.0.1:8765") from None
+    if not 0 <= number <= 65535:
+        raise ConfigError(f"port {number} must be in 0-65535")
+    return host, number
+
+
+def frame_message(frame: LiveFrame, source: str) -> str:
+    return json.dumps({"type": "frame", "source": source, "frame": frame.frame, "time_s": round(frame.time_s, 6),
+                       "faps": {str(fap): round(value, 3) for fap, value in frame.faps.items()}},
+                      separators=(",", ":"))
+
+
+class _Client:
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.queue: asyncio.Queue[str] = asyncio.Queue(maxsize=CLIENT_QUEUE_FRAMES)
+        self.told: set[str] = set()  # problems already reported for this client
+        self.converter: LiveConverter | None = None
+        self.decoder: PcmDecoder | None = None
+
+
+class FrameServer:
+    """Serve frames and the page on ``host:port`` from a background thread.
+
+    Parameters
+    ----------
+    host, port
+        Address to listen on (port 0: any free port; :attr:`port` says which).
+    make_converter : callable
+        ``make_converter(sample_rate_hz)`` -> a :class:`LiveConverter` for a client's own audio.
+    report : callable
+        Called with one line for each event worth telling (a client joining or leaving, each problem once).
+    """
+
+    def __init__(self, host: str, port: int, *, make_converter: Callable[[int], LiveConverter],
+                 report: Callable[[str], None]) -> None:
+        self.host, self.port = host, port
+        self.make_converter = make_converter
+        self.report = report
+        self._clients: set[_Client] = set()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop: asyncio.Event | None = None
+        self._thread: threading.Thread | None = None
+        self._started = threading.Event()
+        self._error: BaseException | None = None
+        self._page = page_html()
+        self.clients_served = 0
+        self.audio_messages = 0
+
+    # lifecycle ------------------------------------------------------------------------------------------
+    def start(self) -> FrameServer:
+        """Listen; returns once the address is bound (raises OSError if it cannot be)."""
+        self._thread = threading.Thread(target=self._run, name="prosody-server", daemon=True)
+        self._thread.start()
+        self._started.wait()
+        if self._error is not None:
+            raise self._error
+        return self
+
+    def close(self, *, drain_s: float = 1.0) -> None:
+        """Send what is queued (for up to ``drain_s``), close every connection and stop listening."""
+        if self._loop is None or self._stop is None or self._thread is None:
+            return
+
+        async def drained() -> None:
+            deadline = asyncio.get_running_loop().time() + drain_s
+            while any(not c.queue.empty() for c in self._clients) and asyncio.get_running_loop().time() < deadline:
+                await asyncio.sleep(0.02)
+            assert self._stop is not None
+            self._stop.set()
+
+        asyncio.run_coroutine_threadsafe(drained(), self._loop)
+        self._thread.join(timeout=drain_s + 5)
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"http://{host}:{self.port}/"
+
+    def _run(self) -> None:
+        try:
+            asyncio.run(self._main())
+        except BaseException as error:  # noqa: BLE001 - handed to the starting thread
+            self._error = error
+            self._started.set()
+
+    async def _main(self) -> None:
+        from websockets.asyncio.server import serve
+
+        self._loop = asyncio.get_running_loop()
+        self._stop = asyncio.Event()
+        async with serve(self._handle, self.host, self.port, process_request=self._http,
+                         max_size=MAX_MESSAGE_BYTES, compression=None) as server:
+            self.port = server.sockets[0].getsockname()[1]
+            self._started.set()
+            await self._stop.wait()
+
+    # frames of the command's input ----------------------------------------------------------------------
+    def publish(self, frames: list[LiveFrame]) -> None:
+        """Send frames of the command's input to every client (callable from any thread)."""
+        if self._loop is None or not frames:
+            return
+        messages = [frame_message(frame, "input") for frame in frames]
+        self._loop.call_soon_threadsafe(self._enqueue_all, messages)
+
+    def _enqueue_all(self, messages: list[str]) -> None:
+        for client in list(self._clients):
+            for message in messages:
+                self._enqueue(client, message)
+
+    def _enqueue(self, client: _Client, message: str) -> None:
+        if client.queue.full():
+            client.queue.get_nowait()  # a stalled reader loses its oldest frames, not the others' frames
+            self._tell_once(client, "stalled", f"client {client.name} is not reading; its oldest frames are "
+                                               "dropped")
+        client.queue.put_nowait(message)
+
+    def _tell_once(self, client: _Client, key: str, line: str) -> None:
+        if key not in client.told:
+            client.told.add(key)
+            self.report(line)
+
+    # connections ----------------------------------------------------------------------------------------
+    def _http(self, connection, request):
+        from websockets.datastructures import Headers
+        from websockets.http11 import Response
+
+        if request.headers.get("Upgrade", "").lower() == "websocket":
+            return None  # go on with the WebSocket handshake
+        path = request.path.split("?", 1)[0]
+        if path in ("/", "/index.html"):
+            headers = Headers([("Content-Type", "text/html; charset=utf-8"), ("Cache-Control", "no-store"),
+                               ("Content-Length", str(len(self._page)))])
+            return Response(200, "OK", headers, self._page)
+        return connection.respond(404, "not found: the page is at /\n")
+
+    async def _handle(self, websocket) -> None:
+        from websockets.exceptions import ConnectionClosed
+
+        address = websocket.remote_address
+        client = _Client(f"{address[0]}:{address[1]}" if address else "?")
+        self._clients.add(client)
+        self.clients_served += 1
+        self.report(f"client {client.name} connected ({len(self._clients)} connected)")
+        sender = asyncio.create_task(self._send(websocket, client))
+        try:
+            async for message in websocket:
+                await self._receive(websocket, client, message)
+        except ConnectionClosed:
+            pass
+        finally:
+            self._clients.discard(client)
+            sender.cancel()
+            if client.converter is not None:
+                client.converter = None
+            self.report(f"client {client.name} disconnected ({len(self._clients)} connected)")
+
+    async def _send(self, websocket, client: _Client) -> None:
+        from websockets.exceptions import ConnectionClosed
+
+        try:
+            while True:
+                await websocket.send(await client.queue.get())
+        except ConnectionClosed:
+            pass
+
+    async def _receive(self, websocket, client: _Client, message: str | bytes) -> None:
+        loop = asyncio.get_running_loop()
+        if isinstance(message, str):
+            try:
+                request = json.loads(message)
+                kind = request["type"]
+            except (ValueError, KeyError, TypeError):
+                await self._refuse(websocket, client, "text", "a text message must be JSON with a \"type\" "
+                                                              "(start or stop)")
+                return
+            if kind == "start":
+                try:
+                    pcm = PcmFormat(int(request.get("sample_rate", 0)), str(request.get("encoding", "f32le")))
+                    client.converter = await loop.run_in_executor(None, self.make_converter, pcm.sample_rate_hz)
+                    client.decoder = PcmDecoder(pcm)
+                except (VisualProsodyError, ValueError, TypeError) as error:
+                    await self._refuse(websocket, client, "start", f"cannot start: {error}")
+                    return
+                self.report(f"client {client.name} is sending audio ({pcm.sample_rate_hz} Hz {pcm.encoding})")
+            elif kind == "stop" and client.converter is not None:
+                converter, client.converter = client.converter, None
+                frames = await loop.run_in_executor(None, converter.finish)
+                for frame in frames:
+                    self._enqueue(client, frame_message(frame, "client"))
+            else:
+                await self._refuse(websocket, client, "type", f"unknown message type {kind!r} (start or stop)")
+            return
+        if client.converter is None or client.decoder is None:
+            await self._refuse(websocket, client, "early", "audio before a start message is ignored")
+            return
+        self.audio_messages += 1
+        converter, decoder = client.converter, client.decoder
+        try:
+            samples = decoder.decode(message)
+            frames = await loop.run_in_executor(None, converter.push, samples)
+        except VisualProsodyError as error:
+            client.converter = None  # its audio is broken: start again to go on
+            await self._refuse(websocket, client, "audio", f"audio refused ({error}); send a new start message")
+            return
+        for frame in frames:
+            self._enqueue(client, frame_message(frame, "client"))
+
+    async def _refuse(self, websocket, client: _Client, key: str, problem: str) -> None:
+        self._tell_once(client, key, f"client {client.name}: {problem}")
+        self._enqueue(client, json.dumps({"type": "error", "message": problem}))
+
+
+def frames_to_array(frames: list[LiveFrame], faps: tuple[int, ...]) -> np.ndarray:
+    """Frames as an array (n_frames, len(faps))."""
+    return np.array([[frame.faps[fap] for fap in faps] for frame in frames]).reshape(len(frames), len(faps))
