@@ -30,6 +30,7 @@ from audio_features.streaming import CausalF0Bridge, RunningMedian
 
 from ..errors import ConfigError, ModelError
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, RADIANS_PER_AU
+from ..measures import HEAD_LOWPASS_HZ
 from .eyebrows import AccentRule, BrowRule, EyebrowRule
 from .model_files import TrainingClip, read_model_json, write_model_json
 from .perlin import CHANNEL_KEYS, EYEBROW_STD_ENS, HEAD_OFFSETS_FRAMES, HEAD_STD_AU, PerlinSettings, fractal_noise
@@ -114,9 +115,9 @@ class _Delayed:
 class LiveAccentBrows:
     """The accent rule (:class:`prosody.motion.eyebrows.AccentRule`), causally.
 
-    The octave-error filter is the median of five voiced frames' semitones: the frame, two before and two
-    after it, or, where the look-ahead does not reach the later ones, more before it; the raise's height
-    grows with the accent's peak so far.
+    The octave-error filter is the median of the semitones of the frame and of the two voiced frames before
+    and the two after it, as offline, but only those of the later ones that the look-ahead reaches; the
+    raise's height grows with the accent's peak so far.
     """
 
     def __init__(self, rule: AccentRule | None = None, *, fps: float, lookahead: int) -> None:
@@ -124,7 +125,7 @@ class LiveAccentBrows:
         self.fps = fps
         self._frames = _Delayed(lookahead=lookahead, behind=8)
         self._levels = SpeakerLevels()
-        self._voiced_before: deque[float] = deque(maxlen=4)  # semitones (re 1 Hz) of the last voiced frames
+        self._voiced_before: deque[float] = deque(maxlen=2)  # semitones (re 1 Hz) of the last voiced frames
         self._shortest = int(round(self.rule.min_hold_s * fps))
         self._longest = max(self._shortest, int(round(self.rule.max_hold_s * fps)))
         self._was_accented = False
@@ -159,9 +160,8 @@ class LiveAccentBrows:
                 after.append(12 * math.log2(f0_after))
                 if len(after) == 2:
                     break
-        # five voiced frames, as offline; those the look-ahead does not reach are replaced by earlier ones
-        before = list(self._voiced_before)[len(self._voiced_before) - (4 - len(after)):]
-        return float(np.median([*before, 12 * math.log2(f0), *after]))
+        # five voiced frames as offline, fewer where the look-ahead does not reach the later ones
+        return float(np.median([*self._voiced_before, 12 * math.log2(f0), *after]))
 
     def _give(self) -> float:
         rule = self.rule
@@ -174,8 +174,11 @@ class LiveAccentBrows:
         if voiced:
             semitones = self._semitones(k) - 12 * math.log2(self._levels.median_f0_hz)
             self._voiced_before.append(12 * math.log2(f0))
+        # the frame's own pitch must be high too: where the filter lacks later frames it lags a fall of the
+        # pitch, which must not raise the brows again
+        own = 12 * math.log2(f0 / self._levels.median_f0_hz) if voiced and trusted else -math.inf
         accented = (trusted and voiced and energy >= self._levels.level_db + rule.loudness_db
-                    and semitones >= rule.threshold_semitones)
+                    and min(semitones, own) >= rule.threshold_semitones)
         if self._start is not None:
             held = k - self._start
             release_below = rule.threshold_semitones - rule.hysteresis_semitones
@@ -651,20 +654,32 @@ class _Synthesis:
         self._pitch_angle = 0.0  # the predicted pitch's part of the output, rad
         self._pitch_speed = 0.0  # its speed, smoothed, rad/s
         self._pitch_smoothing = math.exp(-1.0 / (_OWN_SPEED_HALF_S * fps))
+        # the speed a viewer sees is the smooth one (below 4 Hz, as the measures low-pass it): the noise's own
+        # speed is measured on its velocity through a windowed-sinc low-pass of 2 * reach + 1 taps
+        self._reach = max(2, int(round(0.5 * fps)))
+        taps = np.arange(-self._reach, self._reach + 1)
+        lowpass = np.sinc(2 * HEAD_LOWPASS_HZ / fps * taps) * np.hanning(2 * self._reach + 3)[1:-1]
+        self._lowpass = lowpass / lowpass.sum()
+        self._context = np.zeros((0, len(HEAD_FAPS)))
         self._draw_ahead()
 
     def _draw(self) -> None:
-        """Shape the next block of white noise into velocities (a causal FIR over the drawn noise)."""
+        """Shape the next block of white noise into velocities (a causal FIR over the drawn noise), and
+        measure their smooth speed (rows before the first frame only serve as the low-pass's context)."""
         white = np.vstack([self._white, self._rng.standard_normal((self.BLOCK, len(HEAD_FAPS)))])
         shaped = np.column_stack([np.convolve(white[:, axis], self.model.filters_[axis], mode="valid")
                                   for axis in range(len(HEAD_FAPS))]) * self.model.velocity_scale_
         self._white = white[-(self._taps - 1):]
-        speeds = np.sqrt(((shaped * self._to_output) ** 2).sum(axis=1))
-        self._velocity.extend(shaped)
-        self._speeds.extend(speeds.tolist())
+        first = self._context.shape[0] == 0
+        combined = np.vstack([self._context, shaped])
+        smooth = np.column_stack([np.convolve(combined[:, axis], self._lowpass, mode="valid")
+                                  for axis in range(len(HEAD_FAPS))])
+        self._speeds.extend(np.sqrt(((smooth * self._to_output) ** 2).sum(axis=1)).tolist())
+        self._velocity.extend(shaped[self._reach:] if first else shaped)
+        self._context = combined[-2 * self._reach:]
 
     def _draw_ahead(self) -> None:
-        while len(self._velocity) < 2 * self._half + 2:
+        while len(self._speeds) < 2 * self._half + 2 or len(self._velocity) < self._half + 2:
             self._draw()
 
     def step(self, envelope: float, pitch: float, *, parts: bool = False):
