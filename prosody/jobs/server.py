@@ -18,12 +18,12 @@ server keeps serving the others throughout.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
+import socket
 import threading
 from collections.abc import Callable
 from importlib import resources
-
-import numpy as np
 
 from audio_features.errors import VisualProsodyError
 from audio_features.pcm import PcmDecoder, PcmFormat
@@ -33,6 +33,8 @@ from .stream import LiveConverter, LiveFrame
 
 #: Frames kept for a client that is not reading (10 s at 30 fps); older ones are dropped.
 CLIENT_QUEUE_FRAMES = 300
+#: Kernel send buffer of each connection (about 200 frames).
+SEND_BUFFER_BYTES = 16 << 10
 #: Largest message a client may send (1 MiB: over 5 s of 48 kHz float audio).
 MAX_MESSAGE_BYTES = 1 << 20
 
@@ -196,6 +198,11 @@ class FrameServer:
 
         address = websocket.remote_address
         client = _Client(f"{address[0]}:{address[1]}" if address else "?")
+        sock = websocket.transport.get_extra_info("socket")
+        if sock is not None:
+            # frames are stale after a few seconds: the kernel holds a few seconds of them, not megabytes
+            with contextlib.suppress(OSError):
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
         self._clients.add(client)
         self.clients_served += 1
         self.report(f"client {client.name} connected ({len(self._clients)} connected)")
@@ -267,7 +274,3 @@ class FrameServer:
         self._tell_once(client, key, f"client {client.name}: {problem}")
         self._enqueue(client, json.dumps({"type": "error", "message": problem}))
 
-
-def frames_to_array(frames: list[LiveFrame], faps: tuple[int, ...]) -> np.ndarray:
-    """Frames as an array (n_frames, len(faps))."""
-    return np.array([[frame.faps[fap] for fap in faps] for frame in frames]).reshape(len(frames), len(faps))

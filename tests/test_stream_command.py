@@ -1,0 +1,293 @@
+"""`prosody stream` as it is used: driven through a pipe at real-time pace, stopped with Ctrl-C, serving
+frames and the page over a WebSocket to several clients, some of them misbehaving."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile
+
+from conftest import REPO, segments
+from prosody.cli import main
+from prosody.fap.fapfile import read_fap
+from prosody.jobs.server import FrameServer
+from prosody.jobs.stream import LiveConverter, LiveFrame
+
+PROSODY = [sys.executable, "-m", "prosody"]
+SAMPLE = REPO / "samples" / "arctic_a0009.wav"
+ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
+
+
+class _Reader(threading.Thread):
+    """Reads a process's standard output line by line, noting when each line arrived."""
+
+    def __init__(self, stream) -> None:
+        super().__init__(daemon=True)
+        self.stream = stream
+        self.lines: list[tuple[float, str]] = []
+
+    def run(self) -> None:
+        for line in iter(self.stream.readline, b""):
+            self.lines.append((time.monotonic(), line.decode()))
+
+
+def _pcm16(samples: np.ndarray) -> bytes:
+    return (np.clip(samples, -1, 1) * 32767).astype("<i2").tobytes()
+
+
+def test_pipe_at_real_time_pace_gives_every_frame_in_time_and_in_order():
+    samples, rate = soundfile.read(SAMPLE)
+    with subprocess.Popen([*PROSODY, "stream", "-", "--raw-rate", str(rate), "-o", "-"], stdin=subprocess.PIPE,
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=ENV) as process:
+        reader = _Reader(process.stdout)
+        reader.start()
+        chunk = rate // 50  # 20 ms
+        written = []  # (time, samples written so far)
+        start = time.monotonic()
+        for offset in range(0, samples.size, chunk):
+            delay = start + offset / rate - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            process.stdin.write(_pcm16(samples[offset:offset + chunk]))
+            process.stdin.flush()
+            written.append((time.monotonic(), min(samples.size, offset + chunk)))
+        input_closed = time.monotonic()
+        process.stdin.close()
+        assert process.wait(timeout=60) == 0, process.stderr.read().decode()
+        reader.join(timeout=10)
+    frames = [json.loads(line) for _, line in reader.lines]
+    expected = int(np.ceil(samples.size / rate * 30 - 1e-9))
+    assert [frame["frame"] for frame in frames] == list(range(expected))
+    assert all(frame["time_s"] == pytest.approx(frame["frame"] / 30, abs=1e-6) for frame in frames)
+    assert all(set(frame["faps"]) == {"31", "32", "33", "34", "48", "49", "50"} for frame in frames)
+    assert min(frame["faps"]["31"] for frame in frames) >= 0
+    assert np.std([frame["faps"]["49"] for frame in frames]) > 10  # the head moves
+    # no frame comes out before the audio up to its look-ahead (100 ms) had been written
+    times = np.array([t for t, _ in written])
+    counts = np.array([n for _, n in written])
+    for (arrived, _), frame in zip(reader.lines, frames, strict=True):
+        needed = (frame["frame"] / 30 + 0.1) * rate
+        first_written = times[np.searchsorted(counts, min(needed, samples.size))]
+        assert arrived >= first_written
+    # and they come out while the audio is still arriving, not at its end
+    before_end = sum(arrived < input_closed for arrived, _ in reader.lines)
+    assert before_end > 0.8 * len(frames)
+
+
+def test_wav_stream_on_stdin_and_a_fap_written_at_the_end(tmp_path):
+    out = tmp_path / "live.fap"
+    with open(SAMPLE, "rb") as audio:
+        result = subprocess.run([*PROSODY, "stream", "-", "-o", str(out)], stdin=audio, capture_output=True,
+                                env=ENV, timeout=60)
+    assert result.returncode == 0, result.stderr.decode()
+    stream = read_fap(out).stream
+    converted = subprocess.run([*PROSODY, "convert", str(SAMPLE), "-o", str(tmp_path / "offline.fap")],
+                               capture_output=True, env=ENV, timeout=60)
+    assert converted.returncode == 0
+    assert abs(stream.n_frames - read_fap(tmp_path / "offline.fap").stream.n_frames) <= 1
+    assert list(stream.active_faps) == [31, 32, 33, 34, 48, 49, 50]
+    assert b"end of input" in result.stderr
+
+
+def test_ctrl_c_flushes_the_last_frames_and_writes_the_file_whole(tmp_path):
+    out = tmp_path / "stopped.fap"
+    with subprocess.Popen([*PROSODY, "stream", "-", "--raw-rate", "16000", "-o", str(out)],
+                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=ENV) as process:
+        process.stdin.write(_pcm16(segments(16000, (0.6, 150, 0.5), (0.4, 220, 0.5))))
+        process.stdin.flush()
+        time.sleep(2.5)  # started and analysed what it was given; stdin stays open, as a microphone's would
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=30)
+    assert process.returncode == 0, err.decode()
+    assert b"stopped by Ctrl-C" in err
+    stream = read_fap(out).stream
+    assert stream.n_frames == 30  # the whole second given, its last frames flushed at the stop
+    assert not list(tmp_path.glob(".*.part*"))
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["stream", "x.wav"], "give -o OUT"),
+    (["stream", "-o", "-"], "give an input"),
+    (["stream", "x.wav", "--mic", "-o", "-"], "not both"),
+    (["stream", "-", "-o", "-", "--realtime"], "--realtime paces a file"),
+    (["stream", "x.wav", "-o", "-", "--raw-rate", "16000"], "describe standard input"),
+    (["stream", "x.wav", "-o", "-", "--condition", "truth"], "no live form"),
+    (["stream", "x.wav", "-o", "-", "--model", "arx"], "not offered live"),
+    (["stream", "x.wav", "-o", "-", "--format", "fap"], "--format names"),
+    (["stream", "x.wav", "-o", "-", "--lookahead-ms", "-3"], "milliseconds"),
+    (["stream", "x.wav", "-o", "-", "--listen", "here:port"], "HOST:PORT"),
+    (["train", "--data", ".", "-o", "m.json", "--lookahead-ms", "100"], "add --kind live"),
+])
+def test_usage_errors_exit_2_with_one_line(argv, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    soundfile.write(tmp_path / "x.wav", segments(16000, (0.5, 150, 0.5)), 16000)
+    with pytest.raises(SystemExit) if "milliseconds" in message else _nothing():
+        code = main(argv)
+        assert code == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+
+
+class _nothing:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+
+def test_malformed_input_mid_stream_is_one_line_and_exit_1(tmp_path):
+    good = (segments(16000, (0.5, 150, 0.5)).astype("<f4")).tobytes()
+    bad = np.array([np.nan], dtype="<f4").tobytes()
+    result = subprocess.run([*PROSODY, "stream", "-", "--raw-rate", "16000", "--raw-format", "f32le", "-o", "-"],
+                            input=good + bad + good, capture_output=True, env=ENV, timeout=60)
+    assert result.returncode == 1
+    assert result.stderr.decode().count("\n") == 1 and "not finite" in result.stderr.decode()
+    assert len(result.stdout.decode().splitlines()) >= 5  # the frames before the fault were given out
+
+
+# the server -------------------------------------------------------------------------------------------------
+@pytest.fixture
+def server():
+    lines: list[str] = []
+    running = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lines.append)
+    running.start()
+    running.lines = lines  # type: ignore[attr-defined]
+    yield running
+    running.close(drain_s=0.2)
+
+
+def _frames(k0: int, n: int) -> list[LiveFrame]:
+    return [LiveFrame(k, k / 30, {31: 0.0, 48: float(k)}) for k in range(k0, k0 + n)]
+
+
+def _receive_all(connection, timeout_s: float = 1.0) -> list[dict]:
+    from websockets.exceptions import ConnectionClosed
+
+    messages = []
+    try:
+        while True:
+            messages.append(json.loads(connection.recv(timeout=timeout_s)))
+    except (TimeoutError, ConnectionClosed):
+        return messages
+
+
+def test_page_is_served_and_unknown_paths_are_404(server):
+    with urllib.request.urlopen(server.url, timeout=5) as response:
+        page = response.read().decode()
+        assert response.headers["Content-Type"].startswith("text/html")
+    assert "<canvas" in page and "WebSocket" in page
+    with pytest.raises(urllib.error.HTTPError) as error:
+        urllib.request.urlopen(server.url + "nothing", timeout=5)
+    error.value.close()
+    assert error.value.code == 404
+
+
+def test_every_client_gets_the_input_frames_and_a_second_can_join(server):
+    from websockets.sync.client import connect
+
+    url = f"ws://127.0.0.1:{server.port}/stream"
+    with connect(url) as first:
+        time.sleep(0.2)
+        server.publish(_frames(0, 10))
+        with connect(url) as second:
+            time.sleep(0.2)
+            server.publish(_frames(10, 10))
+            got_second = _receive_all(second)
+        got_first = _receive_all(first)
+    assert [m["frame"] for m in got_first] == list(range(20))
+    assert [m["frame"] for m in got_second] == list(range(10, 20))
+    assert all(m["source"] == "input" for m in got_first)
+    assert sum("connected" in line and "disconnected" not in line for line in server.lines) == 2
+
+
+def test_a_stalled_reader_and_a_vanished_client_do_not_stop_the_others(server):
+    import socket
+
+    from websockets.sync.client import connect
+
+    url = f"ws://127.0.0.1:{server.port}/stream"
+    quiet = socket.create_connection(("127.0.0.1", server.port))
+    quiet.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # a reader that takes almost nothing
+    with connect(url) as good, connect(url, sock=quiet) as stalled, connect(url) as vanished:
+        time.sleep(0.2)
+        vanished.socket.shutdown(socket.SHUT_RDWR)  # gone without a closing handshake
+        received: list[dict] = []
+        reader = threading.Thread(target=lambda: received.extend(_receive_all(good, 2.0)))
+        reader.start()
+        for batch in range(40):  # 4000 frames: more than a stalled client's queue and buffers hold
+            server.publish(_frames(batch * 100, 100))
+            time.sleep(0.02)
+        reader.join()
+        assert stalled.protocol.state.name == "OPEN"
+    assert [m["frame"] for m in received] == list(range(4000))
+    stalls = [line for line in server.lines if "not reading" in line]
+    assert len(stalls) == 1
+    assert sum("disconnected" in line for line in server.lines) >= 1
+
+
+def test_client_audio_gives_frames_to_that_client_and_bad_messages_are_told_once(server):
+    from websockets.sync.client import connect
+
+    samples = segments(16000, (0.6, 150, 0.5), (0.4, 230, 0.5))
+    url = f"ws://127.0.0.1:{server.port}/stream"
+    with connect(url) as talker, connect(url) as watcher:
+        talker.send("not json")
+        talker.send(b"\x00\x01")  # audio before start
+        talker.send(b"\x00\x01")
+        talker.send(json.dumps({"type": "start", "sample_rate": 16000, "encoding": "f32le"}))
+        for start in range(0, samples.size, 1600):
+            talker.send(samples[start:start + 1600].astype("<f4").tobytes())
+        talker.send(json.dumps({"type": "stop"}))
+        got = _receive_all(talker, 3.0)
+        watched = _receive_all(watcher, 0.3)
+    frames = [m for m in got if m["type"] == "frame"]
+    errors = [m for m in got if m["type"] == "error"]
+    assert [m["frame"] for m in frames] == list(range(30))
+    assert all(m["source"] == "client" for m in frames)
+    assert len(errors) == 3  # each bad message is answered ...
+    assert sum("before a start" in line for line in server.lines) == 1  # ... and reported once
+    assert watched == []  # a client's own audio drives its own face only
+    assert server.audio_messages == 10
+
+
+def test_client_audio_that_is_not_finite_stops_that_client_only(server):
+    from websockets.sync.client import connect
+
+    url = f"ws://127.0.0.1:{server.port}/stream"
+    with connect(url) as broken, connect(url) as fine:
+        broken.send(json.dumps({"type": "start", "sample_rate": 16000, "encoding": "f32le"}))
+        broken.send(np.array([np.nan] * 100, dtype="<f4").tobytes())
+        time.sleep(0.3)
+        server.publish(_frames(0, 5))
+        assert [m["frame"] for m in _receive_all(fine, 0.5)] == list(range(5))
+        errors = [m for m in _receive_all(broken, 0.5) if m["type"] == "error"]
+    assert "not finite" in errors[0]["message"]
+
+
+def test_stream_command_serves_a_file_to_a_client(tmp_path):
+    from websockets.sync.client import connect
+
+    with subprocess.Popen([*PROSODY, "stream", str(SAMPLE), "--realtime", "--listen", "127.0.0.1:0", "-o",
+                           str(tmp_path / "out.jsonl")], stderr=subprocess.PIPE, env=ENV) as process:
+        line = process.stderr.readline().decode()
+        assert "serving the face at http://127.0.0.1:" in line, line
+        port = int(line.split("http://127.0.0.1:")[1].split("/")[0])
+        with connect(f"ws://127.0.0.1:{port}/stream") as client:
+            messages = _receive_all(client, 5.0)
+        process.communicate(timeout=30)
+    assert process.returncode == 0
+    frames = [m["frame"] for m in messages]
+    assert frames == list(range(frames[0], frames[0] + len(frames))) and len(frames) > 60
+    written = [json.loads(x) for x in Path(tmp_path / "out.jsonl").read_text().splitlines()]
+    assert len(written) == 93
