@@ -18,6 +18,8 @@ DIFFERENT_MEANINGS = {
     "source": "a description of where data came from, not a setting",
     "warnings": "a field of a result, not a setting",
     "name": "a stream's or file's label",
+    "lookahead_s": "the offline head reads 0.5 s of the recording ahead; a live head only what a stream's delay "
+                   "allows (0.1 s)",
 }
 
 
