@@ -30,6 +30,7 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench.py
+	$(BIN)/python benchmarks/live_bench.py
 
 evaluate: $(STAMP)
 	$(BIN)/python benchmarks/head_loco.py

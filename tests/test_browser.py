@@ -1,0 +1,107 @@
+"""The live page in a real headless Chromium: it connects, draws the frames it is sent, and sends its
+microphone (Chromium's fake device playing a WAV file) to the server, whose frames move the face.
+
+Needs Debian's ``chromium`` and ``chromium-driver`` and the ``selenium`` package (in the test extra); skipped
+with a reason where they are missing (``apt-get install chromium chromium-driver``).
+"""
+
+from __future__ import annotations
+
+import io
+import shutil
+import time
+
+import numpy as np
+import pytest
+
+from conftest import REPO
+from prosody.jobs.server import FrameServer
+from prosody.jobs.stream import LiveConverter, LiveFrame
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+DRIVER = shutil.which("chromedriver")
+pytestmark = pytest.mark.skipif(CHROMIUM is None or DRIVER is None,
+                                reason="needs Debian's chromium and chromium-driver "
+                                       "(apt-get install chromium chromium-driver)")
+
+
+@pytest.fixture
+def server():
+    lines: list[str] = []
+    running = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lines.append)
+    running.start()
+    running.lines = lines  # type: ignore[attr-defined]
+    yield running
+    running.close(drain_s=0.2)
+
+
+@pytest.fixture
+def browser():
+    webdriver = pytest.importorskip("selenium.webdriver", reason="needs the selenium package (the test extra)")
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--disable-quic", "--window-size=520,760", "--use-fake-ui-for-media-stream",
+                 "--use-fake-device-for-media-stream", "--autoplay-policy=no-user-gesture-required",
+                 f"--use-file-for-fake-audio-capture={REPO / 'samples' / 'arctic_a0009.wav'}"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(DRIVER), options=options)
+    yield driver
+    driver.quit()
+
+
+def _wait_for(driver, script: str, timeout_s: float = 30.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = driver.execute_script(script)
+        if value:
+            return value
+        time.sleep(0.1)
+    raise AssertionError(f"timed out waiting for {script!r}; page stats: "
+                         f"{driver.execute_script('return JSON.stringify(window.prosodyStats)')}")
+
+
+def _face(driver) -> np.ndarray:
+    """The canvas's face square as an RGB array, from a screenshot of the page."""
+    from PIL import Image
+
+    canvas = driver.find_element("id", "face")
+    image = Image.open(io.BytesIO(canvas.screenshot_as_png)).convert("RGB")
+    array = np.asarray(image)
+    return array[: array.shape[1]]  # the face square, above the strip
+
+
+def test_page_draws_the_frames_the_server_sends(server, browser, tmp_path):
+    browser.get(server.url)
+    _wait_for(browser, "return window.prosodyStats && window.prosodyStats.connected")
+    still = _face(browser)
+    # a head turned 8 degrees to its left and tilted, brows raised
+    server.publish([LiveFrame(k, k / 30, {31: 30.0, 32: 30.0, 33: 30.0, 34: 30.0, 48: 0.0, 49: 14000.0, 50: 6000.0})
+                    for k in range(5)])
+    _wait_for(browser, "return window.prosodyStats.inputFrames >= 5")
+    time.sleep(0.3)  # a few animation frames
+    moved = _face(browser)
+    (tmp_path / "moved.png").write_bytes(browser.find_element("id", "face").screenshot_as_png)
+    changed = np.any(np.abs(still.astype(int) - moved.astype(int)) > 30, axis=2)
+    assert changed.mean() > 0.01  # the head outline and the features moved
+    assert "frame 4" in browser.find_element("id", "status").text
+
+
+def test_microphone_audio_reaches_the_server_and_moves_the_face(server, browser, tmp_path):
+    browser.get(server.url + "?mic=1")
+    _wait_for(browser, "return window.prosodyStats.micStarted")
+    _wait_for(browser, "return window.prosodyStats.clientFrames >= 45")  # 1.5 s of frames back
+    first = _face(browser)
+    time.sleep(1.0)
+    second = _face(browser)
+    (tmp_path / "mic.png").write_bytes(browser.find_element("id", "face").screenshot_as_png)
+    assert server.audio_messages > 10
+    assert any("is sending audio" in line for line in server.lines)
+    stats = browser.execute_script("return window.prosodyStats")
+    assert stats["errors"] == []
+    assert stats["last"]["source"] == "client"
+    # the speech keeps the head moving: two moments a second apart differ
+    assert np.any(np.abs(first.astype(int) - second.astype(int)) > 30, axis=2).mean() > 0.001
