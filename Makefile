@@ -34,6 +34,7 @@ bench: $(STAMP)
 
 evaluate: $(STAMP)
 	$(BIN)/python benchmarks/head_loco.py
+	$(BIN)/python benchmarks/live_loco.py
 
 clean:
 	rm -rf $(VENV) out build *.egg-info .pytest_cache

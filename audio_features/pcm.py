@@ -87,12 +87,13 @@ class PcmDecoder:
         data = self._pending + bytes(data)
         usable = len(data) - len(data) % self.format.frame_bytes
         self._pending = data[usable:]
-        width, dtype, scale = RAW_FORMATS[self.format.encoding]
+        _, dtype, scale = RAW_FORMATS[self.format.encoding]
         body = data[:usable]
+        values: np.ndarray
         if self.format.encoding == "s24le":
             raw = np.frombuffer(body, dtype=np.uint8).reshape(-1, 3).astype(np.int32)
-            values = (raw[:, 0] | (raw[:, 1] << 8) | (raw[:, 2] << 16)).astype(np.int32)
-            values = np.where(values >= 1 << 23, values - (1 << 24), values).astype(np.float64) / scale
+            packed = raw[:, 0] | (raw[:, 1] << 8) | (raw[:, 2] << 16)
+            values = np.where(packed >= 1 << 23, packed - (1 << 24), packed).astype(np.float64) / scale
         elif self.format.encoding == "u8":
             values = (np.frombuffer(body, dtype=dtype).astype(np.float64) - 128.0) / scale
         else:

@@ -369,8 +369,8 @@ def stream_file(path: str, *, fps: float = DEFAULT_FPS, f0_floor_hz: float = DEF
                 f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ) -> tuple[np.ndarray, np.ndarray]:
     """``(f0_hz, energy_db)`` of a whole file as :class:`StreamingAnalyser` gives them live (the frames do
     not depend on how the audio arrives, so this equals any live run on the same audio)."""
-    from .features import _read_all
     from .audio import check_shape, open_sound_file
+    from .features import _read_all
 
     with open_sound_file(path) as sound:
         check_shape(sound.frames, source=str(path), sample_rate_hz=sound.samplerate)

@@ -80,23 +80,31 @@ def _add_analysis_options(parser: argparse.ArgumentParser) -> None:
                         help=f"highest F0 the pitch tracker looks for, in Hz (default {DEFAULT_F0_CEILING_HZ:g})")
 
 
-def _add_generator_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--model", default=None, metavar="NAME|FILE",
-                        help="head model for the speech-driven condition: 'prosodic' (the default: motion of a "
-                             "person's size timed by the speech), 'arx' (the thesis's linear model), or a file "
-                             "from 'prosody train'")
+def _add_generator_options(parser: argparse.ArgumentParser, *, live: bool = False) -> None:
+    if live:
+        parser.add_argument("--model", default=None, metavar="FILE",
+                            help="live head model: a file from 'prosody train --kind live' (default: the shipped "
+                                 "model that reads the most within --lookahead-ms)")
+    else:
+        parser.add_argument("--model", default=None, metavar="NAME|FILE",
+                            help="head model for the speech-driven condition: 'prosodic' (the default: motion of "
+                                 "a person's size timed by the speech), 'arx' (the thesis's linear model), or a "
+                                 "file from 'prosody train'")
     parser.add_argument("--seed", type=_seed, default=0,
                         help="seed of the random condition and of the speech-driven head's motion (a whole "
                              "number >= 0, default 0: the same seed gives the same stream)")
 
 
-def _add_motion_options(parser: argparse.ArgumentParser) -> None:
-    """Condition, generator and intensity options of the commands that make one stream (convert, preview)."""
-    parser.add_argument("--condition", default="speech", choices=["speech", "random", "none", "truth"],
+def _add_motion_options(parser: argparse.ArgumentParser, *, live: bool = False) -> None:
+    """Condition, generator and intensity options of the commands that make one stream (convert, preview,
+    and without recorded motion, stream)."""
+    parser.add_argument("--condition", default="speech",
+                        choices=["speech", "random", "none"] if live else ["speech", "random", "none", "truth"],
                         help="which animation to produce (default speech)")
-    parser.add_argument("--ground-truth", default=None, metavar="FILE",
-                        help="recorded motion for --condition truth: <clip>.head.csv or .fap")
-    _add_generator_options(parser)
+    if not live:
+        parser.add_argument("--ground-truth", default=None, metavar="FILE",
+                            help="recorded motion for --condition truth: <clip>.head.csv or .fap")
+    _add_generator_options(parser, live=live)
     controls = parser.add_argument_group("intensity (1 keeps the motion as computed, 0.5 halves it)")
     for channel, what in (("pitch", "head nods (FAP 48)"), ("yaw", "head turns (FAP 49)"),
                           ("roll", "head tilts (FAP 50)"), ("brow", "eyebrow raises (FAP 31-34)")):
@@ -198,7 +206,8 @@ def _motion_kwargs(args: argparse.Namespace) -> dict:
     """The keyword arguments of :func:`prosody.jobs.pipeline.convert` set by :func:`_add_motion_options`."""
     gains = {"pitch": args.pitch_gain, "yaw": args.yaw_gain, "roll": args.roll_gain, "brows": args.brow_gain}
     disabled = [name.strip() for value in args.off for name in value.split(",") if name.strip()]
-    return {"condition": args.condition, "ground_truth": args.ground_truth, "model": args.model, "seed": args.seed,
+    return {"condition": args.condition, "ground_truth": getattr(args, "ground_truth", None), "model": args.model,
+            "seed": args.seed,
             "eyebrow_rule": _eyebrow_rule(args), "gains": gains, "disabled": disabled, **_analysis_kwargs(args)}
 
 
@@ -220,7 +229,7 @@ def _check_motion_options(args: argparse.Namespace) -> None:
     """Options that would make the output silently other than asked are refused."""
     from .errors import ConfigError
 
-    if args.ground_truth is not None and args.condition != "truth":
+    if getattr(args, "ground_truth", None) is not None and args.condition != "truth":
         raise ConfigError(f"--ground-truth is the recorded motion of --condition truth; it is not used by "
                           f"--condition {args.condition}")
     off = {name.strip() for value in args.off for name in value.split(",") if name.strip()}
@@ -352,11 +361,9 @@ def _cmd_stream(args: argparse.Namespace) -> int:
     if raw and args.input != "-":
         raise ConfigError("--raw-rate, --raw-format and --raw-channels describe standard input (-): a file says "
                           "its own format")
-    if args.input is None and args.output is not None:
+    if args.input is None and not args.mic and args.output is not None:
         raise ConfigError("-o writes the frames of the input; with --listen alone, each browser gets the frames of "
                           "its own microphone")
-    if args.condition == "truth":
-        raise ConfigError("--condition truth (recorded motion) has no live form; choose speech, random or none")
     if args.format is not None and args.output in (None, "-"):
         raise ConfigError("--format names the format of an output file; -o - always writes JSON lines")
     _check_motion_options(args)
@@ -395,7 +402,6 @@ def _cmd_stream(args: argparse.Namespace) -> int:
     to_stdout = args.output == "-"
     frames: list = []  # kept only when a file is written at the end
     count = 0
-    interrupted = False
 
     def emit(new: list) -> None:
         nonlocal count
@@ -411,11 +417,7 @@ def _cmd_stream(args: argparse.Namespace) -> int:
             frames.extend(new)
 
     try:
-        try:
-            for samples in chunks:
-                emit(converter.push(samples))
-        except KeyboardInterrupt:
-            interrupted = True  # Ctrl-C ends the stream like the end of input: the last frames are flushed
+        interrupted = _read_until_stopped(chunks, lambda samples: emit(converter.push(samples)))
         emit(converter.finish())
         if args.output not in (None, "-"):
             name = Path(args.input).stem if args.input not in (None, "-") else "stream"
@@ -431,10 +433,47 @@ def _cmd_stream(args: argparse.Namespace) -> int:
         if server is not None:
             server.close()
     where = "standard output" if to_stdout else (args.output or os.devnull)
-    ended = "stopped by Ctrl-C" if interrupted else "end of input"
+    ended = "stopped by Ctrl-C or SIGTERM, the last frames flushed" if interrupted else "end of input"
     print(f"prosody stream: {where}: {count} frames at {converter.fps:g} fps ({ended}; look-ahead "
           f"{converter.lookahead_frames / converter.fps * 1000:.0f} ms)", file=sys.stderr)
     return EXIT_OK
+
+
+def _read_until_stopped(chunks, consume: Callable) -> bool:
+    """Feed every chunk to ``consume`` until the chunks end or Ctrl-C / SIGTERM arrives; True if stopped.
+
+    The signal only breaks off a wait for input: a chunk being processed is finished first, so the converter
+    is never left half-way through a frame and the last frames can be flushed."""
+    import signal
+
+    state = {"reading": False, "stopped": False}
+
+    def stop(signum, frame) -> None:
+        state["stopped"] = True
+        if state["reading"]:
+            raise KeyboardInterrupt
+
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        for sig in previous:
+            signal.signal(sig, stop)
+    except ValueError:  # not the main thread: signals stay as they are
+        previous = {}
+    iterator = iter(chunks)
+    try:
+        while not state["stopped"]:
+            state["reading"] = True
+            try:
+                samples = next(iterator)
+            except (StopIteration, KeyboardInterrupt):
+                break
+            finally:
+                state["reading"] = False
+            consume(samples)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    return state["stopped"]
 
 
 def _stream_source(args: argparse.Namespace):
@@ -697,7 +736,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "the face moving with them and can send the browser's microphone (127.0.0.1 when "
                              "HOST is left out; another address lets anyone who can reach it watch the stream and "
                              "send audio to this machine); port 0 picks a free one")
-    _add_motion_options(stream)
+    _add_motion_options(stream, live=True)
     _add_analysis_options(stream)
     _add_eyebrow_options(stream)
     stream.set_defaults(handler=_cmd_stream)

@@ -13,8 +13,8 @@ import time
 
 import numpy as np
 import pytest
-
 from conftest import REPO
+
 from prosody.jobs.server import FrameServer
 from prosody.jobs.stream import LiveConverter, LiveFrame
 

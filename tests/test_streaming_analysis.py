@@ -9,13 +9,12 @@ import struct
 import numpy as np
 import pytest
 import soundfile
+from conftest import harmonic_tone, segments
 
 from audio_features import Audio, AudioLoadError, ParameterError, condition_f0, extract_features
 from audio_features.pcm import PcmDecoder, PcmFormat, read_wav_header
 from audio_features.streaming import CausalF0Bridge, RunningMedian, StreamingAnalyser, stream_file
 from audio_features.tracks import F0Track
-
-from conftest import harmonic_tone, segments
 
 
 def _analyse(samples: np.ndarray, rate: int, pieces: list[int] | None = None, **options):

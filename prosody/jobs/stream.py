@@ -165,6 +165,7 @@ class LiveConverter:
                 brows += self._brows.finish()
                 heads += self._head.finish()
             for brow, head in zip(brows, heads, strict=True):
+                assert head is not None
                 values.append({**dict.fromkeys(EYEBROW_FAPS, brow),
                                **{fap: float(head[axis]) for axis, fap in enumerate(HEAD_FAPS)}})
         else:
@@ -274,7 +275,8 @@ def byte_chunks(stream, *, raw: PcmFormat | None = None, source: str = "<stdin>"
     return raw.sample_rate_hz, chunks()
 
 
-def microphone_chunks(*, sample_rate_hz: int = 16000, block_s: float = FILE_BLOCK_S) -> tuple[int, Iterator[np.ndarray]]:
+def microphone_chunks(*, sample_rate_hz: int = 16000,
+                      block_s: float = FILE_BLOCK_S) -> tuple[int, Iterator[np.ndarray]]:
     """``(sample rate, chunks)`` from the default input device (needs the ``sounddevice`` package)."""
     try:
         import sounddevice

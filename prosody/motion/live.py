@@ -38,10 +38,8 @@ from .speech_head import (
     ENVELOPE_FEATURES,
     FEATURE_NAMES,
     LOUDNESS_RANGE_DB,
-    MIN_SPEECH_S,
     PITCH_FEATURES,
     PRESENCE_FULL_SHARE,
-    PRESENCE_WINDOW_S,
     SPECTRUM_FRAMES,
     _finite_number,
     _ridge,
@@ -347,13 +345,13 @@ def live_feature_matrix(f0_hz: np.ndarray, energy_db: np.ndarray) -> np.ndarray:
     return np.array(rows).reshape(len(rows), len(FEATURE_NAMES))
 
 
-def trailing_presence(voiced: np.ndarray, *, fps: float, lookahead: int) -> np.ndarray:
-    """Speech presence 0..1 of each frame as :class:`LiveHead` judges it: the voiced share of the 2 s ending
-    ``lookahead`` frames after the frame (frames before the start not counted), over 0.2, capped at 1; 0
-    until :data:`MIN_VOICED_FRAMES` voiced frames have been heard."""
+def trailing_presence(voiced: np.ndarray, *, fps: float, lookahead: int, window_s: float) -> np.ndarray:
+    """Speech presence 0..1 of each frame as :class:`LiveHead` judges it: the voiced share of the
+    ``window_s`` ending ``lookahead`` frames after the frame (frames before the start not counted), over 0.2,
+    capped at 1; 0 until :data:`MIN_VOICED_FRAMES` voiced frames have been heard."""
     voiced = np.asarray(voiced, float)
     n = voiced.size
-    window = int(round(PRESENCE_WINDOW_S * fps))
+    window = max(1, int(round(window_s * fps)))
     cumulative = np.concatenate([[0.0], np.cumsum(voiced)])
     end = np.minimum(np.arange(n) + lookahead, n - 1) + 1
     start = np.maximum(end - window, 0)
@@ -385,7 +383,8 @@ class LiveHeadModel:
     the predicted pitch is mixed into the pitch axis. Here the features are those of
     :class:`LiveProsodicFeatures`, the window reaches from ``lookbehind_s`` before the frame to
     ``lookahead_s`` after it (its smoothing and the change features included), speech presence is judged over
-    the 2 s ending at the look-ahead, and the model is trained and calibrated on features computed that way.
+    the ``presence_window_s`` ending at the look-ahead, and the model is trained and calibrated on features
+    computed that way.
 
     Parameters
     ----------
@@ -393,15 +392,20 @@ class LiveHeadModel:
         Audio after each frame the model reads: the smallest look-ahead a stream needs to use it.
     lookbehind_s, step_s, ridge, pitch_share, leak_s, pitch_leak_s, idle_ratio
         As :class:`prosody.motion.speech_head.ProsodicHeadModel`.
+    presence_window_s : float in [0.05, 10], in s
+        Speech presence is the voiced share of this much audio up to the look-ahead (0.25 s: live, a short
+        window lets the head settle soon after the voice stops, where the offline generator's centred 2 s
+        window knows the pause is coming; ``prosody train --kind live --cv`` chooses it among 0.25-2 s).
     """
 
     kind = MODEL_KIND
     SETTINGS = ("lookahead_s", "lookbehind_s", "step_s", "ridge", "pitch_share", "leak_s", "pitch_leak_s",
-                "idle_ratio")
+                "idle_ratio", "presence_window_s")
 
     def __init__(self, lookahead_s: float = 0.1, lookbehind_s: float = 0.5, step_s: float = 0.1,
                  ridge: float = 1e4, pitch_share: float = 0.95, leak_s: float = 2.0, pitch_leak_s: float = 0.15,
-                 idle_ratio: float = 0.15):
+                 idle_ratio: float = 0.15, presence_window_s: float = 0.25):
+        self.presence_window_s = presence_window_s
         self.lookahead_s = lookahead_s
         self.lookbehind_s = lookbehind_s
         self.step_s = step_s
@@ -414,7 +418,7 @@ class LiveHeadModel:
     def _check_settings(self) -> None:
         checks = (("lookahead_s", 0.0, 2.0), ("lookbehind_s", 0.0, 5.0), ("step_s", 1e-3, 5.0),
                   ("ridge", 0.0, 1e12), ("pitch_share", 0.0, 1.0), ("leak_s", 1e-2, 1e3),
-                  ("pitch_leak_s", 1e-2, 1e3), ("idle_ratio", 0.0, 1.0))
+                  ("pitch_leak_s", 1e-2, 1e3), ("idle_ratio", 0.0, 1.0), ("presence_window_s", 0.05, 10.0))
         for name, low, high in checks:
             value = getattr(self, name)
             if not (_finite_number(value) and low <= value <= high):
@@ -449,7 +453,8 @@ class LiveHeadModel:
             raise ConfigError(f"step_s={self.step_s!r} smooths over more frames than the look-ahead accounts for")
         self.fps_ = float(fps)
         per_frame = [live_feature_matrix(f, e) for f, e in zip(f0_hz, energy_db, strict=True)]
-        presence = [trailing_presence(~np.isnan(f), fps=fps, lookahead=self.lookahead_frames(fps)) for f in f0_hz]
+        presence = [trailing_presence(~np.isnan(f), fps=fps, lookahead=self.lookahead_frames(fps),
+                                      window_s=self.presence_window_s) for f in f0_hz]
         offsets, smoothing = self.offsets_frames(fps), self.smoothing_frames(fps)
         envelope_rows, envelope_targets, pitch_rows, pitch_targets, velocities, speeds, spreads = ([] for _ in range(7))
         kept = []
@@ -533,7 +538,8 @@ class LiveHeadModel:
         self._check_fitted()
         lookahead = self.lookahead_frames(self.fps_) if lookahead is None else lookahead
         per_frame = live_feature_matrix(np.asarray(f0_hz, float), np.asarray(energy_db, float))
-        presence = trailing_presence(~np.isnan(f0_hz), fps=self.fps_, lookahead=lookahead)
+        presence = trailing_presence(~np.isnan(f0_hz), fps=self.fps_, lookahead=lookahead,
+                                     window_s=self.presence_window_s)
         return self._synthesise(*self.drive(per_frame, presence), seed=seed)
 
     def start(self, *, lookahead: int | None = None, seed: int = 0) -> LiveHead:
@@ -736,7 +742,7 @@ class LiveHead:
         self._per_frame: deque[np.ndarray] = deque(maxlen=memory + lookahead + 4)
         self._first_row: np.ndarray | None = None  # frame 0's features: the edge held before the start
         self._rows = 0  # per-frame feature rows computed
-        self._voiced: deque[float] = deque(maxlen=int(round(PRESENCE_WINDOW_S * model.fps_)))
+        self._voiced: deque[float] = deque(maxlen=max(1, int(round(model.presence_window_s * model.fps_))))
         self._voiced_total = 0
         self._presence: deque[float] = deque()  # presence of frames waiting to be given out
         self._received = 0
@@ -792,7 +798,8 @@ class LiveHead:
 
     def _smoothed(self, j: int) -> np.ndarray:
         before = self._smoothing // 2
-        return sum(self._row(i) for i in range(j - before, j - before + self._smoothing)) / self._smoothing
+        rows = [self._row(i) for i in range(j - before, j - before + self._smoothing)]
+        return np.mean(rows, axis=0)
 
     def _give(self) -> np.ndarray:
         model = self.model

@@ -74,24 +74,63 @@ def held_out_live(recordings: Sequence[StreamedRecording], *, fps: float = DEFAU
     per_recording, controls = {}, {}
     for held, recording in enumerate(recordings):
         model = fit_live([r for i, r in enumerate(recordings) if i != held], fps=fps, **settings)
-        f0, energy, recorded = recording.f0_hz, recording.energy_db, recording.motion_au
-        own, mismatched = [], []
-        for seed in range(seeds):
-            own.append(head_metrics(model.generate_frames(f0, energy, seed=seed), recorded, fps=fps))
-            for offset in shift_offsets(f0.size, fps=fps):
-                index = (np.arange(f0.size) - offset) % f0.size
-                moved = model.generate_frames(f0[index], energy[index], seed=seed)
-                mismatched.append(head_metrics(moved, recorded, fps=fps))
-        per_recording[recording.name] = average_head_metrics(own)
-        controls[recording.name] = average_head_metrics(mismatched)
+        per_recording[recording.name], controls[recording.name] = _measure(model, recording, fps=fps, seeds=seeds)
     return HeldOut(dict(settings), seeds, per_recording, controls)
+
+
+#: Settings of the live head tried by cross-validation (the rest keep their defaults).
+LIVE_GRID = {"presence_window_s": (2.0, 1.0, 0.5, 0.25)}
+
+
+def select_live(recordings: Sequence[StreamedRecording], *, fps: float = DEFAULT_FPS, seeds: int = 3,
+                report: Callable[[str], None] | None = None, **fixed) -> list[HeldOut]:
+    """Score every setting of :data:`LIVE_GRID` by its held-out speed-envelope and pitch r above their
+    controls (:attr:`HeldOut.score`), with the ``fixed`` settings; best first."""
+    report = report or (lambda message: None)
+    results = []
+    for key, values in LIVE_GRID.items():
+        for value in values:
+            result = held_out_live(recordings, fps=fps, seeds=seeds, **fixed, **{key: value})
+            results.append(result)
+            report(f"[cv] {key}={value:g}: speed-envelope r {_signed(result.mean('speed_envelope_r'))} "
+                   f"(control {_signed(result.mean('speed_envelope_r', control=True))}), pitch r "
+                   f"{_signed(result.mean('pitch_r'))} (control {_signed(result.mean('pitch_r', control=True))})")
+    return sorted(results, key=lambda r: -r.score)
+
+
+def nested_held_out_live(recordings: Sequence[StreamedRecording], *, fps: float = DEFAULT_FPS,
+                         seeds: int = CV_SEEDS, **fixed) -> HeldOut:
+    """Leave-one-recording-out where each fold chooses its settings by :func:`select_live` on its other
+    recordings only: figures that the choice of settings cannot have inflated."""
+    per_recording, controls = {}, {}
+    for held, recording in enumerate(recordings):
+        others = [r for i, r in enumerate(recordings) if i != held]
+        chosen = select_live(others, fps=fps, **fixed)[0].settings
+        model = fit_live(others, fps=fps, **chosen)
+        result = _measure(model, recording, fps=fps, seeds=seeds)
+        per_recording[recording.name], controls[recording.name] = result
+    return HeldOut({"nested": True, **fixed}, seeds, per_recording, controls)
+
+
+def _measure(model: LiveHeadModel, recording: StreamedRecording, *, fps: float, seeds: int) -> tuple[dict, dict]:
+    """A model's head measures on a recording over ``seeds`` seeds, and those of its mismatched-audio control."""
+    f0, energy, recorded = recording.f0_hz, recording.energy_db, recording.motion_au
+    own, mismatched = [], []
+    for seed in range(seeds):
+        own.append(head_metrics(model.generate_frames(f0, energy, seed=seed), recorded, fps=fps))
+        for offset in shift_offsets(f0.size, fps=fps):
+            index = (np.arange(f0.size) - offset) % f0.size
+            mismatched.append(head_metrics(model.generate_frames(f0[index], energy[index], seed=seed), recorded,
+                                           fps=fps))
+    return average_head_metrics(own), average_head_metrics(mismatched)
 
 
 def train_live(directory: str | os.PathLike[str], output: str | os.PathLike[str], *, lookahead_ms: float = 100.0,
                cv: bool = False, fps: float = DEFAULT_FPS,
                report: Callable[[str], None] | None = None) -> LiveHeadModel:
     """Train a live head model reading ``lookahead_ms`` ahead on every pair in ``directory`` and save it;
-    with ``cv`` its leave-one-recording-out measures and their control are stored in the file."""
+    with ``cv`` its settings are chosen from :data:`LIVE_GRID` by leave-one-recording-out, and the chosen
+    setting's held-out measures and their control are stored in the file."""
     report = report or _LOG.info
     pairs = find_pairs(directory)
     if not pairs:
@@ -99,15 +138,18 @@ def train_live(directory: str | os.PathLike[str], output: str | os.PathLike[str]
     recordings = load_streamed(pairs, fps=fps, report=report)
     if not recordings:
         raise GroundTruthError(f"{directory}: every pair was skipped; nothing to train on")
-    settings = {"lookahead_s": lookahead_ms / 1000}
+    settings: dict = {"lookahead_s": lookahead_ms / 1000}
     extra: dict = {}
     try:
         if cv:
+            settings = select_live(recordings, fps=fps, report=report, **settings)[0].settings
+            report(f"chosen {' '.join(f'{k}={v:g}' for k, v in settings.items())}")
             result = held_out_live(recordings, fps=fps, **settings)
             extra["cross_validation"] = held_out_summary(result)
             report(f"held out over {result.seeds} seeds: speed-envelope r {_signed(result.mean('speed_envelope_r'))} "
                    f"(mismatched audio {_signed(result.mean('speed_envelope_r', control=True))}), pitch r "
-                   f"{_signed(result.mean('pitch_r'))} (mismatched audio {_signed(result.mean('pitch_r', control=True))})")
+                   f"{_signed(result.mean('pitch_r'))} "
+                   f"(mismatched audio {_signed(result.mean('pitch_r', control=True))})")
         model = fit_live(recordings, fps=fps, **settings)
     except ConfigError as error:
         raise GroundTruthError(f"{directory}: {error}") from None

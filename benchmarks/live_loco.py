@@ -1,0 +1,80 @@
+"""Leave-one-recording-out table of the live (causal) head beside the offline one, and the live brows'
+agreement with the offline rule (part of ``make evaluate``).
+
+For each look-ahead, the live head model is fitted on all recordings but one (their audio analysed as a
+stream) and measured on the one left out over 10 seeds, beside the mismatched-audio control (the same model
+driven by the recording's own frames circularly shifted by 5 s or more) and its chance spread (the standard
+deviation over recordings). The row "nested" chooses the presence window inside each fold, on the other
+recordings only. The brows: raise onsets of the live rule within 3 frames (100 ms) of the offline rule's,
+over the talking-head clips and the speech recordings.
+
+Usage: python benchmarks/live_loco.py [DIR]  (default ../shared/data/talking-heads)
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+
+from audio_features import extract_features
+from audio_features.streaming import stream_file
+from prosody.motion.eyebrows import AccentRule, EyebrowRule, brow_raises
+from prosody.motion.live import live_brows
+from prosody.motion.live_training import held_out_live, load_streamed, nested_held_out_live
+from prosody.motion.training import find_pairs
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from head_loco import DEFAULT_DATA, _row  # noqa: E402
+
+LOOKAHEADS_MS = (0, 100, 200, 300, 500)
+
+
+def brow_agreement(paths: list[Path], lookahead: int) -> dict[str, tuple[int, int]]:
+    """Per rule: (offline onsets with a live onset within 3 frames, offline onsets)."""
+    counts = {"accent": [0, 0], "thesis": [0, 0]}
+    for path in paths:
+        offline_features = extract_features(path)
+        f0, energy = stream_file(str(path))
+        for name, rule in (("accent", AccentRule()), ("thesis", EyebrowRule())):
+            offline = [start for start, _ in brow_raises(offline_features, rule).events]
+            live = live_brows(rule, fps=30.0, lookahead=lookahead)
+            for a, b in zip(f0, energy, strict=True):
+                live.push(a, b)
+            live.finish()
+            onsets = [start for start, _ in live.events]
+            counts[name][0] += sum(any(abs(s - t) <= 3 for t in onsets) for s in offline)
+            counts[name][1] += len(offline)
+    return {name: (matched, total) for name, (matched, total) in counts.items()}
+
+
+def main(argv: list[str]) -> int:
+    directory = Path(argv[0]) if argv else DEFAULT_DATA
+    warnings.simplefilter("ignore")
+    recordings = load_streamed(find_pairs(directory), report=lambda message: None)
+    print(f"{len(recordings)} recordings analysed as streams, leave-one-recording-out, 10 seeds")
+    print()
+    print("| live head | speed-envelope r | pitch r | std ratio pitch / yaw / roll | velocity-spectrum distance (dB) "
+          "| control: speed-envelope r (chance spread) | control: pitch r (chance spread) |")
+    print("|---|---|---|---|---|---|---|")
+    for ms in LOOKAHEADS_MS:
+        result = held_out_live(recordings, lookahead_s=ms / 1000)
+        print(_row(f"{ms} ms look-ahead", list(result.per_recording.values()), list(result.controls.values())))
+    nested = nested_held_out_live(recordings, lookahead_s=0.1)
+    print(_row("100 ms, presence window chosen per fold (nested)", list(nested.per_recording.values()),
+               list(nested.controls.values())))
+    print()
+    speech = sorted(directory.glob("*.wav")) + sorted((directory.parent / "speech").glob("*.wav"))
+    print("Live brows against the offline rule (onsets within 3 frames / offline onsets):")
+    for ms in (0, 100, 200):
+        agreement = brow_agreement(speech, int(round(ms * 0.03)))
+        cells = [f"{name} {matched}/{total} ({matched / max(total, 1):.0%})"
+                 for name, (matched, total) in agreement.items()]
+        print(f"  {ms:3d} ms look-ahead: " + ", ".join(cells))
+    frames = [(extract_features(path).n_frames, stream_file(str(path))[0].size) for path in speech]
+    print(f"Frame counts equal to the offline analysis on {sum(a == b for a, b in frames)} of {len(frames)} files")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
