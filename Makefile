@@ -19,6 +19,7 @@ demo: $(STAMP)
 	$(BIN)/prosody convert samples/arctic_a0009.wav -o out/arctic_a0009.fap
 	$(BIN)/prosody inspect out/arctic_a0009.fap
 	$(BIN)/prosody preview samples/arctic_a0009.wav -o out/arctic_a0009.gif
+	$(BIN)/prosody stream samples/arctic_a0009.wav -o out/arctic_a0009.live.fap
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

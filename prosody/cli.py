@@ -346,7 +346,7 @@ def _cmd_stream(args: argparse.Namespace) -> int:
     from audio_features.atomic import atomic_write
 
     from .errors import ConfigError
-    from .jobs.stream import LiveConverter, frames_to_stream
+    from .jobs.stream import FrameRecorder, LiveConverter
 
     if args.mic and args.input is not None:
         raise ConfigError("give an input or --mic, not both")
@@ -400,38 +400,40 @@ def _cmd_stream(args: argparse.Namespace) -> int:
     rate, chunks = _stream_source(args)
     converter = make_converter(rate)
     to_stdout = args.output == "-"
-    frames: list = []  # kept only when a file is written at the end
+    to_file = args.output not in (None, "-")
+    lines_to_file = to_file and args.output.lower().endswith(".jsonl") and args.format is None
+    recorder = FrameRecorder(converter.faps) if to_file and not lines_to_file else None
     count = 0
 
-    def emit(new: list) -> None:
-        nonlocal count
-        if not new:
-            return
-        count += len(new)
+    with contextlib.ExitStack() as outputs:
         if server is not None:
-            server.publish(new)
-        if to_stdout:
-            sys.stdout.write("".join(frame.to_json() + "\n" for frame in new))
-            sys.stdout.flush()
-        elif args.output is not None:
-            frames.extend(new)
+            outputs.callback(server.close)
+        # JSON lines go to a file as they come (renamed over OUT only when the stream ends well)
+        lines = outputs.enter_context(atomic_write(args.output, newline="\n")) if lines_to_file else None
 
-    try:
+        def emit(new: list) -> None:
+            nonlocal count
+            if not new:
+                return
+            count += len(new)
+            if server is not None:
+                server.publish(new)
+            text = "".join(frame.to_json() + "\n" for frame in new) if to_stdout or lines is not None else ""
+            if to_stdout:
+                sys.stdout.write(text)
+                sys.stdout.flush()
+            elif lines is not None:
+                lines.write(text)
+            elif recorder is not None:
+                recorder.add(new)
+
         interrupted = _read_until_stopped(chunks, lambda samples: emit(converter.push(samples)))
         emit(converter.finish())
-        if args.output not in (None, "-"):
-            name = Path(args.input).stem if args.input not in (None, "-") else "stream"
-            if args.output.lower().endswith(".jsonl") and args.format is None:
-                with atomic_write(args.output, newline="\n") as handle:
-                    handle.write("".join(frame.to_json() + "\n" for frame in frames))
-            else:
-                from .fap.exporters import write_stream
+        if recorder is not None:
+            from .fap.exporters import write_stream
 
-                stream = frames_to_stream(frames, fps=converter.fps, name=name, faps=converter.faps)
-                write_stream(stream, args.output, args.format)
-    finally:
-        if server is not None:
-            server.close()
+            name = Path(args.input).stem if args.input not in (None, "-") else "stream"
+            write_stream(recorder.stream(fps=converter.fps, name=name), args.output, args.format)
     where = "standard output" if to_stdout else (args.output or os.devnull)
     ended = "stopped by Ctrl-C or SIGTERM, the last frames flushed" if interrupted else "end of input"
     print(f"prosody stream: {where}: {count} frames at {converter.fps:g} fps ({ended}; look-ahead "
