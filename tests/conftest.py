@@ -82,6 +82,21 @@ def make_features(f0_conditioned_hz, energy_db, *, fps: float = 30.0):
 
 
 @pytest.fixture
+def frame_server():
+    """A live frame server on a free loopback port, with a converter per client; ``.lines`` holds what it
+    reported."""
+    from prosody.jobs.server import FrameServer
+    from prosody.jobs.stream import LiveConverter
+
+    lines: list[str] = []
+    running = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lines.append)
+    running.start()
+    running.lines = lines  # type: ignore[attr-defined]
+    yield running
+    running.close(drain_s=0.2)
+
+
+@pytest.fixture
 def speech(tmp_path) -> Path:
     """1.7 s of a speech-like tone (140 Hz, an accent at 230 Hz, 150 Hz) at 16 kHz: 51 frames at 30 fps."""
     import soundfile

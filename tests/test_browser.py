@@ -15,24 +15,13 @@ import numpy as np
 import pytest
 from conftest import REPO
 
-from prosody.jobs.server import FrameServer
-from prosody.jobs.stream import LiveConverter, LiveFrame
+from prosody.jobs.stream import LiveFrame
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 DRIVER = shutil.which("chromedriver")
 pytestmark = pytest.mark.skipif(CHROMIUM is None or DRIVER is None,
                                 reason="needs Debian's chromium and chromium-driver "
                                        "(apt-get install chromium chromium-driver)")
-
-
-@pytest.fixture
-def server():
-    lines: list[str] = []
-    running = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lines.append)
-    running.start()
-    running.lines = lines  # type: ignore[attr-defined]
-    yield running
-    running.close(drain_s=0.2)
 
 
 @pytest.fixture
@@ -74,13 +63,13 @@ def _face(driver) -> np.ndarray:
     return array[: array.shape[1]]  # the face square, above the strip
 
 
-def test_page_draws_the_frames_the_server_sends(server, browser, tmp_path):
-    browser.get(server.url)
+def test_page_draws_the_frames_the_server_sends(frame_server, browser, tmp_path):
+    browser.get(frame_server.url)
     _wait_for(browser, "return window.prosodyStats && window.prosodyStats.connected")
     still = _face(browser)
     # a head turned 8 degrees to its left and tilted, brows raised
-    server.publish([LiveFrame(k, k / 30, {31: 30.0, 32: 30.0, 33: 30.0, 34: 30.0, 48: 0.0, 49: 14000.0, 50: 6000.0})
-                    for k in range(5)])
+    pose = {31: 30.0, 32: 30.0, 33: 30.0, 34: 30.0, 48: 0.0, 49: 14000.0, 50: 6000.0}
+    frame_server.publish([LiveFrame(k, k / 30, pose) for k in range(5)])
     _wait_for(browser, "return window.prosodyStats.inputFrames >= 5")
     time.sleep(0.3)  # a few animation frames
     moved = _face(browser)
@@ -90,16 +79,16 @@ def test_page_draws_the_frames_the_server_sends(server, browser, tmp_path):
     assert "frame 4" in browser.find_element("id", "status").text
 
 
-def test_microphone_audio_reaches_the_server_and_moves_the_face(server, browser, tmp_path):
-    browser.get(server.url + "?mic=1")
+def test_microphone_audio_reaches_the_server_and_moves_the_face(frame_server, browser, tmp_path):
+    browser.get(frame_server.url + "?mic=1")
     _wait_for(browser, "return window.prosodyStats.micStarted")
     _wait_for(browser, "return window.prosodyStats.clientFrames >= 45")  # 1.5 s of frames back
     first = _face(browser)
     time.sleep(1.0)
     second = _face(browser)
     (tmp_path / "mic.png").write_bytes(browser.find_element("id", "face").screenshot_as_png)
-    assert server.audio_messages > 10
-    assert any("is sending audio" in line for line in server.lines)
+    assert frame_server.audio_messages > 10
+    assert any("is sending audio" in line for line in frame_server.lines)
     stats = browser.execute_script("return window.prosodyStats")
     assert stats["errors"] == []
     assert stats["last"]["source"] == "client"

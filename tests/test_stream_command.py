@@ -20,8 +20,7 @@ from conftest import REPO, segments
 
 from prosody.cli import main
 from prosody.fap.fapfile import read_fap
-from prosody.jobs.server import FrameServer
-from prosody.jobs.stream import LiveConverter, LiveFrame
+from prosody.jobs.stream import LiveFrame
 
 PROSODY = [sys.executable, "-m", "prosody"]
 SAMPLE = REPO / "samples" / "arctic_a0009.wav"
@@ -152,16 +151,6 @@ def test_malformed_input_mid_stream_is_one_line_and_exit_1(tmp_path):
 
 
 # the server -------------------------------------------------------------------------------------------------
-@pytest.fixture
-def server():
-    lines: list[str] = []
-    running = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lines.append)
-    running.start()
-    running.lines = lines  # type: ignore[attr-defined]
-    yield running
-    running.close(drain_s=0.2)
-
-
 def _frames(k0: int, n: int) -> list[LiveFrame]:
     return [LiveFrame(k, k / 30, {31: 0.0, 48: float(k)}) for k in range(k0, k0 + n)]
 
@@ -177,42 +166,42 @@ def _receive_all(connection, timeout_s: float = 1.0) -> list[dict]:
         return messages
 
 
-def test_page_is_served_and_unknown_paths_are_404(server):
-    with urllib.request.urlopen(server.url, timeout=5) as response:
+def test_page_is_served_and_unknown_paths_are_404(frame_server):
+    with urllib.request.urlopen(frame_server.url, timeout=5) as response:
         page = response.read().decode()
         assert response.headers["Content-Type"].startswith("text/html")
     assert "<canvas" in page and "WebSocket" in page
     with pytest.raises(urllib.error.HTTPError) as error:
-        urllib.request.urlopen(server.url + "nothing", timeout=5)
+        urllib.request.urlopen(frame_server.url + "nothing", timeout=5)
     error.value.close()
     assert error.value.code == 404
 
 
-def test_every_client_gets_the_input_frames_and_a_second_can_join(server):
+def test_every_client_gets_the_input_frames_and_a_second_can_join(frame_server):
     from websockets.sync.client import connect
 
-    url = f"ws://127.0.0.1:{server.port}/stream"
+    url = f"ws://127.0.0.1:{frame_server.port}/stream"
     with connect(url) as first:
         time.sleep(0.2)
-        server.publish(_frames(0, 10))
+        frame_server.publish(_frames(0, 10))
         with connect(url) as second:
             time.sleep(0.2)
-            server.publish(_frames(10, 10))
+            frame_server.publish(_frames(10, 10))
             got_second = _receive_all(second)
         got_first = _receive_all(first)
     assert [m["frame"] for m in got_first] == list(range(20))
     assert [m["frame"] for m in got_second] == list(range(10, 20))
     assert all(m["source"] == "input" for m in got_first)
-    assert sum("connected" in line and "disconnected" not in line for line in server.lines) == 2
+    assert sum("connected" in line and "disconnected" not in line for line in frame_server.lines) == 2
 
 
-def test_a_stalled_reader_and_a_vanished_client_do_not_stop_the_others(server):
+def test_a_stalled_reader_and_a_vanished_client_do_not_stop_the_others(frame_server):
     import socket
 
     from websockets.sync.client import connect
 
-    url = f"ws://127.0.0.1:{server.port}/stream"
-    quiet = socket.create_connection(("127.0.0.1", server.port))
+    url = f"ws://127.0.0.1:{frame_server.port}/stream"
+    quiet = socket.create_connection(("127.0.0.1", frame_server.port))
     quiet.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # a reader that takes almost nothing
     with connect(url) as good, connect(url, sock=quiet) as stalled, connect(url) as vanished:
         time.sleep(0.2)
@@ -221,21 +210,21 @@ def test_a_stalled_reader_and_a_vanished_client_do_not_stop_the_others(server):
         reader = threading.Thread(target=lambda: received.extend(_receive_all(good, 2.0)))
         reader.start()
         for batch in range(40):  # 4000 frames: more than a stalled client's queue and buffers hold
-            server.publish(_frames(batch * 100, 100))
+            frame_server.publish(_frames(batch * 100, 100))
             time.sleep(0.02)
         reader.join()
         assert stalled.protocol.state.name == "OPEN"
     assert [m["frame"] for m in received] == list(range(4000))
-    stalls = [line for line in server.lines if "not reading" in line]
+    stalls = [line for line in frame_server.lines if "not reading" in line]
     assert len(stalls) == 1
-    assert sum("disconnected" in line for line in server.lines) >= 1
+    assert sum("disconnected" in line for line in frame_server.lines) >= 1
 
 
-def test_client_audio_gives_frames_to_that_client_and_bad_messages_are_told_once(server):
+def test_client_audio_gives_frames_to_that_client_and_bad_messages_are_told_once(frame_server):
     from websockets.sync.client import connect
 
     samples = segments(16000, (0.6, 150, 0.5), (0.4, 230, 0.5))
-    url = f"ws://127.0.0.1:{server.port}/stream"
+    url = f"ws://127.0.0.1:{frame_server.port}/stream"
     with connect(url) as talker, connect(url) as watcher:
         talker.send("not json")
         talker.send(b"\x00\x01")  # audio before start
@@ -251,20 +240,20 @@ def test_client_audio_gives_frames_to_that_client_and_bad_messages_are_told_once
     assert [m["frame"] for m in frames] == list(range(30))
     assert all(m["source"] == "client" for m in frames)
     assert len(errors) == 3  # each bad message is answered ...
-    assert sum("before a start" in line for line in server.lines) == 1  # ... and reported once
+    assert sum("before a start" in line for line in frame_server.lines) == 1  # ... and reported once
     assert watched == []  # a client's own audio drives its own face only
-    assert server.audio_messages == 10
+    assert frame_server.audio_messages == 10
 
 
-def test_client_audio_that_is_not_finite_stops_that_client_only(server):
+def test_client_audio_that_is_not_finite_stops_that_client_only(frame_server):
     from websockets.sync.client import connect
 
-    url = f"ws://127.0.0.1:{server.port}/stream"
+    url = f"ws://127.0.0.1:{frame_server.port}/stream"
     with connect(url) as broken, connect(url) as fine:
         broken.send(json.dumps({"type": "start", "sample_rate": 16000, "encoding": "f32le"}))
         broken.send(np.array([np.nan] * 100, dtype="<f4").tobytes())
         time.sleep(0.3)
-        server.publish(_frames(0, 5))
+        frame_server.publish(_frames(0, 5))
         assert [m["frame"] for m in _receive_all(fine, 0.5)] == list(range(5))
         errors = [m for m in _receive_all(broken, 0.5) if m["type"] == "error"]
     assert "not finite" in errors[0]["message"]

@@ -44,6 +44,7 @@ from .speech_head import (
     _finite_number,
     _ridge,
     _shaping_filter,
+    read_fitted_fields,
     windowed_features,
 )
 
@@ -602,22 +603,7 @@ class LiveHeadModel:
             model.fps_ = float(fps)
             if list(payload["features"]) != list(FEATURE_NAMES) or list(payload["outputs"]) != list(HEAD_FAPS):
                 raise fail("features and outputs differ from the ones this release computes")
-            for key, shape in model._array_shapes().items():
-                array = np.array(payload[key], dtype=float)
-                if array.shape != shape:
-                    raise fail(f"field {key!r} has shape {array.shape!r}, expected {shape!r}")
-                if not np.all(np.isfinite(array)):
-                    raise fail(f"field {key!r} holds non-finite numbers")
-                setattr(model, key + "_", array)
-            for key in ("envelope_std", "pitch_std", "velocity_scale", "spread_au", "noise_spread", "output_scale"):
-                if np.any(getattr(model, key + "_") <= 0):
-                    raise fail(f"field {key!r} must hold positive numbers")
-            for key in ("speed_rad_s", "pitch_prediction_spread"):
-                value = payload[key]
-                if not _finite_number(value) or not value > 0:
-                    raise fail(f"field {key!r} must be a positive number, got {value!r}")
-                setattr(model, key + "_", float(value))
-            model.training_ = [TrainingClip.from_dict(c) for c in payload["training"]]
+            read_fitted_fields(model, payload, fail)
         except ModelError:
             raise
         except (KeyError, TypeError, ValueError, OverflowError) as error:

@@ -192,6 +192,28 @@ def _finite_number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
+def read_fitted_fields(model, payload: dict, fail) -> None:
+    """Set the learnt attributes a prosodic head model file holds (the arrays of ``model._array_shapes()``,
+    the two spreads and the training record), checking each; ``fail(problem)`` makes the error to raise.
+    Shared by the offline and the live model files."""
+    for key, shape in model._array_shapes().items():
+        array = np.array(payload[key], dtype=float)
+        if array.shape != shape:
+            raise fail(f"field {key!r} has shape {array.shape!r}, expected {shape!r}")
+        if not np.all(np.isfinite(array)):
+            raise fail(f"field {key!r} holds non-finite numbers")
+        setattr(model, key + "_", array)
+    for key in ("envelope_std", "pitch_std", "velocity_scale", "spread_au", "noise_spread", "output_scale"):
+        if np.any(getattr(model, key + "_") <= 0):
+            raise fail(f"field {key!r} must hold positive numbers")
+    for key in ("speed_rad_s", "pitch_prediction_spread"):
+        value = payload[key]
+        if not _finite_number(value) or not value > 0:
+            raise fail(f"field {key!r} must be a positive number, got {value!r}")
+        setattr(model, key + "_", float(value))
+    model.training_ = [TrainingClip.from_dict(c) for c in payload["training"]]
+
+
 class ProsodicHeadModel:
     """Head pitch, yaw and roll (FAP 48-50, AU) from speech: a predicted speed envelope driving coloured
     noise, plus a predicted head pitch.
@@ -538,22 +560,7 @@ class ProsodicHeadModel:
                     or list(payload["envelope_features"]) != [FEATURE_NAMES[i] for i in ENVELOPE_FEATURES]
                     or list(payload["pitch_features"]) != [FEATURE_NAMES[i] for i in PITCH_FEATURES]):
                 raise fail("features and outputs differ from the ones this release computes")
-            for key, shape in model._array_shapes().items():
-                array = np.array(payload[key], dtype=float)
-                if array.shape != shape:
-                    raise fail(f"field {key!r} has shape {array.shape!r}, expected {shape!r}")
-                if not np.all(np.isfinite(array)):
-                    raise fail(f"field {key!r} holds non-finite numbers")
-                setattr(model, key + "_", array)
-            for key in ("envelope_std", "pitch_std", "velocity_scale", "spread_au", "noise_spread", "output_scale"):
-                if np.any(getattr(model, key + "_") <= 0):
-                    raise fail(f"field {key!r} must hold positive numbers")
-            for key in ("speed_rad_s", "pitch_prediction_spread"):
-                value = payload[key]
-                if not _finite_number(value) or not value > 0:
-                    raise fail(f"field {key!r} must be a positive number, got {value!r}")
-                setattr(model, key + "_", float(value))
-            model.training_ = [TrainingClip.from_dict(c) for c in payload["training"]]
+            read_fitted_fields(model, payload, fail)
         except ModelError:
             raise
         except (KeyError, TypeError, ValueError, OverflowError) as error:
