@@ -63,6 +63,7 @@ def _lookahead(text: str) -> float:
 
 _seed = _whole_number(0, 2**63 - 1, "0 to 2**63-1")
 _seeds = _whole_number(1, 1000, "1 to 1000")
+_sample_rate = _whole_number(8000, 768000, "8000 to 768000 (Hz)")
 
 
 def _add_seeds_option(parser: argparse.ArgumentParser) -> None:
@@ -723,15 +724,15 @@ def build_parser() -> argparse.ArgumentParser:
     source.add_argument("--mic", action="store_true",
                         help="read the default microphone (needs the sounddevice package: "
                              "pip install 'visual-prosody[mic]')")
-    source.add_argument("--mic-rate", type=int, default=16000, metavar="HZ",
+    source.add_argument("--mic-rate", type=_sample_rate, default=16000, metavar="HZ",
                         help="sample rate asked of the microphone (default 16000)")
     source.add_argument("--realtime", action="store_true",
                         help="read a file no faster than it plays (a demo of live input)")
-    source.add_argument("--raw-rate", type=int, default=None, metavar="HZ",
+    source.add_argument("--raw-rate", type=_sample_rate, default=None, metavar="HZ",
                         help="standard input holds raw samples at HZ instead of a WAV stream")
     source.add_argument("--raw-format", default=None, choices=["s16le", "s24le", "s32le", "f32le", "f64le", "u8"],
                         help="sample format of raw input (default s16le: 16-bit signed little-endian)")
-    source.add_argument("--raw-channels", type=int, default=None, metavar="N",
+    source.add_argument("--raw-channels", type=_whole_number(1, 64, "1 to 64"), default=None, metavar="N",
                         help="interleaved channels of raw input, mixed to mono (default 1)")
     stream.add_argument("--listen", default=None, metavar="HOST:PORT",
                         help="also serve the frames over a WebSocket, and at http://HOST:PORT/ a page that draws "

@@ -126,6 +126,8 @@ def test_ctrl_c_flushes_the_last_frames_and_writes_the_file_whole(tmp_path, stop
     (["stream", "x.wav", "-o", "-", "--format", "fap"], "--format names"),
     (["stream", "x.wav", "-o", "-", "--lookahead-ms", "-3"], "milliseconds"),
     (["stream", "x.wav", "-o", "-", "--listen", "here:port"], "HOST:PORT"),
+    (["stream", "-", "-o", "-", "--raw-rate", "4000"], "8000 to 768000"),
+    (["stream", "-", "-o", "-", "--raw-rate", "16000", "--raw-channels", "0"], "1 to 64"),
     (["train", "--data", ".", "-o", "m.json", "--lookahead-ms", "100"], "add --kind live"),
 ])
 def test_usage_errors_exit_2_with_one_line(argv, message, capsys, tmp_path, monkeypatch):
