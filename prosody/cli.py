@@ -340,7 +340,6 @@ def _cmd_preview(args: argparse.Namespace) -> int:
 
 
 def _cmd_stream(args: argparse.Namespace) -> int:
-    import os
     import time
     from pathlib import Path
 
@@ -375,6 +374,13 @@ def _cmd_stream(args: argparse.Namespace) -> int:
     def make_converter(rate: int) -> LiveConverter:
         return LiveConverter(rate, lookahead_ms=lookahead_ms, **options)
 
+    # the input and the options are checked before anything listens
+    reading = args.input is not None or args.mic
+    if reading:
+        rate, chunks = _stream_source(args)
+        converter = make_converter(rate)
+    else:
+        make_converter(16000)
     server = None
     if args.listen is not None:
         from .jobs.server import FrameServer, parse_address
@@ -386,7 +392,7 @@ def _cmd_stream(args: argparse.Namespace) -> int:
         print(f"prosody stream: serving the face at {server.url} (frames over a WebSocket on the same address)",
               file=sys.stderr, flush=True)
 
-    if args.input is None and not args.mic:
+    if not reading:
         try:
             while True:
                 time.sleep(3600)
@@ -398,8 +404,6 @@ def _cmd_stream(args: argparse.Namespace) -> int:
         print(f"prosody stream: stopped after serving {server.clients_served} client(s)", file=sys.stderr)
         return EXIT_OK
 
-    rate, chunks = _stream_source(args)
-    converter = make_converter(rate)
     to_stdout = args.output == "-"
     to_file = args.output not in (None, "-")
     lines_to_file = to_file and args.output.lower().endswith(".jsonl") and args.format is None
@@ -435,7 +439,7 @@ def _cmd_stream(args: argparse.Namespace) -> int:
 
             name = Path(args.input).stem if args.input not in (None, "-") else "stream"
             write_stream(recorder.stream(fps=converter.fps, name=name), args.output, args.format)
-    where = "standard output" if to_stdout else (args.output or os.devnull)
+    where = "standard output" if to_stdout else (args.output or "the clients")
     ended = "stopped by Ctrl-C or SIGTERM, the last frames flushed" if interrupted else "end of input"
     print(f"prosody stream: {where}: {count} frames at {converter.fps:g} fps ({ended}; look-ahead "
           f"{converter.lookahead_frames / converter.fps * 1000:.0f} ms)", file=sys.stderr)
