@@ -273,6 +273,8 @@ class RunningMedian:
     def add(self, value: float) -> None:
         if self._decay != 1.0:
             self._counts *= self._decay
+            if self.count % 4096 == 0:  # weights forgotten long ago: zero, not ever smaller subnormals
+                self._counts[self._counts < 1e-200] = 0.0
         index = int(np.clip(np.rint((value - self.low) / self.resolution), 0, self._counts.size - 1))
         self._counts[index] += 1.0
         self.count += 1
