@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 from conftest import REPO
 
-from prosody.jobs.stream import LiveFrame
+from prosody.jobs.server import FrameServer
+from prosody.jobs.stream import LiveConverter, LiveFrame
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 DRIVER = shutil.which("chromedriver")
@@ -94,3 +95,21 @@ def test_microphone_audio_reaches_the_server_and_moves_the_face(frame_server, br
     assert stats["last"]["source"] == "client"
     # the speech keeps the head moving: two moments a second apart differ
     assert np.any(np.abs(first.astype(int) - second.astype(int)) > 30, axis=2).mean() > 0.001
+
+
+def test_page_reconnects_when_the_server_comes_back(browser):
+    lines: list[str] = []
+    first = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lines.append).start()
+    port = first.port
+    browser.get(first.url)
+    _wait_for(browser, "return window.prosodyStats.connected")
+    first.close(drain_s=0.1)
+    _wait_for(browser, "return !window.prosodyStats.connected")
+    second = FrameServer("127.0.0.1", port, make_converter=lambda rate: LiveConverter(rate),
+                         report=lines.append).start()
+    try:
+        _wait_for(browser, "return window.prosodyStats.connected", timeout_s=10)
+        second.publish([LiveFrame(k, k / 30, {48: 1000.0}) for k in range(3)])
+        _wait_for(browser, "return window.prosodyStats.inputFrames >= 3")
+    finally:
+        second.close(drain_s=0.1)
