@@ -215,8 +215,6 @@ class FrameServer:
         finally:
             self._clients.discard(client)
             sender.cancel()
-            if client.converter is not None:
-                client.converter = None
             self.report(f"client {client.name} disconnected ({len(self._clients)} connected)")
 
     async def _send(self, websocket, client: _Client) -> None:

@@ -139,7 +139,6 @@ class LiveConverter:
             if head_model.fps_ != self.fps:
                 raise ConfigError(f"the live head model runs at {head_model.fps_:g} fps; stream at fps="
                                   f"{head_model.fps_:g} or train a live model at {self.fps:g} fps")
-            self.head_model = head_model
             self._head = head_model.start(lookahead=self.lookahead_frames, seed=seed)
             self._brows = live_brows(eyebrow_rule, fps=self.fps, lookahead=self.lookahead_frames)
         elif chosen is Condition.RANDOM:

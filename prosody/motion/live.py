@@ -28,7 +28,7 @@ import numpy as np
 
 from audio_features.streaming import CausalF0Bridge, RunningMedian
 
-from ..errors import ConfigError, ModelError
+from ..errors import ConfigError
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, RADIANS_PER_AU
 from ..measures import HEAD_LOWPASS_HZ
 from .eyebrows import AccentRule, BrowRule, EyebrowRule
@@ -38,13 +38,15 @@ from .speech_head import (
     ENVELOPE_FEATURES,
     FEATURE_NAMES,
     LOUDNESS_RANGE_DB,
+    MODEL_FORMAT,
+    MODEL_VERSION,
     PITCH_FEATURES,
     PRESENCE_FULL_SHARE,
     SPECTRUM_FRAMES,
     _finite_number,
     _ridge,
     _shaping_filter,
-    read_fitted_fields,
+    read_prosodic_model,
     windowed_features,
 )
 
@@ -362,9 +364,7 @@ def trailing_presence(voiced: np.ndarray, *, fps: float, lookahead: int, window_
 
 
 # head: the model ------------------------------------------------------------------------------------------
-MODEL_FORMAT = "visual-prosody-head"
-MODEL_VERSION = 1
-MODEL_KIND = "prosodic-live"
+MODEL_KIND = "prosodic-live"  # format and version: those of the offline prosodic head's files
 #: Smoothing half-width plus the change features' one frame: how far past its newest offset the
 #: regression reads.
 _READ_PAST_OFFSETS = 3
@@ -578,37 +578,11 @@ class LiveHeadModel:
     @classmethod
     def from_dict(cls, payload: object, *, source: str = "<dict>") -> LiveHeadModel:
         """Rebuild a model from :meth:`to_dict` output, checking every field."""
-
-        def fail(problem: str) -> ModelError:
-            return ModelError(f"{source}: {problem}")
-
-        if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
-            raise fail(f"not a {MODEL_FORMAT} model file (no \"format\": \"{MODEL_FORMAT}\")")
-        if payload.get("version") != MODEL_VERSION or payload.get("kind") != MODEL_KIND:
-            raise fail(f"model version {payload.get('version')!r} of kind {payload.get('kind')!r} is not a live "
-                       f"head model (this release streams with version {MODEL_VERSION} of kind {MODEL_KIND!r}, "
-                       "made by 'prosody train --kind live')")
-        try:
-            settings = payload["settings"]
-            if not isinstance(settings, dict) or set(settings) != set(cls.SETTINGS):
-                raise fail(f"\"settings\" must hold exactly {', '.join(cls.SETTINGS)}")
-            model = cls(**settings)
-            try:
-                model._check_settings()
-            except ConfigError as error:
-                raise fail(str(error)) from None
-            fps = payload["fps"]
-            if not _finite_number(fps) or not 0 < fps <= 1000:
-                raise fail(f"fps {fps!r} must be a number in (0, 1000]")
-            model.fps_ = float(fps)
-            if list(payload["features"]) != list(FEATURE_NAMES) or list(payload["outputs"]) != list(HEAD_FAPS):
-                raise fail("features and outputs differ from the ones this release computes")
-            read_fitted_fields(model, payload, fail)
-        except ModelError:
-            raise
-        except (KeyError, TypeError, ValueError, OverflowError) as error:
-            raise fail(f"missing or malformed field ({error!r})") from None
-        return model
+        return read_prosodic_model(
+            cls, payload, source=source, kind=MODEL_KIND,
+            unsupported=f"is not a live head model (this release streams with version {MODEL_VERSION} of kind "
+                        f"{MODEL_KIND!r}, made by 'prosody train --kind live')",
+            names={"features": list(FEATURE_NAMES), "outputs": list(HEAD_FAPS)})
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> LiveHeadModel:

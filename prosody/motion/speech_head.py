@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -192,10 +192,48 @@ def _finite_number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
-def read_fitted_fields(model, payload: dict, fail) -> None:
+def read_prosodic_model(cls, payload: object, *, source: str, kind: str, unsupported: str, names: dict[str, list],
+                        check_settings: Callable[[dict, Callable[[str], ModelError]], None] | None = None):
+    """A model of class ``cls`` (offline or live prosodic head) from its file's data, checking every field:
+    the format, the ``version`` and ``kind`` (``unsupported`` ends the message when they differ), the settings
+    (``check_settings(settings, fail)`` first, then the model's own checks), the frame rate, the ``names``
+    fields (features and outputs) and the fitted arrays. Errors are :class:`ModelError` naming ``source``."""
+
+    def fail(problem: str) -> ModelError:
+        return ModelError(f"{source}: {problem}")
+
+    if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
+        raise fail(f"not a {MODEL_FORMAT} model file (no \"format\": \"{MODEL_FORMAT}\")")
+    if payload.get("version") != MODEL_VERSION or payload.get("kind") != kind:
+        raise fail(f"model version {payload.get('version')!r} of kind {payload.get('kind')!r} {unsupported}")
+    try:
+        settings = payload["settings"]
+        if not isinstance(settings, dict) or set(settings) != set(cls.SETTINGS):
+            raise fail(f"\"settings\" must hold exactly {', '.join(cls.SETTINGS)}")
+        if check_settings is not None:
+            check_settings(settings, fail)
+        model = cls(**settings)
+        try:
+            model._check_settings()
+        except ConfigError as error:
+            raise fail(str(error)) from None
+        fps = payload["fps"]
+        if not _finite_number(fps) or not 0 < fps <= 1000:
+            raise fail(f"fps {fps!r} must be a number in (0, 1000]")
+        model.fps_ = float(fps)
+        if any(list(payload[key]) != value for key, value in names.items()):
+            raise fail("features and outputs differ from the ones this release computes")
+        _read_fitted_fields(model, payload, fail)
+    except ModelError:
+        raise
+    except (KeyError, TypeError, ValueError, OverflowError) as error:
+        raise fail(f"missing or malformed field ({error!r})") from None
+    return model
+
+
+def _read_fitted_fields(model, payload: dict, fail: Callable[[str], ModelError]) -> None:
     """Set the learnt attributes a prosodic head model file holds (the arrays of ``model._array_shapes()``,
-    the two spreads and the training record), checking each; ``fail(problem)`` makes the error to raise.
-    Shared by the offline and the live model files."""
+    the two spreads and the training record), checking each."""
     for key, shape in model._array_shapes().items():
         array = np.array(payload[key], dtype=float)
         if array.shape != shape:
@@ -530,39 +568,17 @@ class ProsodicHeadModel:
     def from_dict(cls, payload: object, *, source: str = "<dict>") -> ProsodicHeadModel:
         """Rebuild a model from :meth:`to_dict` output, checking every field."""
 
-        def fail(problem: str) -> ModelError:
-            return ModelError(f"{source}: {problem}")
-
-        if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
-            raise fail(f"not a {MODEL_FORMAT} model file (no \"format\": \"{MODEL_FORMAT}\")")
-        if payload.get("version") != MODEL_VERSION or payload.get("kind") != MODEL_KIND:
-            raise fail(f"model version {payload.get('version')!r} of kind {payload.get('kind')!r} is not supported "
-                       f"(this release reads version {MODEL_VERSION} of kind {MODEL_KIND!r})")
-        try:
-            settings = payload["settings"]
-            if not isinstance(settings, dict) or set(settings) != set(cls.SETTINGS):
-                raise fail(f"\"settings\" must hold exactly {', '.join(cls.SETTINGS)}")
+        def check_settings(settings: dict, fail: Callable[[str], ModelError]) -> None:
             for name, value in settings.items():
                 if not _finite_number(value):
                     raise fail(f"setting {name!r} must be a finite number, got {value!r}")
             if not isinstance(settings["speed_iterations"], int):
                 raise fail(f"setting 'speed_iterations' must be a whole number, got {settings['speed_iterations']!r}")
-            model = cls(**settings)
-            try:
-                model._check_settings()
-            except ConfigError as error:
-                raise fail(str(error)) from None
-            fps = payload["fps"]
-            if not _finite_number(fps) or not 0 < fps <= 1000:
-                raise fail(f"fps {fps!r} must be a number in (0, 1000]")
-            model.fps_ = float(fps)
-            if (list(payload["features"]) != list(FEATURE_NAMES) or list(payload["outputs"]) != list(HEAD_FAPS)
-                    or list(payload["envelope_features"]) != [FEATURE_NAMES[i] for i in ENVELOPE_FEATURES]
-                    or list(payload["pitch_features"]) != [FEATURE_NAMES[i] for i in PITCH_FEATURES]):
-                raise fail("features and outputs differ from the ones this release computes")
-            read_fitted_fields(model, payload, fail)
-        except ModelError:
-            raise
-        except (KeyError, TypeError, ValueError, OverflowError) as error:
-            raise fail(f"missing or malformed field ({error!r})") from None
-        return model
+
+        return read_prosodic_model(
+            cls, payload, source=source, kind=MODEL_KIND,
+            unsupported=f"is not supported (this release reads version {MODEL_VERSION} of kind {MODEL_KIND!r})",
+            check_settings=check_settings,
+            names={"features": list(FEATURE_NAMES), "outputs": list(HEAD_FAPS),
+                   "envelope_features": [FEATURE_NAMES[i] for i in ENVELOPE_FEATURES],
+                   "pitch_features": [FEATURE_NAMES[i] for i in PITCH_FEATURES]})
