@@ -139,11 +139,10 @@ class StreamingAnalyser:
             out[lo - start:hi - start] = self._buffer[lo - self._buffer_start:hi - self._buffer_start]
         return out
 
-    def _peak_before(self, end: int) -> float:
-        """The loudest sample of the :data:`PEAK_WINDOW_S` before sample ``end`` (a function of the audio
-        only, however it arrived)."""
+    def _fold_peaks(self, end: int) -> None:
+        """Fold the complete blocks before sample ``end`` into the remembered peaks and forget those older
+        than :data:`PEAK_WINDOW_S`. Never past ``end``: a later frame's peak must not see its own future."""
         block = self._peak_block
-        # fold complete blocks up to ``end`` into the remembered peaks
         while self._peak_scanned + block <= min(end, self._received):
             index = self._peak_scanned // block
             chunk = self._read(self._peak_scanned, block)
@@ -152,6 +151,11 @@ class StreamingAnalyser:
         oldest = (end - int(PEAK_WINDOW_S * self.sample_rate_hz)) // block
         while self._peak_blocks and self._peak_blocks[0][0] < oldest:
             self._peak_blocks.popleft()
+
+    def _peak_before(self, end: int) -> float:
+        """The loudest sample of the :data:`PEAK_WINDOW_S` before sample ``end`` (a function of the audio
+        only, however it arrived)."""
+        self._fold_peaks(end)
         partial = self._read(self._peak_scanned, max(0, end - self._peak_scanned))
         return max(max((peak for _, peak in self._peak_blocks), default=0.0),
                    float(np.max(np.abs(partial), initial=0.0)))
@@ -199,6 +203,9 @@ class StreamingAnalyser:
             self._next_frame += 1
         # keep only what later frames and the peak memory can still read
         (p_start, _), (i_start, _) = self._segments(self._next_frame)
+        # folded here too, not only when a frame has sound: in digital silence no frame asks for the peak,
+        # and the unfolded audio would be kept (and copied on every push) for as long as the silence lasts
+        self._fold_peaks(min(p_start, i_start))
         keep_from = max(0, min(p_start, i_start, self._peak_scanned))
         if keep_from > self._buffer_start:
             self._buffer = self._buffer[keep_from - self._buffer_start:]

@@ -217,3 +217,18 @@ def test_raw_channels_are_mixed_and_nonfinite_floats_refused():
         PcmDecoder(PcmFormat(16000, "f32le")).decode(struct.pack("<f", float("nan")))
     with pytest.raises(ParameterError):
         PcmFormat(16000, "mp3")
+
+
+def test_digital_silence_keeps_the_buffer_bounded():
+    # an all-zero window asks no peak; the audio before the frames must still be let go (a minute of
+    # silence once grew the buffer to every sample received)
+    analyser = StreamingAnalyser(16000)
+    frames = 0
+    for _ in range(600):  # 60 s in 0.1 s pieces
+        f0, _ = analyser.push(np.zeros(1600))
+        frames += f0.size
+    assert frames >= 1795
+    assert analyser._buffer.size < 16000  # below a second of audio, whatever the silence's length
+    tone = harmonic_tone(200.0, 1.0, 16000)
+    f0 = np.concatenate([analyser.push(tone)[0], analyser.finish()[0]])
+    assert abs(1200 * np.log2(np.nanmedian(f0) / 200.0)) < 20  # the voice after it is still heard
