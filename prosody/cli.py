@@ -366,6 +366,13 @@ def _cmd_stream(args: argparse.Namespace) -> int:
                           "its own microphone")
     if args.format is not None and args.output in (None, "-"):
         raise ConfigError("--format names the format of an output file; -o - always writes JSON lines")
+    if args.allow_origin and args.listen is None:
+        raise ConfigError("--allow-origin names pages allowed to open the stream of --listen; give --listen too")
+    if args.allow_origin:
+        from .jobs.server import normalize_origin
+
+        for origin in args.allow_origin:
+            normalize_origin(origin)
     _check_motion_options(args)
     options = _motion_kwargs(args)
     options.pop("ground_truth")
@@ -386,7 +393,7 @@ def _cmd_stream(args: argparse.Namespace) -> int:
         from .jobs.server import FrameServer, parse_address
 
         host, port = parse_address(args.listen)
-        server = FrameServer(host, port, make_converter=make_converter,
+        server = FrameServer(host, port, make_converter=make_converter, allow_origins=args.allow_origin,
                              report=lambda line: print(f"prosody stream: {line}", file=sys.stderr, flush=True))
         server.start()
         print(f"prosody stream: serving the face at {server.url} (frames over a WebSocket on the same address)",
@@ -743,6 +750,9 @@ def build_parser() -> argparse.ArgumentParser:
                              "the face moving with them and can send the browser's microphone (127.0.0.1 when "
                              "HOST is left out; another address lets anyone who can reach it watch the stream and "
                              "send audio to this machine); port 0 picks a free one")
+    stream.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
+                        help="with --listen: also let pages from ORIGIN (http(s)://HOST[:PORT]) open the stream; "
+                             "by default only the page served at --listen's own address may (repeatable)")
     _add_motion_options(stream, live=True)
     _add_analysis_options(stream)
     _add_eyebrow_options(stream)

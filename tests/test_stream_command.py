@@ -284,3 +284,64 @@ def test_mic_without_sounddevice_says_what_to_install(capsys, monkeypatch):
     assert main(["stream", "--mic", "-o", "-"]) == 2
     err = capsys.readouterr().err
     assert "visual-prosody[mic]" in err and err.count("\n") == 1
+
+
+def test_only_the_servers_own_page_may_open_the_stream():
+    # a page on another site (or one whose DNS name was pointed at this machine) must not watch the stream
+    # or send audio; clients that are not browsers send no Origin and are served
+    import socket
+
+    from websockets.exceptions import InvalidStatus
+    from websockets.sync.client import connect
+
+    from prosody.jobs.server import FrameServer
+    from prosody.jobs.stream import LiveConverter
+
+    lines: list[str] = []
+    server = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lines.append,
+                         allow_origins=["https://studio.example:8443/"]).start()
+    try:
+        def opened(host: str, origin: str | None):
+            # the request names ``host`` (its Host header) whatever address it is sent to
+            sock = socket.create_connection(("127.0.0.1", server.port))
+            return connect(f"ws://{host}:{server.port}/stream", sock=sock, origin=origin, open_timeout=5)
+
+        own = [("127.0.0.1", f"http://127.0.0.1:{server.port}"), ("localhost", f"http://localhost:{server.port}"),
+               ("127.0.0.1", None), ("127.0.0.1", "https://studio.example:8443")]
+        for host, origin in own:
+            with opened(host, origin) as client:
+                assert client.protocol.state.name == "OPEN"
+        foreign = [("127.0.0.1", "https://evil.example"), ("127.0.0.1", f"http://127.0.0.1:{server.port + 1}"),
+                   ("rebound.example", f"http://rebound.example:{server.port}"), ("127.0.0.1", "null")]
+        for host, origin in foreign:
+            with pytest.raises(InvalidStatus) as refused:
+                opened(host, origin)
+            assert refused.value.response.status_code == 403
+        assert sum("refused a WebSocket" in line for line in lines) == len(foreign)
+        assert any("'https://evil.example'" in line and "--allow-origin" in line for line in lines)
+    finally:
+        server.close(drain_s=0.2)
+
+
+def test_close_is_bounded_with_a_stalled_client_and_publish_after_close_is_refused():
+    import socket
+
+    from websockets.sync.client import connect
+
+    from prosody.jobs.server import FrameServer, ServerClosedError
+    from prosody.jobs.stream import LiveConverter
+
+    server = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate),
+                         report=lambda line: None).start()
+    quiet = socket.create_connection(("127.0.0.1", server.port))
+    quiet.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    with connect(f"ws://127.0.0.1:{server.port}/", sock=quiet, close_timeout=0.2):
+        for batch in range(20):  # more than its buffers hold: it never reads, nor answers the close
+            server.publish(_frames(batch * 100, 100))
+        time.sleep(0.3)
+        started = time.monotonic()
+        server.close(drain_s=0.5)
+        assert time.monotonic() - started < 0.5 + 2.5
+        assert server._thread is not None and not server._thread.is_alive()
+    with pytest.raises(ServerClosedError):
+        server.publish(_frames(0, 1))

@@ -13,16 +13,26 @@ client gets:
 A client that stops reading has its oldest frames dropped (it is told once, on stderr), a client that sends
 what is not audio is told why and its message ignored, and a client that goes away is reported once: the
 server keeps serving the others throughout.
+
+Only the server's own page may open the WebSocket: a browser names the page that opens a WebSocket in its
+``Origin`` header, and a page from any other site (which could otherwise watch the stream, or send the
+user's microphone) is refused with 403 and one line on the report. The page's own origin is
+``http://HOST:PORT`` where HOST is an address (``127.0.0.1``, ``[::1]``, the listening address), ``localhost``
+or this machine's name: a name that some other site's DNS could point at this machine is not trusted, which
+closes DNS rebinding. More origins are allowed by name (``--allow-origin``). Clients that are not browsers
+send no ``Origin`` and are served.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import ipaddress
 import json
 import socket
 import threading
-from collections.abc import Callable
+import urllib.parse
+from collections.abc import Callable, Iterable
 from importlib import resources
 
 from audio_features.errors import VisualProsodyError
@@ -37,6 +47,41 @@ CLIENT_QUEUE_FRAMES = 300
 SEND_BUFFER_BYTES = 16 << 10
 #: Largest message a client may send (1 MiB: over 5 s of 48 kHz float audio).
 MAX_MESSAGE_BYTES = 1 << 20
+#: Longest wait for a client's closing handshake when the server closes, in s.
+CLOSE_TIMEOUT_S = 1.0
+
+
+class ServerClosedError(ConfigError, RuntimeError):
+    """Frames published to a server that has been closed."""
+
+
+def normalize_origin(text: str) -> str:
+    """``scheme://host[:port]`` in lower case, without a default port or a trailing slash.
+
+    Examples
+    --------
+    >>> normalize_origin("HTTP://LocalHost:80/"), normalize_origin("https://example.org:8443")
+    ('http://localhost', 'https://example.org:8443')
+    """
+    parts = urllib.parse.urlsplit(text.strip())
+    if parts.scheme not in ("http", "https") or not parts.hostname:
+        raise ConfigError(f"origin {text!r} must be http(s)://HOST[:PORT], e.g. http://localhost:8080")
+    try:
+        port = parts.port
+    except ValueError:
+        raise ConfigError(f"origin {text!r} has a bad port") from None
+    host = f"[{parts.hostname}]" if ":" in parts.hostname else parts.hostname
+    default = {"http": 80, "https": 443}[parts.scheme]
+    return f"{parts.scheme}://{host}" + ("" if port in (None, default) else f":{port}")
+
+
+def _trusted_host(name: str) -> bool:
+    """A host name that no other site can point at this machine: an address, localhost, this machine's name."""
+    try:
+        ipaddress.ip_address(name.strip("[]"))
+        return True
+    except ValueError:
+        return name.lower() in {"localhost", socket.gethostname().lower(), socket.getfqdn().lower()}
 
 
 def page_html() -> bytes:
@@ -89,13 +134,17 @@ class FrameServer:
         ``make_converter(sample_rate_hz)`` -> a :class:`LiveConverter` for a client's own audio.
     report : callable
         Called with one line for each event worth telling (a client joining or leaving, each problem once).
+    allow_origins : iterable of str
+        Web origins besides the server's own page allowed to open the WebSocket (``http://host:port``).
     """
 
     def __init__(self, host: str, port: int, *, make_converter: Callable[[int], LiveConverter],
-                 report: Callable[[str], None]) -> None:
+                 report: Callable[[str], None], allow_origins: Iterable[str] = ()) -> None:
         self.host, self.port = host, port
         self.make_converter = make_converter
         self.report = report
+        self.allow_origins = frozenset(normalize_origin(origin) for origin in allow_origins)
+        self._closed = False
         self._clients: set[_Client] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stop: asyncio.Event | None = None
@@ -117,8 +166,14 @@ class FrameServer:
         return self
 
     def close(self, *, drain_s: float = 1.0) -> None:
-        """Send what is queued (for up to ``drain_s``), close every connection and stop listening."""
-        if self._loop is None or self._stop is None or self._thread is None:
+        """Send what is queued (for up to ``drain_s``), close every connection and stop listening.
+
+        Returns when the server's thread has ended: within ``drain_s`` plus :data:`CLOSE_TIMEOUT_S` (and a
+        second's grace), however its clients behave. Later :meth:`publish` calls raise
+        :class:`ServerClosedError`.
+        """
+        self._closed = True
+        if self._loop is None or self._stop is None or self._thread is None or not self._thread.is_alive():
             return
 
         async def drained() -> None:
@@ -128,8 +183,11 @@ class FrameServer:
             assert self._stop is not None
             self._stop.set()
 
-        asyncio.run_coroutine_threadsafe(drained(), self._loop)
-        self._thread.join(timeout=drain_s + 5)
+        with contextlib.suppress(RuntimeError):  # the loop has already ended
+            asyncio.run_coroutine_threadsafe(drained(), self._loop)
+        self._thread.join(timeout=drain_s + CLOSE_TIMEOUT_S + 1.0)
+        if self._thread.is_alive():
+            self.report("the server did not stop in time; its connections are dropped with the process")
 
     @property
     def url(self) -> str:
@@ -149,14 +207,23 @@ class FrameServer:
         self._loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
         async with serve(self._handle, self.host, self.port, process_request=self._http,
-                         max_size=MAX_MESSAGE_BYTES, compression=None) as server:
+                         max_size=MAX_MESSAGE_BYTES, compression=None, close_timeout=CLOSE_TIMEOUT_S) as server:
             self.port = server.sockets[0].getsockname()[1]
             self._started.set()
             await self._stop.wait()
+            # a client that never answers the closing handshake is dropped after CLOSE_TIMEOUT_S
+            server.close(close_connections=True)
+            try:
+                await asyncio.wait_for(server.wait_closed(), CLOSE_TIMEOUT_S + 0.5)
+            except asyncio.TimeoutError:  # TimeoutError's own name only from Python 3.11
+                for connection in list(server.connections):
+                    connection.transport.abort()
 
     # frames of the command's input ----------------------------------------------------------------------
     def publish(self, frames: list[LiveFrame]) -> None:
         """Send frames of the command's input to every client (callable from any thread)."""
+        if self._closed:
+            raise ServerClosedError("the frame server is closed: start a new one to publish frames")
         if self._loop is None or not frames:
             return
         messages = [frame_message(frame, "input") for frame in frames]
@@ -185,13 +252,31 @@ class FrameServer:
         from websockets.http11 import Response
 
         if request.headers.get("Upgrade", "").lower() == "websocket":
-            return None  # go on with the WebSocket handshake
+            origins, hosts = request.headers.get_all("Origin"), request.headers.get_all("Host")
+            if not origins or (len(origins) == 1 and len(hosts) == 1 and self._allowed(origins[0], hosts[0])):
+                return None  # go on with the WebSocket handshake
+            origin = ", ".join(origins)
+            self.report(f"refused a WebSocket from the page at {origin[:200]!r}: only this server's own page may "
+                        "connect (allow another with --allow-origin ORIGIN)")
+            return connection.respond(403, "forbidden: this stream is only for the page served here\n")
         path = request.path.split("?", 1)[0]
         if path in ("/", "/index.html"):
             headers = Headers([("Content-Type", "text/html; charset=utf-8"), ("Cache-Control", "no-store"),
                                ("Content-Length", str(len(self._page)))])
             return Response(200, "OK", headers, self._page)
         return connection.respond(404, "not found: the page is at /\n")
+
+    def _allowed(self, origin: str, host_header: str) -> bool:
+        try:
+            origin = normalize_origin(origin)
+            # the page served here: same host and port as the request, on a host no other site can claim
+            own = normalize_origin(f"http://{host_header}")
+        except ConfigError:
+            return False
+        if origin in self.allow_origins:
+            return True
+        host = urllib.parse.urlsplit(origin).hostname or ""
+        return origin == own and _trusted_host(host)
 
     async def _handle(self, websocket) -> None:
         from websockets.exceptions import ConnectionClosed
