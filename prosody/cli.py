@@ -10,6 +10,7 @@ import argparse
 import contextlib
 import dataclasses
 import json
+import os
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -921,10 +922,54 @@ def _as_flags(message: str) -> str:
     return message
 
 
+#: Commands whose -o may be - (standard output).
+_STDOUT_COMMANDS = frozenset({"features", "convert", "stream"})
+#: Options that name files or folders a command reads.
+_INPUT_OPTIONS = ("input", "base", "ground_truth", "model", "data", "ground_truth_dir", "audio")
+#: Options that name what a command writes.
+_OUTPUT_OPTIONS = ("output", "report")
+
+
+def _same_place(first: str, second: str) -> bool:
+    try:
+        return os.path.samefile(first, second)
+    except OSError:
+        return os.path.realpath(first) == os.path.realpath(second)
+
+
+def _check_paths(args: argparse.Namespace) -> None:
+    """Refuse outputs that would destroy an input or each other, empty names, and - where it is no stream."""
+    from .errors import ConfigError
+
+    inputs = [(name, value) for name in _INPUT_OPTIONS
+              if isinstance(value := getattr(args, name, None), str) and value not in ("", "-")]
+    seen: list[tuple[str, str]] = []
+    for name in _OUTPUT_OPTIONS:
+        value = getattr(args, name, None)
+        if value is None:
+            continue
+        flag = "-o" if name == "output" else f"--{name}"
+        if not value.strip():
+            raise ConfigError(f"{flag} {value!r}: give a file name")
+        if value == "-":
+            if name == "output" and args.command in _STDOUT_COMMANDS:
+                continue
+            command = " ".join(filter(None, (args.command, getattr(args, "study_command", None))))
+            raise ConfigError(f"{flag} -: 'prosody {command}' writes files, not standard output; name one")
+        for other_name, other in inputs + seen:
+            if _same_place(value, other):
+                other_flag = "the input" if other_name == "input" else (
+                    "-o" if other_name == "output" else f"--{other_name.replace('_', '-')}")
+                raise ConfigError(f"{flag} {value!r} is also {other_flag}: writing it would destroy it; "
+                                  "name another file")
+        seen.append((name, value))
+
+
 def _run(handler: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
     from .errors import ParameterError, VisualProsodyError
 
     try:
+        _check_paths(args)
         return handler(args)
     except ParameterError as error:  # prosody's ConfigError too
         print(f"prosody {args.command}: error: {_as_flags(str(error))}", file=sys.stderr)

@@ -105,3 +105,26 @@ def test_library_messages_name_python_arguments_and_the_command_names_its_option
     assert "--format NAME" in err and "output_format" not in err
     assert main(["convert", str(speech), "-o", str(tmp_path / "x.fap"), "--condition", "truth"]) == 2
     assert "--ground-truth FILE" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["convert", "{speech}", "-o", "{speech}", "--format", "fap"], "is also the input"),
+    (["convert", "{speech}", "-o", "{dir}/../{dir_name}/speech.wav", "--format", "fap"], "is also the input"),
+    (["convert", "{speech}", "-o", ""], "give a file name"),
+    (["features", "{speech}", "-o", "   "], "give a file name"),
+    (["study", "plan", "--stimuli", "a,b", "-o", "-"], "'prosody study plan' writes files"),
+    (["train", "--data", "{dir}", "-o", "-"], "'prosody train' writes files"),
+    (["compare", "{speech}", "-o", "-"], "'prosody compare' writes files"),
+    (["study", "analyze", "{dir}/ballots.csv", "-o", "{dir}/r.json", "--report", "{dir}/r.json"], "is also -o"),
+    (["study", "analyze", "{dir}/ballots.csv", "-o", "{dir}/ballots.csv"], "is also the input"),
+])
+def test_an_output_that_is_an_input_or_no_file_is_refused(tmp_path, speech, capsys, arguments, message) -> None:
+    before = speech.read_bytes()
+    (tmp_path / "ballots.csv").write_text("stimulus,subject,left,right,choice\n")
+    argv = [a.format(speech=speech, dir=speech.parent, dir_name=speech.parent.name) for a in arguments]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert speech.read_bytes() == before
+    assert (tmp_path / "ballots.csv").read_text() == "stimulus,subject,left,right,choice\n"
+    assert not (tmp_path / "r.json").exists()
