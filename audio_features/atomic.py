@@ -27,7 +27,16 @@ _STEM_BYTES = 80
 _SUFFIX_CHARACTERS = 16
 
 
-def _umask() -> int:
+def _read_umask() -> int:
+    """The process's umask. Linux says it in /proc, so it is never flipped, even for an instant, while another
+    thread (the live server's) creates a file; elsewhere it is set and set back."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
     mask = os.umask(0)
     os.umask(mask)
     return mask
@@ -75,9 +84,9 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """A temporary path beside ``path`` (with the same ending, for tools that go by it) that replaces ``path``
     only if the block succeeds; a failure (or an interrupt) removes it.
 
-    The file gets the permissions a newly created file would (0666 less the umask), not the temporary
-    file's private 0600. A device or FIFO at ``path`` is yielded itself (written through, never replaced);
-    a directory raises :class:`IsADirectoryError`.
+    The file keeps the permissions of the file it replaces; a new one gets those a newly created file would
+    (0666 less the umask), not the temporary file's private 0600. A device or FIFO at ``path`` is yielded
+    itself (written through, never replaced); a directory raises :class:`IsADirectoryError`.
     """
     if not os.fspath(path):
         raise FileNotFoundError(errno.ENOENT, "no output file name given", "''")
@@ -99,8 +108,12 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         raise OSError(error.errno, error.strerror, str(target)) from None
     os.close(fd)
     try:
+        permissions = stat.S_IMODE(os.stat(target).st_mode)
+    except OSError:
+        permissions = 0o666 & ~_read_umask()
+    try:
         yield Path(tmp_name)
-        os.chmod(tmp_name, 0o666 & ~_umask())
+        os.chmod(tmp_name, permissions)
         os.replace(tmp_name, target)
     except OSError as error:
         with contextlib.suppress(FileNotFoundError):

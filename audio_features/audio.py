@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import AudioLoadError
+from .inputs import check_input
 
 #: File name endings taken as audio when a folder is scanned (training pairs, batches).
 AUDIO_EXTENSIONS = (".wav", ".flac", ".ogg", ".oga", ".mp3", ".aif", ".aiff", ".aifc", ".au", ".caf", ".w64")
@@ -101,11 +102,15 @@ def check_samples(samples: np.ndarray, *, source: str, sample_rate_hz: float) ->
 def check_readable(path: str | os.PathLike[str]) -> Path:
     """Return ``path`` as a Path if it names a readable, non-empty regular file, else raise AudioLoadError."""
     file = Path(path)
-    if not file.exists():
-        raise AudioLoadError(f"{file}: no such file")
-    if file.is_dir():
-        raise AudioLoadError(f"{file}: is a directory, not an audio file")
-    if file.stat().st_size == 0:
+    try:
+        size = check_input(file)
+    except FileNotFoundError:
+        raise AudioLoadError(f"{file}: no such file") from None
+    except IsADirectoryError:
+        raise AudioLoadError(f"{file}: is a directory, not an audio file") from None
+    except OSError as error:
+        raise AudioLoadError(f"{file}: cannot be read ({error.strerror or error})") from None
+    if size == 0:
         raise AudioLoadError(f"{file}: the file is empty (0 bytes)")
     _check_riff_truncation(file)
     return file

@@ -17,11 +17,14 @@ from .atomic import atomic_write
 from .audio import ESTIMATED_LENGTH_FORMATS, Audio, check_shape, decode_failure, open_sound_file, truncation
 from .defaults import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS
 from .errors import AudioLoadError, NoVoicedFramesWarning, ParameterError
+from .inputs import open_input
 from .tracks import F0Track, Track
 
 #: Column names of the features CSV, in order.
 CSV_COLUMNS = ("frame", "time_s", "f0_hz", "f0_conditioned_hz", "energy_db")
 
+#: Largest features CSV read (64 MiB: about ten hours of rows at 30 fps).
+MAX_CSV_BYTES = 64 << 20
 #: Highest frame rate of the grid (animation runs at 24-120 fps; the analysis step is 10 ms at most).
 MAX_FPS = 1000.0
 #: Samples per block when scanning a file for its peak (bounded memory).
@@ -134,11 +137,13 @@ def read_features_csv(path: str | os.PathLike[str], *, fps: float) -> Features:
     """
     name = str(path)
     try:
-        with open(path, newline="", encoding="utf-8") as handle:
+        with open_input(path, text=True, newline="", encoding="utf-8", max_bytes=MAX_CSV_BYTES) as handle:
             rows = list(csv.reader(handle))
     except FileNotFoundError:
         raise AudioLoadError(f"{name}: no such file") from None
-    except (OSError, UnicodeDecodeError, csv.Error) as error:
+    except OSError as error:
+        raise AudioLoadError(f"{name}: cannot be read ({error.strerror or error})") from None
+    except (UnicodeDecodeError, csv.Error) as error:
         raise AudioLoadError(f"{name}: cannot be read as a features CSV ({error})") from None
     if not rows or tuple(rows[0]) != CSV_COLUMNS:
         raise AudioLoadError(f"{name}, line 1: expected the header {','.join(CSV_COLUMNS)}")

@@ -285,3 +285,63 @@ def test_results_holding_arrays_compare_by_identity_and_hash() -> None:
         assert value == value and hash(value) == hash(value)  # no "truth value of an array is ambiguous"
     assert {features, stream} == {features, stream}
     assert FapStream.from_curves({48: np.zeros(3)}, fps=30) != stream  # equal content, another object
+
+
+@pytest.mark.parametrize("arguments", [
+    ["inspect", "{pipe}"],
+    ["convert", "{pipe}", "-o", "{dir}/x.fap"],
+    ["convert", "{wav}", "-o", "{dir}/x.fap", "--base", "{pipe}"],
+    ["convert", "{wav}", "-o", "{dir}/x.fap", "--model", "{pipe}"],
+    ["compare", "{wav}", "-o", "{dir}/cmp", "--ground-truth", "{zero}"],
+    ["study", "analyze", "{pipe}", "-o", "{dir}/r.json"],
+    ["preview", "{pipe}", "-o", "{dir}/x.gif"],
+    ["features", "{zero}", "-o", "{dir}/x.csv"],
+])
+def test_a_pipe_or_a_device_given_as_an_input_is_refused_at_once(tmp_path, arguments) -> None:
+    # opening a pipe no one writes blocks for ever, /dev/zero reads without end: both must be one line
+    import os
+    import subprocess
+    import sys
+
+    pipe, zero, wav = tmp_path / "in.fap", tmp_path / "zero.head.csv", tmp_path / "speech.wav"
+    os.mkfifo(pipe)
+    zero.symlink_to("/dev/zero")
+    soundfile.write(wav, harmonic_tone(150, 1.0, 16000), 16000)
+    argv = [a.format(pipe=pipe, zero=zero, wav=wav, dir=tmp_path) for a in arguments]
+    result = subprocess.run([sys.executable, "-m", "prosody", *argv], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1, result.stderr
+    errors = [line for line in result.stderr.splitlines() if ": error: " in line]
+    assert len(errors) == 1 and "not a regular file" in errors[0] and "Traceback" not in result.stderr
+
+
+def test_batch_reports_a_pipe_named_like_audio_and_goes_on(tmp_path, capsys) -> None:
+    import os
+
+    indir = tmp_path / "in"
+    indir.mkdir()
+    soundfile.write(indir / "a.wav", harmonic_tone(150, 1.0, 16000), 16000)
+    os.mkfifo(indir / "b.wav")
+    (indir / "c.wav").symlink_to("/dev/zero")
+    assert main(["batch", str(indir), "-o", str(tmp_path / "out"), "--condition", "none", "--seeds", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "b.wav" in err and "c.wav" in err and err.count("not a regular file") == 2
+    assert (tmp_path / "out" / "a" / "no_prosody.fap").exists()
+
+
+def test_a_dask_scheduler_that_never_answers_is_given_up_on(monkeypatch) -> None:
+    import threading
+
+    from prosody.errors import ConfigError
+    from prosody.jobs import batch
+
+    release = threading.Event()
+
+    class Silent:  # accepts and never answers, as a listener that is no scheduler does
+        def __init__(self, address, timeout):
+            release.wait(10)
+
+    monkeypatch.setattr(batch, "SCHEDULER_TIMEOUT_S", 0.2)
+    monkeypatch.setattr(batch, "_SCHEDULER_GRACE_S", 0.1)
+    with pytest.raises(ConfigError, match="did not answer within 0.2 s"):
+        batch._connect(Silent, "tcp://127.0.0.1:1")
+    release.set()

@@ -191,7 +191,7 @@ def test_live_features_match_the_offline_definition_once_the_medians_settle():
 def test_shipped_live_models_load_and_read_their_lookahead():
     for ms in SHIPPED_LOOKAHEADS_MS:
         model = LiveHeadModel.load(shipped_live_model_path(ms))
-        assert model.lookahead_frames(30.0) == round(ms * 0.03)
+        assert model.lookahead_frames(30.0) == int(ms * 0.03 + 1e-9)
         assert len(model.training_) == 7
     assert live_head_model(None, lookahead_ms=150).lookahead_s == pytest.approx(0.1)
     assert live_head_model(None, lookahead_ms=0).lookahead_s == 0.0
@@ -282,3 +282,13 @@ def test_converter_is_causal_end_to_end():
     known = int((cut_s - first.latency_s) * 30)  # frames whose audio, look-ahead included, ends before the cut
     assert [f.faps for f in fa[:known]] == [f.faps for f in fb[:known]]
     assert [f.faps for f in fa[known + 6:]] != [f.faps for f in fb[known + 6:]]
+
+
+@pytest.mark.parametrize("lookahead_ms, frames", [(0, 0), (20, 0), (33, 0), (34, 1), (50, 1), (66.7, 2),
+                                                  (100, 3), (200, 6), (500, 15)])
+def test_a_stream_never_reads_more_future_than_asked(lookahead_ms, frames):
+    from prosody.jobs.stream import LiveConverter
+
+    converter = LiveConverter(16000, lookahead_ms=lookahead_ms, condition="none")
+    assert converter.lookahead_frames == frames
+    assert converter.lookahead_frames / converter.fps <= lookahead_ms / 1000 + 1e-9

@@ -51,7 +51,7 @@ def test_a_directory_is_refused_with_its_name(tmp_path, speech, capsys) -> None:
 
 def test_an_empty_output_name_is_refused(speech, capsys) -> None:
     assert main(["convert", str(speech), "-o", "", "--format", "fap"]) == 2
-    assert "no output file name" in capsys.readouterr().err
+    assert "give a file name" in capsys.readouterr().err
 
 
 def test_leftovers_of_a_killed_writer_are_removed_by_the_next_write(tmp_path) -> None:

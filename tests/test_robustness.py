@@ -98,6 +98,11 @@ def test_written_files_get_the_usual_permissions(tmp_path) -> None:
     # what open() would have made, not the temporary file's 0600
     assert (tmp_path / "x.fap").stat().st_mode & 0o777 == 0o644
     assert (tmp_path / "private.fap").stat().st_mode & 0o777 == 0o600
+    # a file replaced keeps its own permissions (a private 0600 never becomes readable by all)
+    (tmp_path / "x.fap").chmod(0o600)
+    write_fap(FapStream.from_curves({48: np.ones(3)}, fps=30), tmp_path / "x.fap")
+    assert (tmp_path / "x.fap").stat().st_mode & 0o777 == 0o600
+    assert os.umask(0o022) == 0o022 and os.umask(0o022) == 0o022  # left as it was
 
 
 # fuzzing: any text gives a result or the package's own error, never another exception or a hang ----------

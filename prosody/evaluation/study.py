@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from audio_features.atomic import atomic_write
+from audio_features.inputs import open_input
 
 from ..errors import BallotError, ConfigError
 from ..motion.conditions import CONDITION_ORDER
@@ -29,6 +30,8 @@ from ..motion.conditions import CONDITION_ORDER
 CONDITIONS = tuple(c.value for c in CONDITION_ORDER)
 PLAN_COLUMNS = ("order", "stimulus", "left", "right")
 BALLOT_COLUMNS = ("stimulus", "subject", "left", "right", "choice")
+#: Largest ballot file read (256 MiB: millions of ballots).
+MAX_BALLOT_BYTES = 256 << 20
 #: Ballot problems listed in one error message before "and N more".
 _MAX_LISTED = 20
 
@@ -164,11 +167,13 @@ def parse_ballots(text: str, *, source: str = "<ballots>") -> list[Ballot]:
 def read_ballots(path: str | os.PathLike[str]) -> list[Ballot]:
     """Read and check a ballot file (see :func:`parse_ballots`)."""
     try:
-        with open(path, encoding="utf-8-sig", newline="") as handle:
+        with open_input(path, text=True, encoding="utf-8-sig", newline="", max_bytes=MAX_BALLOT_BYTES) as handle:
             text = handle.read()
     except FileNotFoundError:
         raise BallotError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as error:
+    except OSError as error:
+        raise BallotError(f"{path}: cannot be read ({error.strerror or error})") from None
+    except UnicodeDecodeError as error:
         raise BallotError(f"{path}: cannot be read as CSV text ({error})") from None
     return parse_ballots(text, source=str(path))
 

@@ -24,6 +24,8 @@ import numpy as np
 
 from audio_features.atomic import atomic_write
 
+from audio_features.inputs import open_input
+
 from ..errors import FapFormatError, FapIrregularityWarning, FapWriteError
 from .stream import FapStream
 from .table import N_FAPS
@@ -90,7 +92,7 @@ def _read_lines(path: str | os.PathLike[str], name: str) -> list[str]:
     lines: list[str] = []
     total = 0
     try:
-        with open(path, "rb") as handle:
+        with open_input(path, max_bytes=MAX_FAP_BYTES) as handle:
             while True:
                 raw = handle.readline(MAX_LINE_BYTES + 1)
                 if not raw:

@@ -27,6 +27,7 @@ import numpy as np
 
 from audio_features import AUDIO_EXTENSIONS, DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS, AudioFeaturesError
 from audio_features.atomic import atomic_write
+from audio_features.inputs import open_input
 
 from ..errors import ConfigError, ProsodyError, VisualProsodyError
 from ..fap.table import PROSODY_FAPS
@@ -135,7 +136,7 @@ def file_digest(path: str | os.PathLike[str] | None) -> str | None:
     if path is None:
         return None
     digest = hashlib.sha256()
-    with open(path, "rb") as handle:
+    with open_input(path) as handle:
         for block in iter(lambda: handle.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
@@ -270,6 +271,38 @@ def _completed(futures: dict[Future, tuple], *, alive: Callable[[], bool] | None
             return
 
 
+#: Longest wait for a Dask scheduler to answer, in s.
+SCHEDULER_TIMEOUT_S = 20.0
+#: Time beyond it given to Dask to report its own timeout, in s.
+_SCHEDULER_GRACE_S = 5.0
+
+
+def _connect(client_class, scheduler: str):
+    """A Dask client of ``scheduler``, or ConfigError within :data:`SCHEDULER_TIMEOUT_S` (Dask's own timeout
+    covers the connection, not a listener that accepts and never answers, so the wait is bounded here)."""
+    import threading
+
+    outcome: list = []
+
+    def connect() -> None:
+        try:
+            outcome.append(client_class(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S:g}s"))
+        except BaseException as error:  # noqa: BLE001 - handed to the waiting thread
+            outcome.append(error)
+
+    thread = threading.Thread(target=connect, name="dask-connect", daemon=True)
+    thread.start()
+    thread.join(SCHEDULER_TIMEOUT_S + _SCHEDULER_GRACE_S)
+    if not outcome:
+        raise ConfigError(f"the Dask scheduler at {scheduler!r} did not answer within {SCHEDULER_TIMEOUT_S:g} s "
+                          "(is it a Dask scheduler?)")
+    if isinstance(outcome[0], (OSError, TimeoutError, ValueError)):
+        raise ConfigError(f"cannot reach the Dask scheduler at {scheduler!r} ({outcome[0]})") from None
+    if isinstance(outcome[0], BaseException):
+        raise outcome[0]
+    return outcome[0]
+
+
 @contextmanager
 def make_executor(*, jobs: int = 1, scheduler: str | None = None) -> Iterator[Executor | None]:
     """The executor for a batch: None (run in this process) for one local job, a process pool for more,
@@ -279,10 +312,7 @@ def make_executor(*, jobs: int = 1, scheduler: str | None = None) -> Iterator[Ex
             from distributed import Client
         except ImportError:
             raise ConfigError("scheduler= needs Dask distributed: pip install 'visual-prosody[cluster]'") from None
-        try:
-            client = Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError, ValueError) as error:
-            raise ConfigError(f"cannot reach the Dask scheduler at {scheduler!r} ({error})") from None
+        client = _connect(Client, scheduler)
         executor = client.get_executor()
 
         def workers_alive() -> bool:

@@ -87,7 +87,7 @@ class LiveConverter:
     model : LiveHeadModel, path or None
         The live head model (default: the shipped one for the look-ahead).
     lookahead_ms : float >= 0, in ms
-        Audio after each frame that the frame may use (rounded to whole frames).
+        Audio after each frame that the frame may use (whole frames of it: never more than asked).
     seed : int >= 0
         Seed of the head's motion and of the random condition.
     eyebrow_rule : AccentRule or EyebrowRule, optional
@@ -119,7 +119,8 @@ class LiveConverter:
         self.analyser = StreamingAnalyser(sample_rate_hz, fps=fps, f0_floor_hz=f0_floor_hz,
                                           f0_ceiling_hz=f0_ceiling_hz)
         self.fps = self.analyser.fps
-        self.lookahead_frames = int(round(lookahead_ms / 1000 * self.fps))
+        # floored: 20 ms at 30 fps reads no frame ahead, not one (33 ms); 1e-9 keeps 100 ms at 3 frames
+        self.lookahead_frames = int(math.floor(lookahead_ms / 1000 * self.fps + 1e-9))
         gains = dict(gains or {})
         disabled = list(disabled)
         unknown = [name for name in [*gains, *disabled] if name not in CHANNELS]

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from audio_features.inputs import open_input
+
 from ..errors import GroundTruthError
 from ..fap.stream import FapStream
 from ..fap.table import HEAD_FAPS, PROSODY_FAPS, RADIANS_PER_AU
@@ -24,13 +26,15 @@ HEAD_CSV_COLUMNS = ("frame", "time_s", "rx_rad", "ry_rad", "rz_rad")
 TIME_TOLERANCE_S = 0.002
 #: Largest length difference (frames) between audio and recorded motion that is trimmed or padded.
 MAX_LENGTH_MISMATCH_FRAMES = 2
+#: Largest recorded-motion CSV read (64 MiB: about ten hours of head.csv rows at 30 fps).
+MAX_CSV_BYTES = 64 << 20
 
 
 def _csv_rows(path: str | os.PathLike[str], name: str) -> list[list[str]]:
     """All rows of a CSV file; unreadable files and malformed rows (a cell over the csv module's size limit)
     are a GroundTruthError naming the file and line."""
     try:
-        with open(path, newline="", encoding="utf-8") as handle:
+        with open_input(path, text=True, newline="", encoding="utf-8", max_bytes=MAX_CSV_BYTES) as handle:
             reader = csv.reader(handle)
             try:
                 return list(reader)
@@ -40,7 +44,9 @@ def _csv_rows(path: str | os.PathLike[str], name: str) -> list[list[str]]:
         raise GroundTruthError(f"{name}: no such file") from None
     except IsADirectoryError:
         raise GroundTruthError(f"{name}: is a directory, not a CSV file") from None
-    except (OSError, UnicodeDecodeError) as error:
+    except OSError as error:
+        raise GroundTruthError(f"{name}: cannot be read ({error.strerror or error})") from None
+    except UnicodeDecodeError as error:
         raise GroundTruthError(f"{name}: cannot be read as CSV ({error})") from None
 
 

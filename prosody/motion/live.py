@@ -427,7 +427,7 @@ class LiveHeadModel:
 
     def lookahead_frames(self, fps: float) -> int:
         """Frames of look-ahead the model reads at ``fps``."""
-        return int(round(self.lookahead_s * fps))
+        return int(math.floor(self.lookahead_s * fps + 1e-9))  # floored, as the stream reads it
 
     def offsets_frames(self, fps: float) -> list[int]:
         """Offsets at which the smoothed features are read: from ``lookbehind_s`` back to the newest one the

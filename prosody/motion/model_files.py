@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from audio_features.atomic import atomic_write
+from audio_features.inputs import open_input
 
 from ..errors import ModelError
 
@@ -51,7 +52,7 @@ def read_model_json(path: str | os.PathLike[str], *, shipped: tuple[str, ...] = 
     """
     name = str(path)
     try:
-        with open(Path(path), "rb") as handle:
+        with open_input(Path(path)) as handle:
             data = handle.read(MAX_MODEL_BYTES + 1)
     except FileNotFoundError:
         also = f" (or give a shipped model: {', '.join(shipped)})" if shipped else ""
