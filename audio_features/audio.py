@@ -112,32 +112,103 @@ def check_readable(path: str | os.PathLike[str]) -> Path:
         raise AudioLoadError(f"{file}: cannot be read ({error.strerror or error})") from None
     if size == 0:
         raise AudioLoadError(f"{file}: the file is empty (0 bytes)")
-    _check_riff_truncation(file)
+    _check_container_truncation(file)
     return file
 
 
-def _check_riff_truncation(file: Path) -> None:
-    """libsndfile reads a cut-off WAV without complaint; compare the data chunk's promise to the file."""
+#: The GUIDs of Sony Wave64 that begin with these bytes (the rest of each GUID is fixed).
+_W64_RIFF, _W64_DATA = b"riff", b"data"
+
+
+def _truncated(file: Path, container: str, promised: int, available: int) -> AudioLoadError:
+    return AudioLoadError(f"{file}: truncated {container}: the header promises {promised} bytes of audio data "
+                          f"but the file holds {available}")
+
+
+def _check_container_truncation(file: Path) -> None:
+    """libsndfile reads a cut-off file of most containers without complaint, as if it were shorter: compare
+    what each container's header promises with what the file holds (WAV, RF64, Wave64, AIFF, AU, Ogg)."""
     size = file.stat().st_size
     with open(file, "rb") as handle:
-        head = handle.read(12)
-        if len(head) < 12 or head[:4] not in (b"RIFF", b"RIFX") or head[8:12] != b"WAVE":
+        head = handle.read(40)
+        if head[:4] in (b"RIFF", b"RIFX", b"RF64") and head[8:12] == b"WAVE":
+            _check_riff(handle, file, size, big_endian=head[:4] == b"RIFX", rf64=head[:4] == b"RF64")
+        elif head[:4] == b"FORM" and head[8:12] in (b"AIFF", b"AIFC"):
+            _check_chunks(handle, file, size, container="AIFF", start=12, header=">4sI", data=b"SSND")
+        elif head[:4] == b".snd" and len(head) >= 12:
+            offset, length = struct.unpack(">II", head[4:12])
+            # 0xFFFFFFFF: the length was unknown when written (a stream): not a promise
+            if length != 0xFFFFFFFF and offset + length > size:
+                raise _truncated(file, "AU file", length, max(0, size - offset))
+        elif head[:4] == _W64_RIFF and head[24:28] == b"wave":
+            _check_w64(handle, file, size)
+        elif head[:4] == b"OggS":
+            _check_ogg_end(handle, file, size)
+
+
+def _check_riff(handle, file: Path, size: int, *, big_endian: bool, rf64: bool) -> None:
+    endian = ">" if big_endian else "<"
+    data_size_64 = None
+    offset = 12
+    while offset + 8 <= size:
+        handle.seek(offset)
+        chunk_id, chunk_size = struct.unpack(endian + "4sI", handle.read(8))
+        if chunk_id == b"ds64" and rf64:
+            fields = handle.read(24)
+            if len(fields) == 24:
+                _, data_size_64, _ = struct.unpack("<QQQ", fields)
+        elif chunk_id == b"data":
+            promised = data_size_64 if (rf64 and chunk_size == 0xFFFFFFFF) else chunk_size
+            available = size - offset - 8
+            # 0 and 0xFFFFFFFF are the placeholders streaming writers leave: not a promise
+            if promised is not None and promised not in (0, 0xFFFFFFFF) and promised > available:
+                raise _truncated(file, "RF64 file" if rf64 else "WAV", promised, available)
             return
-        endian = "<" if head[:4] == b"RIFF" else ">"
-        offset = 12
-        while offset + 8 <= size:
-            handle.seek(offset)
-            chunk_id, chunk_size = struct.unpack(endian + "4sI", handle.read(8))
-            if chunk_id == b"data":
-                available = size - offset - 8
-                # 0 and 0xFFFFFFFF are the placeholders streaming writers leave: not a promise
-                if chunk_size not in (0, 0xFFFFFFFF) and chunk_size > available:
-                    raise AudioLoadError(
-                        f"{file}: truncated WAV: the header promises {chunk_size} bytes of audio data "
-                        f"but the file holds {available}"
-                    )
-                return
-            offset += 8 + chunk_size + (chunk_size & 1)
+        offset += 8 + chunk_size + (chunk_size & 1)
+
+
+def _check_chunks(handle, file: Path, size: int, *, container: str, start: int, header: str, data: bytes) -> None:
+    offset = start
+    while offset + 8 <= size:
+        handle.seek(offset)
+        chunk_id, chunk_size = struct.unpack(header, handle.read(8))
+        if chunk_id == data:
+            available = size - offset - 8
+            if chunk_size > available:
+                raise _truncated(file, f"{container} file", chunk_size, available)
+            return
+        offset += 8 + chunk_size + (chunk_size & 1)
+
+
+def _check_w64(handle, file: Path, size: int) -> None:
+    offset = 40  # riff GUID, 64-bit size, wave GUID
+    while offset + 24 <= size:
+        handle.seek(offset)
+        guid, chunk_size = struct.unpack("<16sQ", handle.read(24))  # the size counts the 24-byte header
+        if guid[:4] == _W64_DATA:
+            available = size - offset - 24
+            if chunk_size - 24 > available:
+                raise _truncated(file, "Wave64 file", chunk_size - 24, available)
+            return
+        if chunk_size < 24:
+            return  # damaged beyond reading: libsndfile will say so
+        offset += (chunk_size + 7) // 8 * 8
+
+
+def _check_ogg_end(handle, file: Path, size: int) -> None:
+    """An Ogg stream ends with a page marked end-of-stream; a cut-off file's last page is not."""
+    tail_start = max(0, size - (1 << 16))  # a page is at most 65,307 bytes
+    handle.seek(tail_start)
+    tail = handle.read()
+    last = tail.rfind(b"OggS")
+    # header: capture pattern, version, header type (0x04: end of stream), ...; 27 bytes and the segment table
+    if last < 0 or last + 27 > len(tail):
+        raise AudioLoadError(f"{file}: truncated Ogg file: no complete page at its end")
+    n_segments = tail[last + 26]
+    body = sum(tail[last + 27:last + 27 + n_segments])
+    if not tail[last + 5] & 0x04 or last + 27 + n_segments + body > len(tail):
+        raise AudioLoadError(f"{file}: truncated Ogg file: its last page does not end the stream (the file was "
+                             "cut off)")
 
 
 def open_sound_file(path: str | os.PathLike[str]):

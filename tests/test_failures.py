@@ -345,3 +345,20 @@ def test_a_dask_scheduler_that_never_answers_is_given_up_on(monkeypatch) -> None
     with pytest.raises(ConfigError, match="did not answer within 0.2 s"):
         batch._connect(Silent, "tcp://127.0.0.1:1")
     release.set()
+
+
+@pytest.mark.parametrize("container, ending, subtype", [
+    ("AIFF", "aiff", "PCM_16"), ("AU", "au", "PCM_16"), ("W64", "w64", "PCM_16"), ("RF64", "wav", "PCM_16"),
+    ("WAV", "wav", "FLOAT"), ("OGG", "ogg", "VORBIS"),
+])
+def test_every_container_cut_off_is_reported_as_truncated(tmp_path, container, ending, subtype) -> None:
+    # libsndfile reads most cut-off containers as if they were shorter: each header's promise is checked
+    whole = tmp_path / f"whole.{ending}"
+    soundfile.write(whole, harmonic_tone(150, 3.0, 16000), 16000, format=container, subtype=subtype)
+    assert load_audio(whole).samples.size == 48000
+    data = whole.read_bytes()
+    for fraction in (0.5, 0.9):
+        cut = tmp_path / f"cut.{ending}"
+        cut.write_bytes(data[:int(len(data) * fraction)])
+        with pytest.raises(AudioLoadError, match="truncated"):
+            load_audio(cut)
