@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .defaults import MIN_F0_FLOOR_HZ
 from .errors import AnalysisError, AudioLoadError, ParameterError
 
 #: Praat's autocorrelation pitch uses 3 periods of the floor pitch as its window.
@@ -102,9 +103,10 @@ def analyse_grid(
 
     from .tracks import frame_count
 
-    if not 0 < f0_floor_hz < f0_ceiling_hz:
+    if not MIN_F0_FLOOR_HZ <= f0_floor_hz < f0_ceiling_hz:
         raise ParameterError(
-            f"need 0 < f0_floor_hz < f0_ceiling_hz, got floor {f0_floor_hz!r} and ceiling {f0_ceiling_hz!r}"
+            f"need {MIN_F0_FLOOR_HZ:g} <= f0_floor_hz < f0_ceiling_hz, got floor {f0_floor_hz!r} and ceiling "
+            f"{f0_ceiling_hz!r} (no voice is lower than {MIN_F0_FLOOR_HZ:g} Hz)"
         )
     if f0_ceiling_hz >= sample_rate_hz / 2:
         raise ParameterError(

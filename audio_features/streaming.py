@@ -34,7 +34,7 @@ from .analysis import (
     analysis_step,
 )
 from .audio import MAX_SAMPLE_RATE_HZ, MIN_SAMPLE_RATE_HZ
-from .defaults import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS
+from .defaults import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS, MIN_F0_FLOOR_HZ
 from .errors import AudioLoadError, ParameterError
 from .features import MAX_FPS, natural_cubic_spline
 
@@ -84,8 +84,8 @@ class StreamingAnalyser:
                                  f"{MAX_SAMPLE_RATE_HZ}], got {sample_rate_hz!r}")
         if not (isinstance(fps, (int, float)) and math.isfinite(fps) and 0 < fps <= MAX_FPS):
             raise ParameterError(f"fps must be a number in (0, {MAX_FPS:g}], got {fps!r}")
-        if not 0 < f0_floor_hz < f0_ceiling_hz < sample_rate_hz / 2:
-            raise ParameterError(f"need 0 < f0_floor_hz < f0_ceiling_hz < {sample_rate_hz / 2:g} Hz (Nyquist), "
+        if not MIN_F0_FLOOR_HZ <= f0_floor_hz < f0_ceiling_hz < sample_rate_hz / 2:
+            raise ParameterError(f"need {MIN_F0_FLOOR_HZ:g} <= f0_floor_hz < f0_ceiling_hz < {sample_rate_hz / 2:g} Hz (Nyquist), "
                                  f"got floor {f0_floor_hz!r} and ceiling {f0_ceiling_hz!r}")
         if not intensity_min_pitch_hz > 0:
             raise ParameterError(f"intensity_min_pitch_hz must be > 0, got {intensity_min_pitch_hz!r}")

@@ -912,6 +912,8 @@ _FLAGS = (
     ("start_s= and duration_s=", "--start and --duration"),
     ("fps=25 or 30, or FapStream.resampled", "--fps 25 or 30"),
     ("scheduler=", "--scheduler"),
+    ("f0_floor_hz", "--f0-floor"),
+    ("f0_ceiling_hz", "--f0-ceiling"),
 )
 
 

@@ -362,3 +362,17 @@ def test_every_container_cut_off_is_reported_as_truncated(tmp_path, container, e
         cut.write_bytes(data[:int(len(data) * fraction)])
         with pytest.raises(AudioLoadError, match="truncated"):
             load_audio(cut)
+
+
+@pytest.mark.parametrize("floor", ["0.01", "1e-9", "19.9"])
+def test_a_pitch_floor_below_any_voice_is_refused_before_analysis(tmp_path, capsys, floor) -> None:
+    # Praat's window is three periods of the floor: 0.01 Hz asked for 980 MB on a 3 s file, 1e-9 for 349 TiB
+    wav = tmp_path / "a.wav"
+    soundfile.write(wav, harmonic_tone(150, 1.0, 16000), 16000)
+    assert main(["features", str(wav), "-o", str(tmp_path / "a.csv"), "--f0-floor", floor]) == 2
+    err = capsys.readouterr().err
+    assert "need 20 <= --f0-floor < --f0-ceiling" in err and not (tmp_path / "a.csv").exists()
+    from audio_features.streaming import StreamingAnalyser
+
+    with pytest.raises(ValueError, match="20 <= f0_floor_hz"):
+        StreamingAnalyser(16000, f0_floor_hz=float(floor))
