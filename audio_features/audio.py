@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import struct
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -224,6 +225,26 @@ def open_sound_file(path: str | os.PathLike[str]):
         raise AudioLoadError(f"{file}: not an audio file libsndfile can read ({reason.strip()})") from None
 
 
+def read_whole(sound) -> np.ndarray:
+    """Every remaining frame of an open SoundFile as float64 (frames, channels); in blocks where libsndfile
+    cannot seek (GSM 6.10 in WAV), since it then cannot tell how many frames are left."""
+    if sound.seekable():
+        return sound.read(dtype="float64", always_2d=True)
+    blocks = list(read_blocks(sound, 1 << 16))
+    return np.concatenate(blocks) if blocks else np.zeros((0, sound.channels))
+
+
+def read_blocks(sound, block_frames: int) -> Iterator[np.ndarray]:
+    """The remaining frames of an open SoundFile in float64 blocks of ``block_frames`` (the last shorter),
+    by explicit counts, which every codec allows (SoundFile.blocks needs seeking where none is given)."""
+    while True:
+        block = sound.read(frames=block_frames, dtype="float64", always_2d=True)
+        if block.shape[0]:
+            yield block
+        if block.shape[0] < block_frames:
+            return
+
+
 def load_audio(path: str | os.PathLike[str]) -> Audio:
     """Read an audio file into memory as mono float64.
 
@@ -256,7 +277,7 @@ def load_audio(path: str | os.PathLike[str]) -> Audio:
     with open_sound_file(path) as sound:
         check_shape(max(sound.frames, 1), source=str(path), sample_rate_hz=sound.samplerate)
         try:
-            data = sound.read(dtype="float64", always_2d=True)
+            data = read_whole(sound)
         except (soundfile.SoundFileError, RuntimeError) as error:
             raise AudioLoadError(decode_failure(path, sound.format, error)) from None
         if data.shape[0] < sound.frames and sound.format not in ESTIMATED_LENGTH_FORMATS:

@@ -14,7 +14,15 @@ import numpy as np
 
 from .analysis import analyse_grid, array_reader, sound_file_reader
 from .atomic import atomic_write
-from .audio import ESTIMATED_LENGTH_FORMATS, Audio, check_shape, decode_failure, open_sound_file, truncation
+from .audio import (
+    ESTIMATED_LENGTH_FORMATS,
+    Audio,
+    check_shape,
+    decode_failure,
+    open_sound_file,
+    read_whole,
+    truncation,
+)
 from .defaults import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS
 from .errors import AudioLoadError, NoVoicedFramesWarning, ParameterError
 from .inputs import open_input
@@ -286,9 +294,10 @@ def _read_all(sound, *, source: str, exact: bool) -> np.ndarray:
     """The whole file as mono float64; with ``exact``, fewer samples than the header's count is truncation."""
     import soundfile
 
-    sound.seek(0)
+    if sound.seekable():
+        sound.seek(0)
     try:
-        data = sound.read(dtype="float64", always_2d=True)
+        data = read_whole(sound)
     except (soundfile.SoundFileError, RuntimeError) as error:
         raise AudioLoadError(decode_failure(source, sound.format, error)) from None
     if exact and data.shape[0] < sound.frames:
@@ -372,7 +381,8 @@ def extract_features(
             check_shape(sound.frames, source=name, sample_rate_hz=sound.samplerate)
             n_samples = sound.frames
             estimated = sound.format in ESTIMATED_LENGTH_FORMATS
-            if n_samples * sound.channels <= IN_MEMORY_SAMPLES:
+            # libsndfile cannot seek in some codecs (GSM 6.10): those are read in one pass, whatever their length
+            if n_samples * sound.channels <= IN_MEMORY_SAMPLES or not sound.seekable():
                 # one read instead of a peak scan and a second pass
                 samples = _read_all(sound, source=name, exact=not estimated)
                 n_samples = samples.shape[0]

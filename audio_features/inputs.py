@@ -14,7 +14,6 @@ import stat
 from typing import IO
 
 
-
 def _kind(mode: int) -> str:
     if stat.S_ISFIFO(mode):
         return "a named pipe"

@@ -63,6 +63,28 @@ def _lookahead(text: str) -> float:
 
 
 _seed = _whole_number(0, 2**63 - 1, "0 to 2**63-1")
+
+
+def _number_in(low: float, high: float, *, low_open: bool = False) -> Callable[[str], float]:
+    """An argparse type: a finite number in [low, high] (or (low, high] with ``low_open``)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not (low < value <= high if low_open else low <= value <= high):
+            bracket = "(" if low_open else "["
+            raise argparse.ArgumentTypeError(f"expected a number in {bracket}{low:g}, {high:g}], got {text!r}")
+        return value
+
+    return parse
+
+
+#: Largest drawing exaggeration (100: a 1-degree nod drawn as 100 degrees).
+_exaggeration = _number_in(0, 100, low_open=True)
+#: Times within a recording, in s (a million seconds: eleven days).
+_seconds = _number_in(0, 1e6)
 _seeds = _whole_number(1, 1000, "1 to 1000")
 _sample_rate = _whole_number(8000, 768000, "8000 to 768000 (Hz)")
 
@@ -215,7 +237,6 @@ def _motion_kwargs(args: argparse.Namespace) -> dict:
 
 def _to_stdout(write: Callable[[str], object], name: str) -> None:
     """Run ``write(path)`` on a temporary file called ``name`` and copy it to standard output (``-o -``)."""
-    import os
     import shutil
     import tempfile
 
@@ -274,8 +295,6 @@ class _ProgressBar:
     nothing in pipes or CI. Lines said while it runs are printed above it."""
 
     def __init__(self, description: str, unit: str) -> None:
-        import os
-
         self.description, self.unit = description, unit
         self.bar: Any = None  # a tqdm bar once the first report arrives
         self.enabled = sys.stderr.isatty() and not os.environ.get("CI")
@@ -691,14 +710,14 @@ def build_parser() -> argparse.ArgumentParser:
     preview.add_argument("--no-audio", action="store_true", help="write the MP4 without sound")
     preview.add_argument("--width", type=int, default=480, metavar="PX",
                          help="frame width in pixels (default 480; the height is 5/4 of it)")
-    preview.add_argument("--exaggerate", type=_positive_float, default=1.0, metavar="X",
+    preview.add_argument("--exaggerate", type=_exaggeration, default=1.0, metavar="X",
                          help="draw head angles and brow raises X times larger (default 1: true scale; "
                               "the thesis-sized brow raises are a few pixels at true scale)")
-    preview.add_argument("--start", type=float, default=0.0, metavar="S", help="first second shown (default 0)")
+    preview.add_argument("--start", type=_seconds, default=0.0, metavar="S", help="first second shown (default 0)")
     preview.add_argument("--strip-scale", default=None, metavar="BROW_ENS,HEAD_DEG",
                          help="full scale of the curve strip: brow raise in ENS and head angle in degrees (default: "
                               "this stream's largest values); give previews you compare the same scale, e.g. 30,10")
-    preview.add_argument("--duration", type=_positive_float, default=None, metavar="S",
+    preview.add_argument("--duration", type=_number_in(0, 1e6, low_open=True), default=None, metavar="S",
                          help="seconds shown (default: to the end)")
     _add_motion_options(preview)
     _add_analysis_options(preview)
@@ -786,7 +805,8 @@ def build_parser() -> argparse.ArgumentParser:
     arx.add_argument("--na", type=int, default=None, help="past outputs fed back (default 1)")
     arx.add_argument("--nb", type=int, default=None, help="input lags (default 5)")
     arx.add_argument("--nk", type=int, default=None, help="input delay in frames (default 0)")
-    arx.add_argument("--ridge", type=float, default=None, help="ridge penalty (default 0.1)")
+    arx.add_argument("--ridge", type=_number_in(0, 1e6), default=None, metavar="R",
+                     help="ridge penalty, 0 to 1e6 (default 0.1)")
     train.add_argument("--fps", type=_positive_float, default=DEFAULT_FPS,
                        help=f"frame rate (default {DEFAULT_FPS:g})")
     train.set_defaults(handler=_cmd_train)
@@ -820,7 +840,7 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--video", action="store_true",
                          help="also write OUTDIR/conditions.mp4: the conditions' faces side by side, labelled, "
                               "with the recording's audio (needs ffmpeg or the imageio-ffmpeg package)")
-    compare.add_argument("--exaggerate", type=_positive_float, default=1.0, metavar="X",
+    compare.add_argument("--exaggerate", type=_exaggeration, default=1.0, metavar="X",
                          help="with --video: draw head angles and brow raises X times larger (default 1)")
     _add_analysis_options(compare)
     _add_eyebrow_options(compare)
@@ -871,7 +891,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "order,stimulus,left,right. The same seed gives the same plan.",
     )
     plan.add_argument("--stimuli", required=True, metavar="NAME[,NAME...]", help="stimulus names, comma-separated")
-    plan.add_argument("--seed", type=int, default=0, help="seed of the order (default 0)")
+    plan.add_argument("--seed", type=_seed, default=0, help="seed of the order (a whole number >= 0, default 0)")
     plan.add_argument("-o", "--output", required=True, help="plan CSV to write")
     plan.set_defaults(handler=_cmd_study_plan)
     analyze = study_commands.add_parser(
@@ -955,6 +975,8 @@ def _check_paths(args: argparse.Namespace) -> None:
             raise ConfigError(f"{flag} {value!r}: give a file name")
         if value == "-":
             if name == "output" and args.command in _STDOUT_COMMANDS:
+                if sys.stdout is None:
+                    raise ConfigError("-o -: standard output is closed; name a file instead")
                 continue
             command = " ".join(filter(None, (args.command, getattr(args, "study_command", None))))
             raise ConfigError(f"{flag} -: 'prosody {command}' writes files, not standard output; name one")
@@ -990,6 +1012,8 @@ def _run(handler: Callable[[argparse.Namespace], int], args: argparse.Namespace)
 def main(argv: Sequence[str] | None = None) -> int:
     import warnings
 
+    if sys.stderr is None:  # started with standard error closed (2>&-): messages go nowhere, work goes on
+        sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - for the life of the process
     parser = build_parser()
     args = parser.parse_args(argv)
 
@@ -1015,8 +1039,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except BrokenPipeError:
         # the reader went away (`prosody inspect F.fap | head -1`): not an error of ours
-        import os
-
         with contextlib.suppress(OSError):
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())

@@ -99,7 +99,7 @@ def test_parameter_error_is_usage_exit_2(tmp_path, capsys) -> None:
     wav = _wav(tmp_path / "tone.wav", harmonic_tone(200, 0.5, 16000))
     code = main(["features", str(wav), "-o", str(tmp_path / "f.csv"), "--f0-floor", "600"])
     assert code == 2
-    assert "f0_floor_hz" in capsys.readouterr().err
+    assert "--f0-floor" in capsys.readouterr().err
 
 
 def test_unwritable_output_is_exit_1(tmp_path, capsys) -> None:
@@ -376,3 +376,76 @@ def test_a_pitch_floor_below_any_voice_is_refused_before_analysis(tmp_path, caps
 
     with pytest.raises(ValueError, match="20 <= f0_floor_hz"):
         StreamingAnalyser(16000, f0_floor_hz=float(floor))
+
+
+def test_gsm_wav_which_libsndfile_cannot_seek_in_is_read(tmp_path) -> None:
+    import shutil
+    import subprocess
+
+    if shutil.which("sox") is None:
+        pytest.skip("needs sox to write GSM 6.10 (apt-get install sox)")
+    pcm, gsm = tmp_path / "pcm.wav", tmp_path / "gsm.wav"
+    soundfile.write(pcm, harmonic_tone(150, 2.0, 8000), 8000)
+    subprocess.run(["sox", str(pcm), "-e", "gsm-full-rate", str(gsm)], check=True)
+    assert soundfile.info(str(gsm)).subtype == "GSM610"
+    features = extract_features(gsm)
+    assert features.n_frames == 60
+    assert abs(1200 * np.log2(np.nanmedian(features.f0.values) / 150)) < 50
+    assert load_audio(gsm).samples.size == 16000
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["study", "plan", "--stimuli", "a,b", "-o", "{dir}/p.csv", "--seed", "-1"], "whole number from 0"),
+    (["preview", "{wav}", "-o", "{dir}/p.gif", "--exaggerate", "1e308"], "(0, 100]"),
+    (["preview", "{wav}", "-o", "{dir}/p.gif", "--start", "inf"], "[0, 1e+06]"),
+    (["preview", "{wav}", "-o", "{dir}/p.gif", "--duration", "1e308"], "(0, 1e+06]"),
+])
+def test_numbers_out_of_range_are_usage_errors(tmp_path, capsys, argv, message) -> None:
+    wav = tmp_path / "a.wav"
+    soundfile.write(wav, harmonic_tone(150, 1.0, 16000), 16000)
+    with pytest.raises(SystemExit) as stopped:
+        main([a.format(dir=tmp_path, wav=wav) for a in argv])
+    assert stopped.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_closed_standard_streams(tmp_path) -> None:
+    import subprocess
+    import sys
+
+    wav = tmp_path / "a.wav"
+    soundfile.write(wav, harmonic_tone(150, 1.0, 16000), 16000)
+    closed_err = subprocess.run([sys.executable, "-m", "prosody", "convert", str(wav), "-o", str(tmp_path / "a.fap")],
+                                stderr=subprocess.DEVNULL, pass_fds=(), close_fds=True,
+                                preexec_fn=lambda: __import__("os").close(2), timeout=120)
+    assert closed_err.returncode == 0 and (tmp_path / "a.fap").exists()
+    closed_out = subprocess.run([sys.executable, "-m", "prosody", "features", str(wav), "-o", "-"],
+                                stderr=subprocess.PIPE, text=True, preexec_fn=lambda: __import__("os").close(1),
+                                timeout=120)
+    assert closed_out.returncode == 2 and "standard output is closed" in closed_out.stderr
+
+
+def test_model_numbers_beyond_any_fit_and_motion_beyond_a_turn_are_refused(tmp_path) -> None:
+    import json
+
+    from prosody.errors import GroundTruthError, ModelError
+    from prosody.jobs.stream import live_head_model, shipped_live_model_path
+    from prosody.motion.ground_truth import read_head_csv
+    from prosody.motion.head import ArxHeadModel
+    from prosody.motion.head_models import ARX_MODEL_PATH, load_head_model
+
+    live = json.loads(shipped_live_model_path(100).read_text())
+    key = next(k for k, v in live.items() if isinstance(v, list) and v and isinstance(v[0], float))
+    live[key][0] = 1e308
+    (tmp_path / "live.json").write_text(json.dumps(live))
+    with pytest.raises(ModelError, match="beyond 1e"):
+        live_head_model(str(tmp_path / "live.json"), lookahead_ms=100)
+    arx = json.loads(ARX_MODEL_PATH.read_text())
+    arx["c"][0] = -1e300
+    (tmp_path / "arx.json").write_text(json.dumps(arx))
+    with pytest.raises(ModelError, match="beyond 1e"):
+        load_head_model(str(tmp_path / "arx.json"))
+    with pytest.raises(ValueError, match="ridge must be a number in"):
+        ArxHeadModel(ridge=1e308)._check_orders()
+    (tmp_path / "x.head.csv").write_text("frame,time_s,rx_rad,ry_rad,rz_rad\n0,0.0,1e200,0,0\n")
+    with pytest.raises(GroundTruthError, match="beyond pi rad"):
+        read_head_csv(tmp_path / "x.head.csv")

@@ -345,3 +345,16 @@ def test_close_is_bounded_with_a_stalled_client_and_publish_after_close_is_refus
         assert server._thread is not None and not server._thread.is_alive()
     with pytest.raises(ServerClosedError):
         server.publish(_frames(0, 1))
+
+
+def test_hostile_control_messages_are_refused_and_the_server_goes_on(frame_server):
+    from websockets.sync.client import connect
+
+    url = f"ws://127.0.0.1:{frame_server.port}/stream"
+    with connect(url) as client:
+        client.send('{"type": "start", "sample_rate": 1e400}')  # JSON's way to say infinity
+        client.send("[" * 100000 + "]" * 100000)  # deeper than any parser's recursion
+        errors = [m for m in _receive_all(client, 1.0) if m["type"] == "error"]
+        assert len(errors) == 2 and "cannot start" in errors[0]["message"]
+        frame_server.publish(_frames(0, 3))
+        assert [m["frame"] for m in _receive_all(client, 0.5)] == [0, 1, 2]

@@ -23,7 +23,6 @@ from pathlib import Path
 import numpy as np
 
 from audio_features.atomic import atomic_write
-
 from audio_features.inputs import open_input
 
 from ..errors import FapFormatError, FapIrregularityWarning, FapWriteError

@@ -317,7 +317,7 @@ class FrameServer:
             try:
                 request = json.loads(message)
                 kind = request["type"]
-            except (ValueError, KeyError, TypeError):
+            except (ValueError, KeyError, TypeError, RecursionError):  # RecursionError: JSON nested too deeply
                 await self._refuse(websocket, client, "text", "a text message must be JSON with a \"type\" "
                                                               "(start or stop)")
                 return
@@ -326,7 +326,7 @@ class FrameServer:
                     pcm = PcmFormat(int(request.get("sample_rate", 0)), str(request.get("encoding", "f32le")))
                     client.converter = await loop.run_in_executor(None, self.make_converter, pcm.sample_rate_hz)
                     client.decoder = PcmDecoder(pcm)
-                except (VisualProsodyError, ValueError, TypeError) as error:
+                except (VisualProsodyError, ValueError, TypeError, OverflowError) as error:  # 1e400: infinity
                     await self._refuse(websocket, client, "start", f"cannot start: {error}")
                     return
                 self.report(f"client {client.name} is sending audio ({pcm.sample_rate_hz} Hz {pcm.encoding})")

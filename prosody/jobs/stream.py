@@ -226,7 +226,7 @@ def file_chunks(path: str | os.PathLike[str], *, realtime: bool = False,
     block is given no sooner than the time it ends at (a demo of live input from a file)."""
     import soundfile
 
-    from audio_features.audio import check_shape, open_sound_file
+    from audio_features.audio import check_shape, open_sound_file, read_blocks
 
     sound = open_sound_file(path)
     check_shape(sound.frames, source=str(path), sample_rate_hz=sound.samplerate)
@@ -238,7 +238,7 @@ def file_chunks(path: str | os.PathLike[str], *, realtime: bool = False,
         done = 0
         with sound:
             try:
-                for data in sound.blocks(blocksize=block, dtype="float64", always_2d=True):
+                for data in read_blocks(sound, block):
                     done += data.shape[0]
                     if realtime:
                         delay = start + done / rate - time.monotonic()

@@ -8,6 +8,7 @@ clip's median pose removed since FAPs are displacements from a neutral pose).
 from __future__ import annotations
 
 import csv
+import math
 import os
 from pathlib import Path
 
@@ -76,6 +77,11 @@ def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -
     if not np.all(np.isfinite(data)):
         line = int(np.argmin(np.all(np.isfinite(data), axis=1))) + 2
         raise GroundTruthError(f"{name}, line {line}: values must be finite")
+    beyond = np.abs(data[:, 2:]) > math.pi
+    if beyond.any():
+        line = int(np.argmax(beyond.any(axis=1))) + 2
+        raise GroundTruthError(f"{name}, line {line}: a head angle beyond pi rad (180 degrees) is not a head's "
+                               "rotation; angles are in radians")
     if not np.array_equal(data[:, 0], np.arange(data.shape[0])):
         line = int(np.argmax(data[:, 0] != np.arange(data.shape[0]))) + 2
         raise GroundTruthError(f"{name}, line {line}: frames must be numbered 0, 1, 2, ... in order")

@@ -24,7 +24,7 @@ from audio_features import DEFAULT_FPS, Features
 
 from ..errors import ConfigError, ModelError
 from ..fap.table import HEAD_FAPS
-from .model_files import TrainingClip, read_model_json, write_model_json
+from .model_files import MAX_MODEL_MAGNITUDE, TrainingClip, read_model_json, write_model_json
 
 MODEL_FORMAT = "visual-prosody-arx"
 MODEL_VERSION = 1
@@ -32,6 +32,8 @@ INPUT_NAMES = ("energy_db", "f0_conditioned_hz", "energy_x_f0", "energy_db_mean_
 #: Largest spectral radius accepted for the free-running model (1 would not decay).
 MAX_SPECTRAL_RADIUS = 0.995
 DEFAULT_MODEL_PATH = Path(__file__).with_name("models") / "default_arx.json"
+#: Largest ridge penalty (it is raised tenfold until the model is stable: far below overflow).
+MAX_RIDGE = 1e6
 #: Default orders and ridge penalty of the ARX model (the model, training and the command share them).
 DEFAULT_NA, DEFAULT_NB, DEFAULT_NK, DEFAULT_RIDGE = 1, 5, 0, 0.1
 ARX_DEFAULTS = {"na": DEFAULT_NA, "nb": DEFAULT_NB, "nk": DEFAULT_NK, "ridge": DEFAULT_RIDGE}
@@ -154,8 +156,8 @@ class ArxHeadModel:
         for name, value, low in (("na", self.na, 0), ("nb", self.nb, 1), ("nk", self.nk, 0)):
             if not (isinstance(value, (int, np.integer)) and value >= low):
                 raise ConfigError(f"{name} must be a whole number >= {low}, got {value!r}")
-        if not (math.isfinite(self.ridge) and self.ridge >= 0):
-            raise ConfigError(f"ridge must be a finite number >= 0, got {self.ridge!r}")
+        if not (math.isfinite(self.ridge) and 0 <= self.ridge <= MAX_RIDGE):
+            raise ConfigError(f"ridge must be a number in [0, {MAX_RIDGE:g}], got {self.ridge!r}")
         if not (math.isfinite(self.smoothing_s) and 0 < self.smoothing_s <= 60):
             raise ConfigError(f"smoothing_s must be a number of seconds in (0, 60], got {self.smoothing_s!r}")
         if self.input_normalization not in ("recording", "global"):
@@ -368,6 +370,8 @@ class ArxHeadModel:
                     raise fail(f"field {key!r} has shape {array.shape!r}, expected {shape!r}")
                 if not np.all(np.isfinite(array)):
                     raise fail(f"field {key!r} holds non-finite numbers")
+                if np.any(np.abs(array) > MAX_MODEL_MAGNITUDE):
+                    raise fail(f"field {key!r} holds numbers beyond {MAX_MODEL_MAGNITUDE:g}: not a fitted model")
                 arrays[key] = array
             if np.any(arrays["input_std"] <= 0) or np.any(arrays["output_scale_au"] <= 0):
                 raise fail("normalisation scales must be positive")

@@ -15,6 +15,9 @@ from ..errors import ModelError
 
 #: Largest model file read (the shipped ones are well under 100 kB).
 MAX_MODEL_BYTES = 16 << 20
+#: Largest magnitude of a number a model file may hold (the shipped models' largest is 1e4); beyond it the
+#: arithmetic of generation overflows, so the file is damaged or hostile.
+MAX_MODEL_MAGNITUDE = 1e9
 
 
 @dataclass(frozen=True)

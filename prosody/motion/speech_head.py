@@ -29,7 +29,7 @@ from audio_features import Features
 from ..errors import ConfigError, ModelError
 from ..fap.table import HEAD_FAPS, RADIANS_PER_AU
 from ..measures import HEAD_LOWPASS_HZ, SPEED_ENVELOPE_S, centred_moving_average
-from .model_files import TrainingClip, write_model_json
+from .model_files import MAX_MODEL_MAGNITUDE, TrainingClip, write_model_json
 
 MODEL_FORMAT = "visual-prosody-head"
 MODEL_VERSION = 1
@@ -188,8 +188,9 @@ def _shaping_filter(velocities: Sequence[np.ndarray], fps: float) -> np.ndarray:
 
 
 def _finite_number(value: object) -> bool:
-    """A JSON number that is finite (not a bool, not NaN or infinity)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    """A JSON number within :data:`MAX_MODEL_MAGNITUDE` (not a bool, not NaN or infinity)."""
+    return (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            and abs(value) <= MAX_MODEL_MAGNITUDE)
 
 
 def read_prosodic_model(cls, payload: object, *, source: str, kind: str, unsupported: str, names: dict[str, list],
@@ -240,6 +241,8 @@ def _read_fitted_fields(model, payload: dict, fail: Callable[[str], ModelError])
             raise fail(f"field {key!r} has shape {array.shape!r}, expected {shape!r}")
         if not np.all(np.isfinite(array)):
             raise fail(f"field {key!r} holds non-finite numbers")
+        if np.any(np.abs(array) > MAX_MODEL_MAGNITUDE):
+            raise fail(f"field {key!r} holds numbers beyond {MAX_MODEL_MAGNITUDE:g}: not a fitted model")
         setattr(model, key + "_", array)
     for key in ("envelope_std", "pitch_std", "velocity_scale", "spread_au", "noise_spread", "output_scale"):
         if np.any(getattr(model, key + "_") <= 0):
