@@ -134,8 +134,35 @@ def _add_motion_options(parser: argparse.ArgumentParser, *, live: bool = False) 
                           ("roll", "head tilts (FAP 50)"), ("brow", "eyebrow raises (FAP 31-34)")):
         controls.add_argument(f"--{channel}-gain", type=float, default=1.0, metavar="G",
                               help=f"scale the {what} by G (default 1)")
+    if not live:
+        controls.add_argument("--lip-gain", type=_number_in(0, 100), default=1.0, metavar="G",
+                              help="scale the lips' motion (FAP 3-11, 16-17, 51-58) by G (default 1)")
+    channels = "pitch, yaw, roll, brows" + ("" if live else ", lips")
     controls.add_argument("--off", action="append", default=[], metavar="CHANNEL[,CHANNEL]",
-                          help="leave channels out of the output: pitch, yaw, roll, brows (repeatable)")
+                          help=f"leave channels out of the output: {channels} (repeatable)")
+    if not live:
+        _add_face_options(parser)
+
+
+def _add_face_options(parser: argparse.ArgumentParser) -> None:
+    from .motion.expressions import EXPRESSIONS
+
+    face = parser.add_argument_group(
+        "lips and expressions", "The lips move with the speech in every condition alike: phones recognised by "
+        "PocketSphinx become MPEG-4 visemes blended over time by dominance functions (--lips visemes, the "
+        "default), or an acoustic model maps the spectrum to the mouth's shape (--lips acoustic, any "
+        "language). An expression is neutral unless asked.")
+    face.add_argument("--lips", default="visemes", choices=["visemes", "acoustic", "none"],
+                      help="how the lips move (default visemes; none: no lip FAPs)")
+    face.add_argument("--transcript", default=None, metavar="TEXT|FILE",
+                      help="what is said (the text, or a text file): its words are aligned to the audio for the "
+                           "visemes; words the pronouncing dictionary lacks are left out, and a text that does "
+                           "not fit the audio is ignored with a warning")
+    face.add_argument("--expression", default=None, metavar="NAME[:INTENSITY]|FILE.csv",
+                      help=f"a facial expression for the whole recording ({', '.join(EXPRESSIONS)}; intensity "
+                           "0-1, default 1), or a CSV file of timed ones with the columns "
+                           "start_s,end_s,expression,intensity; blended in and out over about half a second and "
+                           "mixed with the lips so they still articulate")
 
 
 def _analysis_kwargs(args: argparse.Namespace) -> dict:
@@ -230,9 +257,14 @@ def _motion_kwargs(args: argparse.Namespace) -> dict:
     """The keyword arguments of :func:`prosody.jobs.pipeline.convert` set by :func:`_add_motion_options`."""
     gains = {"pitch": args.pitch_gain, "yaw": args.yaw_gain, "roll": args.roll_gain, "brows": args.brow_gain}
     disabled = [name.strip() for value in args.off for name in value.split(",") if name.strip()]
+    face = {}
+    if hasattr(args, "lips"):
+        gains["lips"] = args.lip_gain
+        face = {"lips": None if args.lips == "none" else args.lips, "transcript": args.transcript,
+                "expression": args.expression}
     return {"condition": args.condition, "ground_truth": getattr(args, "ground_truth", None), "model": args.model,
-            "seed": args.seed,
-            "eyebrow_rule": _eyebrow_rule(args), "gains": gains, "disabled": disabled, **_analysis_kwargs(args)}
+            "seed": args.seed, "eyebrow_rule": _eyebrow_rule(args), "gains": gains, "disabled": disabled, **face,
+            **_analysis_kwargs(args)}
 
 
 def _to_stdout(write: Callable[[str], object], name: str) -> None:
@@ -256,8 +288,13 @@ def _check_motion_options(args: argparse.Namespace) -> None:
         raise ConfigError(f"--ground-truth is the recorded motion of --condition truth; it is not used by "
                           f"--condition {args.condition}")
     off = {name.strip() for value in args.off for name in value.split(",") if name.strip()}
-    if {"pitch", "yaw", "roll", "brows"} <= off:
-        raise ConfigError("--off leaves out every channel (pitch, yaw, roll, brows): the output would be empty")
+    channels = {"pitch", "yaw", "roll", "brows"} | ({"lips"} if getattr(args, "lips", "none") != "none" else set())
+    if channels <= off and getattr(args, "expression", None) is None:
+        raise ConfigError(f"--off leaves out every channel ({', '.join(sorted(channels))}): the output would be "
+                          "empty")
+    if getattr(args, "transcript", None) is not None and getattr(args, "lips", None) != "visemes":
+        raise ConfigError("--transcript is read by the visemes; it is not used by --lips "
+                          f"{getattr(args, 'lips', 'none')}")
 
 
 def _cmd_convert(args: argparse.Namespace) -> int:
@@ -537,6 +574,15 @@ def _cmd_train(args: argparse.Namespace) -> int:
     orders = {"na": args.na, "nb": args.nb, "nk": args.nk, "ridge": args.ridge}
     if args.lookahead_ms is not None and args.kind != "live":
         raise ConfigError("--lookahead-ms sets the live head model's look-ahead: add --kind live")
+    if args.kind == "mouth":
+        from .motion.mouth_model import train_mouth
+
+        given = [f"--{name}" for name, value in orders.items() if value is not None] + (["--cv"] if args.cv else [])
+        if given:
+            raise ConfigError(f"{', '.join(given)} do(es) not apply to the mouth model (its held-out figures come "
+                              "from benchmarks/mouth_loco.py)")
+        train_mouth(args.data, args.output, fps=args.fps, report=lambda line: print(line, file=sys.stderr))
+        return EXIT_OK
     if args.kind == "live":
         from .motion.live_training import train_live
 
@@ -790,9 +836,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.add_argument("--data", required=True, metavar="DIR", help="folder of paired recordings")
     train.add_argument("-o", "--output", required=True, help="model file to write (.json)")
-    train.add_argument("--kind", default="prosodic", choices=["prosodic", "arx", "live"],
+    train.add_argument("--kind", default="prosodic", choices=["prosodic", "arx", "live", "mouth"],
                        help="which model to fit (default prosodic; live: the causal form of the prosodic model "
-                            "that 'prosody stream' uses, trained on the audio analysed as a stream)")
+                            "that 'prosody stream' uses, trained on the audio analysed as a stream; mouth: the "
+                            "acoustic mouth model of --lips acoustic, on <name>.wav + <name>.mouth.csv pairs)")
     train.add_argument("--lookahead-ms", type=_lookahead, default=None, metavar="MS",
                        help="--kind live: audio after each frame the model reads, in ms (default 100); stream "
                             "with at least this --lookahead-ms")

@@ -397,3 +397,103 @@ def average_brow_metrics(rows: Sequence[dict]) -> dict:
     result: dict = {key: mean_of(rows, key) for key in BROW_MEASURES}
     result["onsets"] = {key: mean_of([row["onsets"] for row in rows], key) for key in ("precision", "recall", "f1")}
     return result
+
+
+# the mouth (SPEC section 6: lips) -------------------------------------------------------------------------
+#: Low-pass of the recorded lip opening, Hz.
+MOUTH_LOWPASS_HZ = 8.0
+#: Largest audio-video lag searched for the mouth's agreement, s.
+MOUTH_MAX_LAG_S = 0.25
+#: Recorded closures: frames in this lowest fraction of the lip opening.
+CLOSED_FRACTION = 0.2
+#: Generated closures: an inner-lip opening at or below this, MNS (under a millimetre on an adult face).
+CLOSED_OPENING_MNS = 40.0
+MOUTH_MEASURES = ("opening_r", "lag_s", "rounding_r")
+
+
+def _filled(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``values`` with missing frames (NaN) interpolated for filtering, and the mask of the known ones."""
+    values = np.asarray(values, float)
+    known = np.isfinite(values)
+    if not known.any():
+        return np.zeros_like(values), known
+    index = np.arange(values.size)
+    return np.interp(index, index[known], values[known]), known
+
+
+def _lagged(generated: np.ndarray, recorded: np.ndarray, lag: int) -> tuple[np.ndarray, np.ndarray]:
+    """Recorded frame ``k`` against generated frame ``k + lag``."""
+    if lag >= 0:
+        return generated[lag:], recorded[:recorded.size - lag]
+    return generated[:generated.size + lag], recorded[-lag:]
+
+
+def mouth_metrics(generated_opening_mns: np.ndarray, generated_rounding: np.ndarray, recorded_opening: np.ndarray,
+                  recorded_rounding: np.ndarray, *, fps: float, lag_frames: int | None = None) -> dict:
+    """How well generated lips follow recorded ones.
+
+    Parameters
+    ----------
+    generated_opening_mns : array (n,)
+        Inner-lip opening ``FAP 3 - FAP 4 - FAP 5``, MNS.
+    generated_rounding : array (n,)
+        Lip protrusion (FAP 16 + 17 or any monotone measure of it).
+    recorded_opening, recorded_rounding : array (n,)
+        The tracked ``lip_opening`` and ``mouth_funnel + mouth_pucker``; NaN where no face was found (left out).
+    fps : float > 0
+    lag_frames : int, optional
+        Use this lag instead of searching (a control is measured at the lag of the speech it stands beside).
+
+    Returns
+    -------
+    dict
+        ``opening_r`` (Pearson r of the opening with the recorded one low-passed at 8 Hz, at the best lag
+        within +-0.25 s), ``lag_s`` (that lag: positive when the recording moves earlier than the generated
+        lips), ``closures`` (``precision``, ``recall``, ``f1`` of generated closures, opening <= 40 MNS,
+        against the recorded lowest fifth, at that lag), ``rounding_r`` (at that lag).
+    """
+    recorded, known = _filled(recorded_opening)
+    recorded = lowpass_head(recorded, fps=fps, cutoff_hz=MOUTH_LOWPASS_HZ)
+    generated = np.asarray(generated_opening_mns, float)
+    n = min(generated.size, recorded.size)
+    generated, recorded, known = generated[:n], recorded[:n], known[:n]
+    max_lag = int(round(MOUTH_MAX_LAG_S * fps))
+
+    def r_at(lag: int, a: np.ndarray, b: np.ndarray) -> float | None:
+        x, y = _lagged(a, b, lag)
+        _, mask = _lagged(a, known, lag)
+        return pearson(x[mask], y[mask]) if mask.sum() > 2 else None
+
+    if lag_frames is None:
+        scored = [(r, lag) for lag in range(-max_lag, max_lag + 1) if (r := r_at(lag, generated, recorded)) is not None]
+        best_r, lag_frames = max(scored) if scored else (None, 0)
+    else:
+        best_r = r_at(lag_frames, generated, recorded)
+    rounding, _ = _filled(recorded_rounding)
+    rounding = lowpass_head(rounding, fps=fps, cutoff_hz=MOUTH_LOWPASS_HZ)[:n]
+    rounding_r = r_at(lag_frames, np.asarray(generated_rounding, float)[:n], rounding)
+    x, y = _lagged(generated, np.where(known, np.asarray(recorded_opening, float)[:n], np.nan), lag_frames)
+    valid = np.isfinite(y)
+    closed_recorded = y[valid] <= np.quantile(y[valid], CLOSED_FRACTION) if valid.any() else np.zeros(0, bool)
+    closed_generated = x[valid] <= CLOSED_OPENING_MNS
+    hits = int(np.sum(closed_recorded & closed_generated))
+    precision = hits / closed_generated.sum() if closed_generated.any() else None
+    recall = hits / closed_recorded.sum() if closed_recorded.any() else None
+    f1 = (2 * precision * recall / (precision + recall) if precision is not None and recall is not None
+          and precision + recall > 0 else None)
+    return {"opening_r": best_r, "lag_s": lag_frames / fps, "rounding_r": rounding_r,
+            "closures": {"precision": precision, "recall": recall, "f1": f1}}
+
+
+def empty_mouth_metrics() -> dict:
+    """The mouth block where it is undefined (no recorded mouth, or a stream without lips)."""
+    return {**dict.fromkeys(MOUTH_MEASURES), "closures": dict.fromkeys(("precision", "recall", "f1"))}
+
+
+def average_mouth_metrics(rows: Sequence[dict]) -> dict:
+    """The mean of :func:`mouth_metrics` results (None entries left out), in the same layout."""
+    if not rows:
+        return empty_mouth_metrics()
+    result: dict = {key: mean_of(rows, key) for key in MOUTH_MEASURES}
+    result["closures"] = {key: mean_of([row["closures"] for row in rows], key) for key in ("precision", "recall", "f1")}
+    return result

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
 from audio_features import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS, Features, extract_features
@@ -12,13 +12,16 @@ from ..errors import ConfigError
 from ..fap.fapfile import read_fap
 from ..fap.stream import FapStream
 from ..motion.conditions import Condition, condition_stream
+from ..motion.expressions import ExpressionSegment, parse_expressions
 from ..motion.eyebrows import BrowRule
+from ..motion.face import FaceLayer, face_layer
 from ..motion.ground_truth import fit_to_grid, read_motion
 from ..motion.head_models import HeadModel, resolve_head_model, rest_pose
+from ..motion.lips import LIP_FAPS
 from ..motion.perlin import PerlinSettings
 
 #: Channels of the intensity controls and the FAPs each one drives.
-CHANNELS = {"pitch": (48,), "yaw": (49,), "roll": (50,), "brows": (31, 32, 33, 34)}
+CHANNELS = {"pitch": (48,), "yaw": (49,), "roll": (50,), "brows": (31, 32, 33, 34), "lips": LIP_FAPS}
 
 
 def apply_controls(stream: FapStream, *, gains: Mapping[str, float] | None = None,
@@ -31,13 +34,36 @@ def apply_controls(stream: FapStream, *, gains: Mapping[str, float] | None = Non
     unknown = [name for name in [*gains, *disabled] if name not in CHANNELS]
     if unknown:
         raise ConfigError(f"unknown channel(s) {', '.join(map(repr, unknown))}; choose from {', '.join(CHANNELS)}")
-    stream = stream.scaled({fap: gain for name, gain in gains.items() for fap in CHANNELS[name]}, about=rest)
+    # the lips' gain is applied where they are made (it scales the mouth shapes, not the mixed expression)
+    stream = stream.scaled({fap: gain for name, gain in gains.items() if name != "lips" for fap in CHANNELS[name]},
+                           about=rest)
     return stream.without([fap for name in disabled for fap in CHANNELS[name]])
 
 
 def load_ground_truth(path: str | os.PathLike[str], features: Features) -> FapStream:
     """Recorded motion (.head.csv or .fap) on the features' grid."""
     return fit_to_grid(read_motion(path), n_frames=features.n_frames, fps=features.fps, source=str(path))
+
+
+def make_face(audio: str | os.PathLike[str], features: Features, *, lips: str | None = "visemes",
+              transcript: str | None = None, expression: str | Sequence[ExpressionSegment] | None = None,
+              gains: Mapping[str, float] | None = None, disabled: Iterable[str] = ()) -> FaceLayer | None:
+    """The lips and expression layer of a recording on its features' grid (None when there is neither)."""
+    from audio_features import load_audio
+
+    segments = parse_expressions(expression) if isinstance(expression, str) else list(expression or ())
+    if "lips" in disabled:
+        lips = None
+    if lips is None and not segments:
+        return None
+    if transcript is not None and os.path.isfile(transcript):
+        from audio_features.inputs import open_input
+
+        with open_input(transcript, text=True, encoding="utf-8-sig", max_bytes=1 << 20) as handle:
+            transcript = handle.read()
+    sound = load_audio(audio) if lips is not None else None
+    return face_layer(sound, features.n_frames, fps=features.fps, lips=lips, transcript=transcript,
+                      lip_gain=float((gains or {}).get("lips", 1.0)), expressions=segments)
 
 
 def convert(
@@ -59,6 +85,9 @@ def convert(
     disabled: Iterable[str] = (),
     features: Features | None = None,
     progress: Callable[[int, int], None] | None = None,
+    lips: str | None = "visemes",
+    transcript: str | None = None,
+    expression: str | Sequence[ExpressionSegment] | None = None,
 ) -> FapStream:
     """Convert a speech recording into the FAP stream of one condition, and write it if ``output`` is given.
 
@@ -85,13 +114,20 @@ def convert(
     output_format : str, optional
         A name of :data:`prosody.fap.exporters.WRITERS` (fap, csv, csv-physical, json, bvh, livelink).
     gains : mapping, optional
-        Intensity per channel (``pitch``, ``yaw``, ``roll``, ``brows``): 1 leaves it, 0.5 halves it.
+        Intensity per channel (``pitch``, ``yaw``, ``roll``, ``brows``, ``lips``): 1 leaves it, 0.5 halves it.
     disabled : iterable of str
         Channels to leave out of the output.
     features : Features, optional
         Already extracted features of ``audio`` (skips the analysis).
     progress : callable, optional
         Called as ``progress(frames_done, frames_total)`` during the analysis, the long part of a conversion.
+    lips : {"visemes", "acoustic"} or None
+        How the lips move (the same in every condition): phones -> visemes (default), the acoustic mouth
+        model, or None for no lip FAPs.
+    transcript : str or path, optional
+        What is said (text, or a text file), aligned to the audio for the visemes.
+    expression : str or sequence of ExpressionSegment, optional
+        ``NAME:INTENSITY`` for the whole recording (``joy:0.6``), a CSV file of timed expressions, or segments.
 
     Returns
     -------
@@ -108,12 +144,21 @@ def convert(
     name = Path(output).stem if output is not None else Path(str(audio)).stem
     stream = condition_stream(chosen, features, seed=seed, model=head_model, ground_truth=truth,
                               eyebrow_rule=eyebrow_rule, perlin=perlin, name=name)
-    # gains scale motion about the rest pose: a model's resting lean is not motion
-    stream = apply_controls(stream, gains=gains, disabled=disabled,
-                            rest=rest_pose(head_model) if head_model is not None else None)
+    face = make_face(audio, features, lips=lips, transcript=transcript, expression=expression, gains=gains,
+                     disabled=disabled)
+    recorded = None
     if base is not None:
         # the base must be of this recording: the same length within two frames, like recorded motion
         recorded = fit_to_grid(read_fap(base).stream, n_frames=stream.n_frames, fps=stream.fps, source=str(base))
+        if face is not None:
+            # the base's own lips (a recording's) are kept: generated lips fill only what it lacks
+            face = FaceLayer({fap: curve for fap, curve in face.curves.items() if fap not in recorded.active_faps})
+    if face is not None:
+        stream = face.over(stream)
+    # gains scale motion about the rest pose: a model's resting lean is not motion
+    stream = apply_controls(stream, gains=gains, disabled=disabled,
+                            rest=rest_pose(head_model) if head_model is not None else None)
+    if recorded is not None:
         stream = stream.merged_over(recorded)
     if output is not None:
         from ..fap.exporters import write_stream

@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -107,6 +108,79 @@ BROWS_CSV_HEIGHTS = ("inner_height_l", "inner_height_r", "outer_height_l", "oute
 ENS_PER_EYE_WIDTH = 2048.0
 
 
+def _tracked_columns(path: str | os.PathLike[str], columns: tuple[str, ...]) -> np.ndarray:
+    """The named columns of a video-tracked CSV (frames 0, 1, 2, ...), NaN where the cell is empty (no face)."""
+    name = str(path)
+    rows = _csv_rows(path, name)
+    header = [cell.strip() for cell in rows[0]] if rows else []
+    missing = [column for column in ("frame", *columns) if column not in header]
+    if missing:
+        raise GroundTruthError(f"{name}, line 1: missing column(s) {', '.join(missing)}")
+    index = {column: header.index(column) for column in ("frame", *columns)}
+    data = np.full((len(rows) - 1, len(columns)), np.nan)
+    for line, row in enumerate(rows[1:], start=2):
+        try:
+            if len(row) != len(header):
+                raise ValueError(f"{len(row)} columns, expected {len(header)}")
+            if float(row[index["frame"]]) != line - 2:
+                raise GroundTruthError(f"{name}, line {line}: frames must be numbered 0, 1, 2, ... in order")
+            for column, key in enumerate(columns):
+                cell = row[index[key]].strip()
+                if cell:
+                    data[line - 2, column] = float(cell)
+        except ValueError as error:
+            raise GroundTruthError(f"{name}, line {line}: expected numbers or empty cells ({error})") from None
+    if not np.all(np.isfinite(data) | np.isnan(data)):
+        raise GroundTruthError(f"{name}: values must be finite numbers or empty cells")
+    if data.shape[0] == 0 or not np.isfinite(data).any(axis=1).any():
+        raise GroundTruthError(f"{name}: no frame with a tracked face")
+    return data
+
+
+#: Columns of ``<clip>.mouth.csv`` that the mouth measures read.
+MOUTH_CSV_COLUMNS = ("lip_opening", "mouth_funnel", "mouth_pucker", "mouth_width")
+
+
+@dataclass(frozen=True, eq=False)
+class RecordedMouth:
+    """A video-tracked mouth at 30 fps: NaN where no face was found.
+
+    ``lip_opening`` and ``mouth_width`` are in outer-eye-corner widths; ``rounding`` is the blendshape
+    weights ``mouth_funnel + mouth_pucker``.
+    """
+
+    lip_opening: np.ndarray
+    rounding: np.ndarray
+    mouth_width: np.ndarray
+    fps: float = HEAD_CSV_FPS
+
+    @property
+    def n_frames(self) -> int:
+        return self.lip_opening.size
+
+
+def read_mouth_csv(path: str | os.PathLike[str]) -> RecordedMouth:
+    """Read a ``<clip>.mouth.csv`` (columns as the talking-heads data define them; others ignored).
+
+    Raises
+    ------
+    GroundTruthError
+        Missing file or columns, frames not numbered 0, 1, 2, ..., non-numeric cells, or no face at all.
+    """
+    opening, funnel, pucker, width = _tracked_columns(path, MOUTH_CSV_COLUMNS).T
+    return RecordedMouth(opening, funnel + pucker, width)
+
+
+def mouth_beside(path: str | os.PathLike[str]) -> Path | None:
+    """The ``<clip>.mouth.csv`` beside a ``<clip>.head.csv`` (or any ``<clip>.<ending>``), if there is one."""
+    name = str(path)
+    for ending in (".head.csv", ".brows.csv", ".fap", ".wav"):
+        if name.endswith(ending):
+            candidate = Path(name.removesuffix(ending) + ".mouth.csv")
+            return candidate if candidate.is_file() else None
+    return None
+
+
 def read_brows_csv(path: str | os.PathLike[str]) -> FapStream:
     """Read a ``<clip>.brows.csv`` (video-tracked brow heights) as FAP 31-34 in ENS units.
 
@@ -121,27 +195,7 @@ def read_brows_csv(path: str | os.PathLike[str]) -> FapStream:
         Missing file or columns, frames not numbered 0, 1, 2, ..., non-numeric cells, or no face found at all.
     """
     name = str(path)
-    rows = _csv_rows(path, name)
-    header = [cell.strip() for cell in rows[0]] if rows else []
-    missing = [column for column in ("frame", *BROWS_CSV_HEIGHTS) if column not in header]
-    if missing:
-        raise GroundTruthError(f"{name}, line 1: missing column(s) {', '.join(missing)}")
-    index = {column: header.index(column) for column in ("frame", *BROWS_CSV_HEIGHTS)}
-    data = np.full((len(rows) - 1, len(BROWS_CSV_HEIGHTS)), np.nan)
-    for line, row in enumerate(rows[1:], start=2):
-        try:
-            if len(row) != len(header):
-                raise ValueError(f"{len(row)} columns, expected {len(header)}")
-            if float(row[index["frame"]]) != line - 2:
-                raise GroundTruthError(f"{name}, line {line}: frames must be numbered 0, 1, 2, ... in order")
-            for column, key in enumerate(BROWS_CSV_HEIGHTS):
-                cell = row[index[key]].strip()
-                if cell:
-                    data[line - 2, column] = float(cell)
-        except ValueError as error:
-            raise GroundTruthError(f"{name}, line {line}: expected numbers or empty cells ({error})") from None
-    if data.shape[0] == 0 or not np.isfinite(data).any(axis=1).any():
-        raise GroundTruthError(f"{name}: no frame with a tracked face")
+    data = _tracked_columns(path, BROWS_CSV_HEIGHTS)
     frames = np.arange(data.shape[0])
     for column in range(data.shape[1]):
         known = np.isfinite(data[:, column])

@@ -1,0 +1,150 @@
+"""Leave-one-speaker-out table of the mouth measures on video-tracked mouths (``make evaluate``), and the fit
+of the viseme shapes that ``prosody/motion/lips.py`` ships.
+
+For each speaker, the viseme shapes (opening, rounding, spread) are fitted on the other speakers' clips and
+the lips of the held-out speaker's clips are generated and measured (mouth-opening r at the best lag within
++-0.25 s, closures, rounding r). Every row is the mean over clips; beside each, its mismatched-audio control:
+the same generated lips circularly shifted by 5 s or more against the recording (the mean over four shifts,
+and its spread over clips). Rows:
+
+- visemes: phones recognised without a transcript, the shipped viseme shapes (set by hand, not fitted to these
+  clips), dominance blending: the default;
+- visemes with shapes fitted on the other speakers (least squares on the dominance weights);
+- acoustic: the acoustic mouth model (spectral features, ridge), trained on the other speakers;
+- loudness: the intensity envelope alone (a baseline).
+
+Then it prints the shapes fitted on every clip, for comparison with ``VISEMES``.
+
+Usage: python benchmarks/mouth_loco.py [DIR]  (default ../shared/data/talking-heads)
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from audio_features import extract_features, load_audio
+from audio_features.phones import recognise_phones
+from prosody.measures import average_mouth_metrics, mouth_metrics
+from prosody.motion.ground_truth import read_mouth_csv
+from prosody.motion.lips import (
+    MNS_PER_EYE_WIDTH,
+    VISEMES,
+    fit_shapes,
+    inner_opening,
+    shape_faps,
+    shapes_from_phones,
+    viseme_weights,
+)
+from prosody.motion.mouth_model import AcousticMouthModel, mouth_training_clip
+
+DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "talking-heads"
+FPS = 30.0
+
+
+def speaker_of(name: str) -> str:
+    """Clips of one speaker share a fold: ``Obama_clip1`` and ``Obama_clip2`` are ``Obama``."""
+    return re.sub(r"_?clip_?\d+$", "", name)
+
+
+def targets(mouth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Opening (MNS above the clip's closed level), rounding (above its low level), spread (width change)."""
+    opening = (mouth.lip_opening - np.nanquantile(mouth.lip_opening, 0.05)) / MNS_PER_EYE_WIDTH * 1024
+    rounding = mouth.rounding - np.nanquantile(mouth.rounding, 0.05)
+    spread = mouth.mouth_width / np.nanmedian(mouth.mouth_width) - 1
+    return opening, rounding, spread
+
+
+def fitted_visemes(clips: list[dict]):
+    weights = [clip["weights"] for clip in clips]
+    opening = fit_shapes(weights, [clip["targets"][0] for clip in clips], nonnegative=True)
+    rounding = fit_shapes(weights, [clip["targets"][1] for clip in clips], closed=())
+    spread = fit_shapes(weights, [clip["targets"][2] for clip in clips], closed=())
+    return tuple(replace(v, opening=float(o), rounding=float(r), spread=float(s))
+                 for v, o, r, s in zip(VISEMES, opening, rounding, spread, strict=True))
+
+
+def measured(opening: np.ndarray, rounding: np.ndarray, clip: dict) -> tuple[dict, dict]:
+    mouth = clip["mouth"]
+    result = mouth_metrics(opening, rounding, mouth.lip_opening, mouth.rounding, fps=FPS)
+    lag = int(round(result["lag_s"] * FPS))
+    n = opening.size
+    shifts = [int(n * f) for f in (0.25, 0.4, 0.6, 0.75)] if n > 20 * FPS else [int(n * f) for f in (1 / 3, 2 / 3)]
+    controls = [mouth_metrics(np.roll(opening, s), np.roll(rounding, s), mouth.lip_opening, mouth.rounding, fps=FPS,
+                              lag_frames=lag) for s in shifts]
+    return result, average_mouth_metrics(controls)
+
+
+def row(label: str, results: list[tuple[dict, dict]]) -> str:
+    def mean(rows, key, sub=None):
+        values = [(r[sub] if sub else r)[key] for r in rows]
+        values = [v for v in values if v is not None]
+        return np.mean(values) if values else float("nan")
+
+    speech = [r for r, _ in results]
+    control = [c for _, c in results]
+    spread = np.std([c["opening_r"] for c in control if c["opening_r"] is not None])
+    return (f"| {label} | {mean(speech, 'opening_r'):.3f} | {mean(speech, 'lag_s'):+.2f} | "
+            f"{mean(speech, 'f1', 'closures'):.2f} ({mean(speech, 'precision', 'closures'):.2f} / "
+            f"{mean(speech, 'recall', 'closures'):.2f}) | {mean(speech, 'rounding_r'):.3f} | "
+            f"{mean(control, 'opening_r'):+.3f} ± {spread:.2f} | {mean(control, 'f1', 'closures'):.2f} |")
+
+
+def main(folder: Path) -> None:
+    clips = []
+    for wav in sorted(folder.glob("*.wav")):
+        mouth_file = wav.with_name(wav.stem + ".mouth.csv")
+        if not mouth_file.is_file():
+            continue
+        mouth = read_mouth_csv(mouth_file)
+        audio = load_audio(wav)
+        phones = recognise_phones(audio)
+        n = mouth.n_frames
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            features = extract_features(audio, fps=FPS)
+        clips.append({"name": wav.stem, "speaker": speaker_of(wav.stem), "mouth": mouth, "phones": phones,
+                      "weights": viseme_weights(np.arange(n) / FPS, phones), "targets": targets(mouth),
+                      "energy": np.resize(features.energy.values, n),
+                      "training": mouth_training_clip(audio, mouth, fps=FPS)})
+    if not clips:
+        sys.exit(f"{folder}: no <clip>.wav with a <clip>.mouth.csv beside it (see the README's evaluation section)")
+    speakers = sorted({clip["speaker"] for clip in clips})
+    print(f"{len(clips)} clips, {len(speakers)} speakers: {', '.join(speakers)}\n")
+    rows: dict[str, list] = {"visemes": [], "shipped": [], "acoustic": [], "loudness": []}
+    for speaker in speakers:
+        held = [clip for clip in clips if clip["speaker"] == speaker]
+        rest = [clip for clip in clips if clip["speaker"] != speaker]
+        visemes = fitted_visemes(rest)
+        acoustic = AcousticMouthModel().fit([clip["training"] for clip in rest])
+        for clip in held:
+            n = clip["mouth"].n_frames
+            for key, table in (("visemes", visemes), ("shipped", VISEMES)):
+                faps = shape_faps(shapes_from_phones(clip["phones"], n, fps=FPS, visemes=table))
+                rows[key].append(measured(inner_opening(faps), faps[16], clip))
+            shape = acoustic.predict_clip(clip["training"])
+            faps = shape_faps(shape)
+            rows["acoustic"].append(measured(inner_opening(faps)[:n], faps[16][:n], clip))
+            rows["loudness"].append(measured(clip["energy"], clip["energy"], clip))
+    print("| lips | opening r | lag (s) | closure F1 (P / R) | rounding r | control: opening r | control: F1 |")
+    print("|---|---|---|---|---|---|---|")
+    print(row("visemes (default: phones, shipped shapes)", rows["shipped"]))
+    print(row("visemes, shapes fitted on the other speakers", rows["visemes"]))
+    print(row("acoustic model, trained on the other speakers", rows["acoustic"]))
+    print(row("loudness envelope (baseline)", rows["loudness"]))
+    order = [c for s in speakers for c in clips if c["speaker"] == s]
+    print("\nper clip, default visemes (opening r):",
+          ", ".join(f"{c['name']} {r['opening_r']:.2f}" for c, (r, _) in zip(order, rows["shipped"], strict=True)))
+    print("\nshapes fitted on every clip (opening MNS, rounding, spread):")
+    for viseme in fitted_visemes(clips):
+        print(f"    {viseme.number:2d} {viseme.name:9s} {viseme.opening:6.1f} {viseme.rounding:+.3f} "
+              f"{viseme.spread:+.3f}")
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else DEFAULT_DATA)

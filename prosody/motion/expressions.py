@@ -1,0 +1,177 @@
+"""Facial expressions: the six MPEG-4 expressions as low-level FAP targets, blended over time and mixed with
+the lips (seed 002's superposition; seed 000's Eq. 14).
+
+The targets in :data:`EXPRESSIONS` (intensity 1) are ours: set from the MPEG-4 standard's description of its
+six expressions (FAP 2's table: joy, sadness, anger, fear, disgust, surprise) and the facial action units
+that carry them, with magnitudes of a clearly visible but not extreme display (a surprised brow rises about
+7 mm: 200 ENS; a smile lifts the lip corners about 2 mm: 120 MNS). Seed 002 matched its targets to JAFFE
+photographs without publishing them; these are not fitted to any recording.
+
+Over time (:func:`expression_curves`), each segment (start, end, expression, intensity) has the dominance of
+:func:`prosody.motion.lips.dominance` (1 inside it, decaying at :data:`ONSET_THETA` per second outside), and a
+neutral face has a small constant dominance everywhere: the display reaches 87 % of its intensity 0.25 s
+before the segment starts and fades the same way after it ends, and neighbouring expressions blend.
+
+Mixing with the lips (:func:`mix_with_lips`, seed 000's Eq. 14): where the viseme and the expression move a
+FAP the same way, ``delta * FAP_v + (1 - delta) * FAP_e``; where they disagree, the viseme's value, so the lips
+still articulate while smiling; where the visemes leave a FAP at 0 (lip corners), the expression's.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError
+from .lips import dominance
+
+#: The six expressions' FAP targets at intensity 1 (FAP -> value in its FAPU).
+EXPRESSIONS: dict[str, dict[int, float]] = {
+    # AU6 + AU12: cheeks raised, lip corners up and back, lower eyelids pushed up, brows relaxed
+    "joy": {12: 120, 13: 120, 59: 120, 60: 120, 6: 100, 7: 100, 53: 100, 54: 100, 41: 100, 42: 100, 21: 100,
+            22: 100, 3: 40},
+    # AU1 + AU4 + AU15 (+ AU17): inner brows up, lids drooping, corners down, chin raised
+    "sadness": {31: 90, 32: 90, 33: 20, 34: 20, 35: -40, 36: -40, 19: 150, 20: 150, 12: -80, 13: -80, 59: -80,
+                60: -80, 18: 60},
+    # AU4 + AU5 + AU7 + AU24: brows down and together, eyes staring, lids tense, lips pressed
+    "anger": {31: -120, 32: -120, 33: -60, 34: -60, 37: 60, 38: 60, 19: -60, 20: -60, 21: 80, 22: 80, 4: 30, 5: 30,
+              12: -30, 13: -30},
+    # AU1 + AU2 + AU4 + AU5 + AU20 + AU26: brows up and together, eyes wide, lips stretched, jaw dropped
+    "fear": {31: 150, 32: 150, 33: 90, 34: 90, 35: 40, 36: 40, 37: 40, 38: 40, 19: -120, 20: -120, 6: 80, 7: 80,
+             53: 80, 54: 80, 3: 80},
+    # AU9 + AU10 (+ AU4): nose wrinkled, upper lip raised, cheeks up, brows lowered
+    "disgust": {4: -80, 8: -60, 9: -60, 51: -80, 55: -60, 56: -60, 41: 60, 42: 60, 63: 40, 31: -40, 32: -40,
+                33: -40, 34: -40, 21: 60, 22: 60, 12: -40, 13: -40},
+    # AU1 + AU2 + AU5 + AU26: brows high, upper lids wide open, jaw dropped
+    "surprise": {31: 200, 32: 200, 33: 200, 34: 200, 35: 150, 36: 150, 19: -150, 20: -150, 3: 250, 4: -40, 5: -60,
+                 51: -40, 52: -60},
+}
+#: Decay rate of an expression's dominance outside its segment, 1/s.
+ONSET_THETA = 8.0
+#: The neutral face's constant dominance.
+NEUTRAL_DOMINANCE = 0.02
+#: Eq. 14's weight of the viseme where both move a FAP the same way.
+VISEME_WEIGHT = 0.5
+#: Eyebrow FAPs (31-36) stay within this range when prosodic raises are added to an expression, ENS.
+BROW_RANGE_ENS = (-300.0, 400.0)
+#: Columns of a timed expression file.
+EXPRESSION_FILE_COLUMNS = ("start_s", "end_s", "expression", "intensity")
+
+
+@dataclass(frozen=True)
+class ExpressionSegment:
+    """An expression shown from ``start_s`` to ``end_s`` (None: to the end) at ``intensity`` 0..1."""
+
+    expression: str
+    intensity: float
+    start_s: float = 0.0
+    end_s: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.expression not in EXPRESSIONS and self.expression != "neutral":
+            raise ConfigError(f"unknown expression {self.expression!r}; choose from neutral, "
+                              f"{', '.join(EXPRESSIONS)}")
+        if not (isinstance(self.intensity, (int, float)) and 0 <= self.intensity <= 1):
+            raise ConfigError(f"expression intensity must be in [0, 1], got {self.intensity!r}")
+        end = math.inf if self.end_s is None else self.end_s
+        if not (math.isfinite(self.start_s) and 0 <= self.start_s < end):
+            raise ConfigError(f"an expression needs 0 <= start_s < end_s, got {self.start_s!r} and {self.end_s!r}")
+
+
+def parse_expressions(spec: str) -> list[ExpressionSegment]:
+    """``NAME:INTENSITY`` for the whole recording (``joy:0.6``; ``joy`` alone is intensity 1), or the path of a
+    CSV file with the columns ``start_s,end_s,expression,intensity`` (one row per segment).
+
+    Examples
+    --------
+    >>> parse_expressions("surprise:0.5")
+    [ExpressionSegment(expression='surprise', intensity=0.5, start_s=0.0, end_s=None)]
+    """
+    if os.path.exists(spec) or spec.lower().endswith(".csv"):
+        return read_expression_file(spec)
+    name, _, value = spec.partition(":")
+    try:
+        intensity = float(value) if value else 1.0
+    except ValueError:
+        raise ConfigError(f"expression {spec!r}: expected NAME:INTENSITY (e.g. joy:0.6) or a CSV file") from None
+    return [ExpressionSegment(name.strip().lower(), intensity)]
+
+
+def read_expression_file(path: str | os.PathLike[str]) -> list[ExpressionSegment]:
+    """Timed expressions from a CSV file (columns :data:`EXPRESSION_FILE_COLUMNS`)."""
+    from audio_features.inputs import open_input
+
+    name = str(path)
+    try:
+        with open_input(path, text=True, encoding="utf-8-sig", newline="", max_bytes=16 << 20) as handle:
+            rows = list(csv.reader(handle))
+    except FileNotFoundError:
+        raise ConfigError(f"{name}: no such expression file") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as error:
+        raise ConfigError(f"{name}: cannot be read as CSV ({getattr(error, 'strerror', None) or error})") from None
+    if not rows or tuple(cell.strip() for cell in rows[0]) != EXPRESSION_FILE_COLUMNS:
+        raise ConfigError(f"{name}, line 1: expected the header {','.join(EXPRESSION_FILE_COLUMNS)}")
+    segments = []
+    for line, row in enumerate(rows[1:], start=2):
+        if not any(cell.strip() for cell in row):
+            continue
+        try:
+            start, end, expression, intensity = (cell.strip() for cell in row)
+            segments.append(ExpressionSegment(expression.lower(), float(intensity), float(start), float(end)))
+        except ValueError as error:
+            raise ConfigError(f"{name}, line {line}: expected start_s,end_s,expression,intensity ({error})") from None
+    if not segments:
+        raise ConfigError(f"{name}: no expression rows")
+    return segments
+
+
+def expression_curves(segments: Sequence[ExpressionSegment], n_frames: int, *, fps: float) -> dict[int, np.ndarray]:
+    """The expressions' FAPs over a frame grid, blended by dominance with a neutral face (see the module)."""
+    times = np.arange(n_frames) / fps
+    faps = sorted({fap for segment in segments for fap in EXPRESSIONS.get(segment.expression, {})})
+    total = np.full(n_frames, NEUTRAL_DOMINANCE)
+    weighted = {fap: np.zeros(n_frames) for fap in faps}
+    for segment in segments:
+        end = times[-1] + 1.0 if segment.end_s is None and n_frames else (segment.end_s or 0.0)
+        weight = dominance(times, start_s=segment.start_s, end_s=end, alpha=1.0, theta_before=ONSET_THETA,
+                           theta_after=ONSET_THETA)
+        total += weight
+        for fap, value in EXPRESSIONS.get(segment.expression, {}).items():
+            weighted[fap] += weight * segment.intensity * value
+    return {fap: weighted[fap] / total for fap in faps}
+
+
+def mix_with_lips(lips: Mapping[int, np.ndarray], expression: Mapping[int, np.ndarray], *,
+                  delta: float = VISEME_WEIGHT) -> dict[int, np.ndarray]:
+    """Seed 000's Eq. 14 on every FAP either moves, frame by frame.
+
+    Examples
+    --------
+    >>> mixed = mix_with_lips({12: np.array([10.0, -10.0, 0.0])}, {12: np.array([30.0, 30.0, 30.0])})
+    >>> mixed[12].tolist()  # same sign: averaged; opposite: the viseme's; viseme at rest: the expression's
+    [20.0, -10.0, 30.0]
+    """
+    out = {fap: np.asarray(curve, float) for fap, curve in lips.items()}
+    for fap, e in expression.items():
+        if fap not in out:
+            out[fap] = np.asarray(e, float)
+            continue
+        v = out[fap]
+        same = np.sign(v) == np.sign(e)
+        out[fap] = np.where(v == 0, e, np.where(same, delta * v + (1 - delta) * e, v))
+    return out
+
+
+def add_brow_raises(expression: Mapping[int, np.ndarray], raises: Mapping[int, np.ndarray]) -> dict[int, np.ndarray]:
+    """Prosodic eyebrow raises added on top of an expression's brows, kept within :data:`BROW_RANGE_ENS`."""
+    out = dict(expression)
+    low, high = BROW_RANGE_ENS
+    for fap, raise_ens in raises.items():
+        base = out.get(fap)
+        out[fap] = np.clip(raise_ens + (base if base is not None else 0.0), low, high)
+    return out

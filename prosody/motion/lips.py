@@ -1,0 +1,317 @@
+"""Lips from phones: MPEG-4 visemes coarticulated by dominance functions (seed 002, Cohen and Massaro).
+
+Each phone belongs to one of the 14 MPEG-4 visemes (plus neutral, 0). A viseme is a mouth shape given by
+three numbers, which are turned into low-level lip FAPs by one fixed geometry (:func:`shape_faps`):
+
+- ``opening``: inner-lip separation in MNS (mouth-nose separation / 1024). It is shared by the jaw (FAP 3,
+  60 %), the top lip going up (FAP 4, 15 %) and the bottom lip going down (FAP 5, 25 %), so that
+  ``FAP 3 - FAP 4 - FAP 5`` is the opening; the lips' mid-left and mid-right points (8-11) follow the middle by
+  80 %, and the outer lip contour (51-58) follows the inner one;
+- ``rounding``: lip protrusion, 0..1 (FAP 16, 17: 300 MNS at 1);
+- ``spread``: change of mouth width as a fraction of its rest width (each inner and outer corner, FAP 6, 7,
+  53, 54, moves by half of it: ``512 * spread`` MW).
+
+The shapes in :data:`VISEMES` are set from phonetic descriptions of the visemes (open vowels widest, /i/ and
+/e/ spread, /o/, /u/, /r/ and the postalveolars rounded, bilabials closed, the neutral face's mouth closed as
+MPEG-4 defines it), in a speaker's typical range (an open /a/ about 7 mm). They were not fitted to the
+evaluation clips: ``benchmarks/mouth_loco.py`` also fits them by least squares to video-tracked mouths, and
+shapes fitted on four speakers follow the fifth less well (mouth-opening r 0.32) than these (0.37), the
+tracked mouths being too noisy to pin fifteen shapes down. Tracked openings are measured in outer-eye-corner
+widths; the conversion takes the mouth-nose separation as 0.22 of that width (adult proportions).
+
+Coarticulation (:func:`blend`): every phone segment ``i`` has a dominance over time
+
+    D_i(t) = alpha_i * exp(-theta_i * d_i(t) ** c)
+
+where ``d_i(t)`` is the distance from ``t`` to the segment (0 inside it, so a long segment holds its shape;
+for a segment of no length this is the Cohen-Massaro form about its centre), with ``theta`` before the
+segment (anticipation) and after it (carry-over) given separately. Each parameter track is then
+``F(t) = sum_i D_i(t) T_i / sum_i D_i(t)``, which stays within the targets' range. Bilabials and labiodentals
+are dominant (large ``alpha``) and sharp (large ``theta``), so a /p/ closes the lips whatever its neighbours,
+while a vowel lends its shape to the consonants around it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError
+
+#: Lip FAPs this module writes.
+LIP_FAPS = (3, 4, 5, 6, 7, 8, 9, 10, 11, 16, 17, 51, 52, 53, 54, 55, 56, 57, 58)
+#: Inner-lip FAP -> the outer-lip FAP that follows it.
+OUTER_OF_INNER = {4: 51, 5: 52, 6: 53, 7: 54, 8: 55, 9: 56, 10: 57, 11: 58, 12: 59, 13: 60}
+#: Shares of the opening taken by the jaw (FAP 3), the top lip (FAP 4, up: negative) and the bottom lip
+#: (FAP 5, down: negative).
+OPENING_SHARES = {3: 0.60, 4: -0.15, 5: -0.25}
+#: How much the lips' mid-left and mid-right points follow the middle.
+MIDPOINT_FOLLOW = 0.8
+#: Protrusion of each lip at rounding 1, MNS.
+PROTRUSION_MNS = 300.0
+#: Mouth-nose separation as a fraction of the outer eye-corner distance (to convert tracked openings).
+MNS_PER_EYE_WIDTH = 0.22
+
+
+@dataclass(frozen=True)
+class Viseme:
+    """One MPEG-4 viseme: its phones, its mouth shape and its dominance.
+
+    Parameters
+    ----------
+    number : int in 0..14
+        The MPEG-4 viseme number (0: neutral).
+    name : str
+    phones : tuple of str
+        ARPAbet phones shown by it.
+    opening : float >= 0, in MNS
+    rounding : float
+        Protrusion, 0 (none) to 1.
+    spread : float
+        Width change, fraction of the rest width (negative: narrower).
+    alpha : float > 0
+        Dominance magnitude.
+    theta_before_s, theta_after_s : float > 0, in 1/s
+        Rate of decay of the dominance before and after the segment.
+    """
+
+    number: int
+    name: str
+    phones: tuple[str, ...]
+    opening: float
+    rounding: float
+    spread: float
+    alpha: float
+    theta_before: float
+    theta_after: float
+
+
+#: Exponent ``c`` of the dominance functions (1: exponential, as Cohen and Massaro's default).
+DOMINANCE_EXPONENT = 1.0
+
+# Dominance: vowels 1 at 12/s (anticipation 9/s), consonants 0.6 at 15/s, bilabials and labiodentals 10 and 6
+# at 60/s and 40/s (a closure wins within its segment: a vowel next to a /p/ keeps 6 % of its opening there),
+# silence 0.8 at 10/s.
+VISEMES: tuple[Viseme, ...] = (
+    Viseme(0, "neutral", ("SIL",), 0.0, 0.00, 0.000, 0.8, 10.0, 10.0),
+    Viseme(1, "p_b_m", ("P", "B", "M"), 0.0, 0.02, -0.010, 10.0, 60.0, 60.0),
+    Viseme(2, "f_v", ("F", "V"), 45.0, 0.00, -0.010, 6.0, 40.0, 40.0),
+    Viseme(3, "th_dh", ("TH", "DH"), 150.0, -0.02, 0.010, 0.6, 15.0, 15.0),
+    Viseme(4, "t_d", ("T", "D"), 150.0, -0.02, 0.010, 0.6, 15.0, 15.0),
+    Viseme(5, "k_g", ("K", "G", "NG", "HH"), 190.0, -0.01, 0.010, 0.6, 15.0, 15.0),
+    Viseme(6, "ch_jh_sh", ("CH", "JH", "SH", "ZH"), 130.0, 0.15, -0.030, 0.6, 15.0, 15.0),
+    Viseme(7, "s_z", ("S", "Z"), 110.0, -0.02, 0.010, 0.6, 15.0, 15.0),
+    Viseme(8, "n_l", ("N", "L"), 160.0, -0.01, 0.010, 0.6, 15.0, 15.0),
+    Viseme(9, "r", ("R", "ER"), 150.0, 0.10, -0.020, 0.6, 15.0, 15.0),
+    Viseme(10, "a", ("AA", "AE", "AH", "AW", "AY"), 330.0, -0.02, 0.020, 1.0, 9.0, 12.0),
+    Viseme(11, "e", ("EH", "EY"), 260.0, -0.03, 0.030, 1.0, 9.0, 12.0),
+    Viseme(12, "i", ("IH", "IY", "Y"), 190.0, -0.04, 0.040, 1.0, 9.0, 12.0),
+    Viseme(13, "o", ("AO", "OW", "OY"), 280.0, 0.12, -0.030, 1.0, 9.0, 12.0),
+    Viseme(14, "u", ("UH", "UW", "W"), 170.0, 0.20, -0.050, 1.0, 9.0, 12.0),
+)
+#: ARPAbet phone (or SIL) -> its viseme.
+VISEME_OF_PHONE: dict[str, Viseme] = {phone: viseme for viseme in VISEMES for phone in viseme.phones}
+
+
+def viseme_of(phone: str) -> Viseme:
+    """The viseme of an ARPAbet phone (stress digits ignored); unknown labels are silence.
+
+    Examples
+    --------
+    >>> viseme_of("M").name, viseme_of("AY1").number, viseme_of("<noise>").name
+    ('p_b_m', 10, 'neutral')
+    """
+    return VISEME_OF_PHONE.get("".join(ch for ch in phone.upper() if ch.isalpha()), VISEMES[0])
+
+
+def dominance(times_s: np.ndarray, *, start_s: float, end_s: float, alpha: float, theta_before: float,
+              theta_after: float, exponent: float = DOMINANCE_EXPONENT) -> np.ndarray:
+    """Dominance of one segment over ``times_s``: ``alpha * exp(-theta * d ** c)``, ``d`` the distance to
+    ``[start_s, end_s]`` (``theta_before`` before it, ``theta_after`` after it).
+
+    Examples
+    --------
+    >>> dominance(np.array([0.0, 0.5, 1.0]), start_s=0.5, end_s=0.5, alpha=1.0, theta_before=10.0,
+    ...           theta_after=10.0).round(5)
+    array([0.00674, 1.     , 0.00674])
+    """
+    before = np.clip(start_s - times_s, 0.0, None)
+    after = np.clip(times_s - end_s, 0.0, None)
+    return alpha * np.exp(-(theta_before * before**exponent + theta_after * after**exponent))
+
+
+def blend(times_s: np.ndarray, segments: Sequence[tuple[float, float]], targets: np.ndarray, *,
+          alphas: Sequence[float], thetas_before: Sequence[float], thetas_after: Sequence[float],
+          exponent: float = DOMINANCE_EXPONENT) -> np.ndarray:
+    """Targets blended by their segments' dominance: ``sum D_i T_i / sum D_i`` at every time.
+
+    Parameters
+    ----------
+    times_s : array of shape (n,)
+    segments : sequence of (start_s, end_s)
+    targets : array of shape (n_segments,) or (n_segments, k)
+    alphas, thetas_before, thetas_after : sequences of n_segments floats > 0
+
+    Returns
+    -------
+    array of shape (n,) or (n, k)
+
+    Examples
+    --------
+    Two segments with targets 0 and 100, centres 0.5 s apart, theta 10/s:
+
+    >>> blend(np.array([0.25, 0.5]), [(0.0, 0.0), (0.5, 0.5)], np.array([0.0, 100.0]), alphas=[1, 1],
+    ...       thetas_before=[10, 10], thetas_after=[10, 10]).round(3)
+    array([50.   , 99.331])
+    """
+    targets = np.asarray(targets, dtype=float)
+    if len(segments) == 0 or targets.shape[0] != len(segments):
+        raise ConfigError(f"need one target per segment, got {targets.shape[0]} targets for {len(segments)} segments")
+    weights = np.empty((len(segments), times_s.size))
+    for i, (start, end) in enumerate(segments):
+        weights[i] = dominance(times_s, start_s=start, end_s=end, alpha=alphas[i], theta_before=thetas_before[i],
+                               theta_after=thetas_after[i], exponent=exponent)
+    # far from every segment all dominances underflow: the nearest segment's target then holds
+    total = weights.sum(axis=0)
+    empty = total <= 1e-300
+    if empty.any():
+        centres = np.array([0.5 * (a + b) for a, b in segments])
+        nearest = np.abs(times_s[empty, None] - centres[None, :]).argmin(axis=1)
+        weights[:, empty] = 0.0
+        weights[nearest, np.flatnonzero(empty)] = 1.0
+        total = weights.sum(axis=0)
+    normalised = weights / total
+    return normalised.T @ targets
+
+
+def viseme_weights(times_s: np.ndarray, phones: Sequence, *, visemes: Sequence[Viseme] = VISEMES) -> np.ndarray:
+    """Each viseme's share of the blend at every time, shape (n, 15): rows sum to 1. The blended shape is
+    these weights times the visemes' shapes (what :func:`fit_shapes` fits)."""
+    by_number = {viseme.number: i for i, viseme in enumerate(visemes)}
+    lookup = {phone: viseme for viseme in visemes for phone in viseme.phones}
+    chosen = [lookup.get(viseme_of(phone.label).phones[0], visemes[0]) for phone in phones]
+    one_hot = np.zeros((len(chosen), len(visemes)))
+    for i, viseme in enumerate(chosen):
+        one_hot[i, by_number[viseme.number]] = 1.0
+    return blend(times_s, [(p.start_s, p.end_s) for p in phones], one_hot, alphas=[v.alpha for v in chosen],
+                 thetas_before=[v.theta_before for v in chosen], thetas_after=[v.theta_after for v in chosen])
+
+
+@dataclass(frozen=True)
+class MouthShape:
+    """Mouth-shape tracks on a frame grid: opening (MNS), rounding (0..1), spread (fraction of width)."""
+
+    opening: np.ndarray
+    rounding: np.ndarray
+    spread: np.ndarray
+
+
+def shapes_from_phones(phones: Sequence, n_frames: int, *, fps: float,
+                       visemes: Sequence[Viseme] = VISEMES) -> MouthShape:
+    """The mouth shape at every frame of a grid, from timed phones (objects with ``label``, ``start_s``,
+    ``end_s``), coarticulated by :func:`blend`. No phones: a neutral mouth."""
+    if n_frames == 0 or len(phones) == 0:
+        neutral = visemes[0]
+        return MouthShape(np.full(n_frames, neutral.opening), np.full(n_frames, neutral.rounding),
+                          np.full(n_frames, neutral.spread))
+    weights = viseme_weights(np.arange(n_frames) / fps, phones, visemes=visemes)
+    table = np.array([[v.opening, v.rounding, v.spread] for v in visemes])
+    shape = weights @ table
+    return MouthShape(shape[:, 0], shape[:, 1], shape[:, 2])
+
+
+def shape_faps(shape: MouthShape, *, gain: float = 1.0) -> dict[int, np.ndarray]:
+    """Low-level lip FAPs of a mouth shape (see the module's geometry), scaled by ``gain``.
+
+    Examples
+    --------
+    >>> faps = shape_faps(MouthShape(np.array([200.0]), np.array([0.0]), np.array([0.0])))
+    >>> float(faps[3][0] - faps[4][0] - faps[5][0])  # the inner-lip opening
+    200.0
+    """
+    curves: dict[int, np.ndarray] = {}
+    for fap, share in OPENING_SHARES.items():
+        curves[fap] = gain * share * shape.opening
+    curves[8] = curves[9] = MIDPOINT_FOLLOW * curves[4]
+    curves[10] = curves[11] = MIDPOINT_FOLLOW * curves[5]
+    curves[16] = curves[17] = gain * PROTRUSION_MNS * shape.rounding
+    curves[6] = curves[7] = gain * 512.0 * shape.spread
+    for inner, outer in OUTER_OF_INNER.items():
+        if inner in curves:
+            curves[outer] = curves[inner]
+    # rounding noise of the blend (1e-20 where a shape is 0) is no motion
+    return {fap: np.where(np.abs(curves[fap]) < 1e-9, 0.0, curves[fap]) for fap in LIP_FAPS}
+
+
+def inner_opening(curves: dict[int, np.ndarray]) -> np.ndarray:
+    """The inner-lip opening ``FAP 3 - FAP 4 - FAP 5`` (MNS) of lip curves."""
+    return curves[3] - curves[4] - curves[5]
+
+
+def fit_shapes(weights: Iterable[np.ndarray], targets: Iterable[np.ndarray], *, ridge: float = 1e-3,
+               closed: Sequence[int] = (1,), nonnegative: bool = False) -> np.ndarray:
+    """Least-squares viseme values from blend weights (rows summing to 1) and a target track per recording:
+    ``targets ~ weights @ values``. Visemes in ``closed`` are held at 0 (the bilabial closure). With
+    ``nonnegative``, values are kept >= 0 (openings).
+
+    Returns
+    -------
+    array of shape (15,)
+    """
+    from scipy.optimize import lsq_linear
+
+    rows = np.vstack(list(weights))
+    values = np.concatenate(list(targets))
+    keep = np.isfinite(values)
+    rows, values = rows[keep], values[keep]
+    free = [j for j in range(rows.shape[1]) if j not in closed]
+    design = np.vstack([rows[:, free], np.sqrt(ridge) * np.eye(len(free))])
+    padded = np.concatenate([values, np.zeros(len(free))])
+    bounds = (0.0, np.inf) if nonnegative else (-np.inf, np.inf)
+    solution = lsq_linear(design, padded, bounds=bounds).x
+    out = np.zeros(rows.shape[1])
+    out[free] = solution
+    return out
+
+
+#: Ways of making lips: from recognised phones (visemes, the default) or from the spectrum (acoustic).
+LIP_METHODS = ("visemes", "acoustic")
+
+
+def lip_curves(audio, n_frames: int, *, fps: float, method: str = "visemes", transcript: str | None = None,
+               gain: float = 1.0, mouth_model=None) -> dict[int, np.ndarray]:
+    """Lip FAPs of a recording on a frame grid.
+
+    Parameters
+    ----------
+    audio : audio_features.Audio
+    n_frames : int >= 0
+    fps : float > 0
+    method : {"visemes", "acoustic"}
+        ``visemes``: phones (PocketSphinx) -> MPEG-4 visemes -> dominance blending; ``acoustic``: the acoustic
+        mouth model (language independent, ignores ``transcript``).
+    transcript : str, optional
+        What is said, for ``visemes`` (aligned to the audio; see :func:`audio_features.phones.recognise_phones`).
+    gain : float >= 0
+        Scale of every lip FAP (0: a still, closed mouth).
+    mouth_model : AcousticMouthModel, optional
+        For ``acoustic``; the shipped one when omitted.
+    """
+    if method not in LIP_METHODS:
+        raise ConfigError(f"unknown lip method {method!r}; choose {' or '.join(LIP_METHODS)}")
+    if not (np.isfinite(gain) and 0 <= gain <= 100):
+        raise ConfigError(f"lip gain must be a number in [0, 100], got {gain!r}")
+    if method == "acoustic":
+        if transcript is not None:
+            raise ConfigError("the acoustic lips do not read a transcript; use method='visemes' with it")
+        from .mouth_model import AcousticMouthModel
+
+        model = mouth_model if mouth_model is not None else AcousticMouthModel.load()
+        shape = model.predict(audio, n_frames, fps=fps)
+    else:
+        from audio_features.phones import recognise_phones
+
+        shape = shapes_from_phones(recognise_phones(audio, transcript=transcript), n_frames, fps=fps)
+    return shape_faps(shape, gain=gain)
