@@ -607,9 +607,15 @@ def _cmd_train(args: argparse.Namespace) -> int:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from .evaluation.compare import compare, write_comparison
 
+    if args.transcript is not None and args.lips != "visemes":
+        from .errors import ConfigError
+
+        raise ConfigError(f"--transcript is read by the visemes; it is not used by --lips {args.lips}")
     comparison = compare(args.input, ground_truth=args.ground_truth, model=args.model, seed=args.seed,
                          seeds=args.seeds, normalize=args.normalize, eyebrow_rule=_eyebrow_rule(args),
-                         other_head_models={name: name for name in args.also_model}, **_analysis_kwargs(args))
+                         other_head_models={name: name for name in args.also_model},
+                         lips=None if args.lips == "none" else args.lips, transcript=args.transcript,
+                         expression=args.expression, mouth=args.mouth, **_analysis_kwargs(args))
     written = write_comparison(comparison, args.output, plots=not args.no_plots, video=args.video,
                                exaggerate=args.exaggerate,
                                progress=_frame_progress(f"{args.output}/conditions.mp4") if args.video else None)
@@ -887,6 +893,10 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--video", action="store_true",
                          help="also write OUTDIR/conditions.mp4: the conditions' faces side by side, labelled, "
                               "with the recording's audio (needs ffmpeg or the imageio-ffmpeg package)")
+    compare.add_argument("--mouth", default=None, metavar="FILE.mouth.csv",
+                         help="a video-tracked mouth for the lip measures (default: the <clip>.mouth.csv beside "
+                              "the ground truth or the audio, if any)")
+    _add_face_options(compare)
     compare.add_argument("--exaggerate", type=_exaggeration, default=1.0, metavar="X",
                          help="with --video: draw head angles and brow raises X times larger (default 1)")
     _add_analysis_options(compare)

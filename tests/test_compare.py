@@ -108,11 +108,12 @@ def test_compare_cli_writes_everything_with_the_documented_shape(tmp_path, rng) 
     assert list(metrics["conditions"]) == ["NO_PROSODY", "RANDOM", "SPEECH_DRIVEN", "GROUND_TRUTH"]
     head_keys = {"speed_envelope_r", "pitch_r", "std_ratio", "velocity_spectrum_distance_db", "yaw_r", "roll_r"}
     for _condition, per_fap in metrics["conditions"].items():
-        assert list(per_fap) == ["31", "32", "33", "34", "48", "49", "50", "head", "brows"]
+        assert list(per_fap) == ["31", "32", "33", "34", "48", "49", "50", "head", "brows", "mouth"]
         for fap, entry in per_fap.items():
-            if fap != "brows":
+            if fap not in ("brows", "mouth"):
                 assert set(entry) == (head_keys if fap == "head" else {"mean", "std", "pearson_r", "rmse"})
         assert per_fap["brows"]["raise_r"] is None  # this head.csv has no brows.csv beside it
+        assert per_fap["mouth"]["opening_r"] is None  # nor a mouth.csv
         assert set(per_fap["head"]["std_ratio"]) == {"48", "49", "50"}
     assert set(metrics["controls"]["mismatched_audio"]) == head_keys
     assert metrics["seeds"] == 10 and metrics["head_model"] == "prosodic"

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import os
 import warnings
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,20 +24,25 @@ from ..fap.table import HEAD_FAPS
 from ..measures import (
     average_brow_metrics,
     average_head_metrics,
+    average_mouth_metrics,
     brow_metrics,
     empty_brow_metrics,
     empty_head_metrics,
+    empty_mouth_metrics,
     fap_statistics,
     first_canonical_correlation,
     head_matrix,
     head_metrics,
+    mouth_metrics,
     normalization_targets,
     normalize_stream,
 )
 from ..motion.conditions import CONDITION_ORDER, Condition, MissingMotionWarning, condition_stream, head_motion
 from ..motion.controls import shift_offsets, shifted_features
+from ..motion.expressions import ExpressionSegment
 from ..motion.eyebrows import BrowRule, EyebrowRaises, NoRaiseWarning, brow_raises, warn_if_no_raise
-from ..motion.ground_truth import fit_to_grid, read_motion
+from ..motion.face import make_face, stream_mouth
+from ..motion.ground_truth import RecordedMouth, fit_to_grid, mouth_beside, read_motion, read_mouth_csv
 from ..motion.head_models import HeadModel, is_stochastic, resolve_head_model
 
 #: Version of the metrics.json layout (2: head measures per condition, controls, seeds).
@@ -101,6 +106,48 @@ def _measure(runs: list[FapStream], truth_head: np.ndarray | None, truth_brow: n
     return head, brow
 
 
+def _mouth_measures(streams: Mapping[Condition, FapStream], mouth, ground_truth, audio,
+                    features: Features) -> tuple[dict, dict]:
+    """Mouth measures of each condition with lips against a tracked mouth, and of the mismatched-audio
+    control: the speech-driven lips shifted in time by the head control's offsets, at the speech's lag."""
+    if mouth is None:
+        for beside in (ground_truth, audio):
+            found = mouth_beside(beside) if isinstance(beside, (str, os.PathLike)) else None
+            if found is not None:
+                mouth = found
+                break
+    blocks: dict = {"reference": None}
+    if mouth is None:
+        return blocks, empty_mouth_metrics()
+    recorded = mouth if isinstance(mouth, RecordedMouth) else read_mouth_csv(mouth)
+    blocks["reference"] = None if isinstance(mouth, RecordedMouth) else str(mouth)
+    n = features.n_frames
+
+    def on_grid(values: np.ndarray) -> np.ndarray:
+        # the tracked mouth is at 30 fps from the audio's start; NaN beyond its end
+        times = np.arange(n) / features.fps
+        index = np.round(times * recorded.fps).astype(int)
+        out = np.full(n, np.nan)
+        inside = index < values.size
+        out[inside] = values[index[inside]]
+        return out
+
+    opening, rounding = on_grid(recorded.lip_opening), on_grid(recorded.rounding)
+    control = empty_mouth_metrics()
+    for condition, stream in streams.items():
+        generated = stream_mouth(stream)
+        if generated is None:
+            continue
+        blocks[condition.value] = mouth_metrics(*generated, opening, rounding, fps=features.fps)
+        if condition is Condition.SPEECH_DRIVEN:
+            lag = int(round(blocks[condition.value]["lag_s"] * features.fps))
+            control = average_mouth_metrics([
+                mouth_metrics(np.roll(generated[0], offset), np.roll(generated[1], offset), opening, rounding,
+                              fps=features.fps, lag_frames=lag)
+                for offset in shift_offsets(n, fps=features.fps)])
+    return blocks, control
+
+
 def comparison_metrics(streams: Mapping[Condition, FapStream], features: Features) -> dict:
     """Statistics per condition and FAP, agreement with ground truth and canonical correlations.
 
@@ -143,6 +190,10 @@ def compare(
     f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ,
     f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ,
     features: Features | None = None,
+    lips: str | None = "visemes",
+    transcript: str | None = None,
+    expression: str | Sequence[ExpressionSegment] | None = None,
+    mouth: str | os.PathLike[str] | RecordedMouth | None = None,
 ) -> Comparison:
     """Compute every condition for a recording and compare them.
 
@@ -177,6 +228,11 @@ def compare(
         Analysis settings (see :func:`audio_features.extract_features`).
     features : Features, optional
         Already extracted features of ``audio``.
+    lips, transcript, expression
+        The lips and expression given to every condition alike (see :func:`prosody.jobs.pipeline.convert`).
+    mouth : path or RecordedMouth, optional
+        A video-tracked mouth (``<clip>.mouth.csv``) for the mouth measures; by default the one beside
+        ``ground_truth`` or ``audio``, if any.
 
     Returns
     -------
@@ -204,15 +260,18 @@ def compare(
         warn_if_no_raise(eyebrows)
     stem = Path(str(audio)).stem
     streams: dict[Condition, FapStream] = {}
+    # the same lips and expression in every condition: the comparison is about prosody
+    face = make_face(audio, features, lips=lips, transcript=transcript, expression=expression)
 
     def make(condition: Condition, run_seed: int, source: Features = features) -> FapStream:
         with warnings.catch_warnings():
             # the report says which FAPs the recording lacks; no warning per condition
             warnings.simplefilter("ignore", MissingMotionWarning)
             warnings.simplefilter("ignore", NoRaiseWarning)  # said once above, not per control run
-            return condition_stream(condition, source, seed=run_seed, model=head_model, ground_truth=truth,
-                                    eyebrows=eyebrows if source is features else None, eyebrow_rule=rule,
-                                    name=f"{stem}_{condition.value.lower()}")
+            stream = condition_stream(condition, source, seed=run_seed, model=head_model, ground_truth=truth,
+                                      eyebrows=eyebrows if source is features else None, eyebrow_rule=rule,
+                                      name=f"{stem}_{condition.value.lower()}")
+        return face.over(stream) if face is not None else stream
 
     for condition in CONDITION_ORDER:
         if condition in wanted:
@@ -271,10 +330,14 @@ def compare(
                                             stem in {clip.name for clip in head_model.training_}),
         **comparison_metrics(streams, features),
     }
+    mouth_blocks, mouth_control = _mouth_measures(streams, mouth, ground_truth, audio, features)
+    metrics["mouth_reference"] = mouth_blocks.pop("reference")
     for name, block in metrics["conditions"].items():
         block["head"] = head_blocks.get(name, empty_head_metrics())
         block["brows"] = brow_blocks.get(name, empty_brow_metrics())
-    metrics["controls"] = {"mismatched_audio": control, "mismatched_audio_brows": brow_control}
+        block["mouth"] = mouth_blocks.get(name, empty_mouth_metrics())
+    metrics["controls"] = {"mismatched_audio": control, "mismatched_audio_brows": brow_control,
+                           "mismatched_audio_mouth": mouth_control}
 
     # other head models beside the speech-driven one (e.g. the thesis's ARX next to the default)
     others: dict[str, dict] = {}

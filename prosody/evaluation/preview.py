@@ -50,6 +50,7 @@ _EYE_WHITE = (250, 250, 250)
 _PUPIL = (40, 50, 70)
 _NOSE = (185, 135, 105)
 _MOUTH = (170, 70, 70)
+_MOUTH_INSIDE = (90, 30, 40)
 #: Brow colour; kept apart from every other colour of the face so that tests can find the brows' pixels.
 BROW_COLOR = (20, 120, 30)
 _CURVE_COLORS = {"brows": BROW_COLOR, "pitch": (200, 60, 40), "yaw": (40, 90, 200), "roll": (150, 80, 170)}
@@ -95,6 +96,13 @@ class FacePose:
     #: Raise of (inner, middle, outer) for the character's left brow (FAP 31, 33, 35) and right (32, 34, 36).
     left_brow_ens: tuple[float, float, float] = (0.0, 0.0, 0.0)
     right_brow_ens: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: The lips, in their FAP units: FAP number -> value for 3 (jaw), 4 and 5 (mid lips), 6 and 7 (corners
+    #: outwards, MW), 12 and 13 (corners up); absent is neutral.
+    lip_faps: tuple[tuple[int, float], ...] = ()
+
+
+#: Lip FAPs the drawn mouth shows.
+DRAWN_LIP_FAPS = (3, 4, 5, 6, 7, 12, 13)
 
 
 def rotation(pitch_rad: float, yaw_rad: float, roll_rad: float) -> np.ndarray:
@@ -120,9 +128,12 @@ def poses(stream: FapStream, *, exaggerate: float = 1.0) -> list[FacePose]:
     # outer brows follow the middle ones when a stream has no FAP 35/36, as in the Live Link export
     left = [curve(31), curve(33), curve(35, fallback=33)]
     right = [curve(32), curve(34), curve(36, fallback=34)]
+    # the lips at their true size: an exaggerated mouth is no longer a mouth
+    lips = {fap: stream.curve(fap) for fap in DRAWN_LIP_FAPS if stream.mask[:, fap - 1].any()}
     return [FacePose(float(head[0][k]), float(head[1][k]), float(head[2][k]),
                      (float(left[0][k]), float(left[1][k]), float(left[2][k])),
-                     (float(right[0][k]), float(right[1][k]), float(right[2][k])))
+                     (float(right[0][k]), float(right[1][k]), float(right[2][k])),
+                     tuple((fap, float(values[k])) for fap, values in lips.items()))
             for k in range(stream.n_frames)]
 
 
@@ -191,6 +202,31 @@ class FaceRenderer:
             brows[side] = self.to_pixels(self._posed(pose, points))
         return brows
 
+    def mouth_points(self, pose: FacePose) -> tuple[np.ndarray, np.ndarray]:
+        """Face-model points (x, y, z) of the inner upper and lower lip, from corner to corner, unposed.
+
+        FAP values are converted with the face's own MNS0 (nose bottom to mouth) and MW0 (mouth width): the
+        jaw (FAP 3) and the bottom lip (FAP 5) move the lower lip, FAP 4 the upper one, FAP 6/7 and 12/13
+        the corners.
+        """
+        m = self.model
+        lips = dict(pose.lip_faps)
+        mns = (m.nose_bottom_y - m.mouth_y) / 1024
+        mw = 2 * m.mouth_half_width / 1024
+        left = (m.mouth_half_width + lips.get(6, 0.0) * mw, m.mouth_y + lips.get(12, 0.0) * mns)
+        right = (-(m.mouth_half_width + lips.get(7, 0.0) * mw), m.mouth_y + lips.get(13, 0.0) * mns)
+        upper_middle = m.mouth_y - lips.get(4, 0.0) * mns
+        lower_middle = m.mouth_y + (lips.get(5, 0.0) - lips.get(3, 0.0)) * mns
+        t = np.linspace(0.0, 1.0, 13)
+        x = right[0] + (left[0] - right[0]) * t
+        corner_y = right[1] + (left[1] - right[1]) * t
+        bulge = 1.0 - (2.0 * t - 1.0) ** 2  # 0 at the corners, 1 in the middle
+        # at rest the mouth is a slight smile line (its middle 0.04 below the corners), as before lips moved
+        upper = corner_y + bulge * (upper_middle - m.mouth_y - 0.04)
+        lower = corner_y + bulge * (lower_middle - m.mouth_y - 0.04)
+        z = np.array([m.surface_z(u, m.mouth_y) + 0.005 for u in x])
+        return np.column_stack([x, upper, z]), np.column_stack([x, lower, z])
+
     def _feature(self, pose: FacePose, points: np.ndarray) -> np.ndarray | None:
         """Posed pixel points of a front feature, or None when it has turned away from the viewer."""
         posed = self._posed(pose, points)
@@ -235,12 +271,13 @@ class FaceRenderer:
             [0.0, m.nose_bottom_y + 0.04, base_z + m.nose_depth]]))
         if nose is not None:
             draw.line(flat(nose), fill=_NOSE, width=3 * s, joint="curve")
-        t = np.linspace(-1.0, 1.0, 9)
-        mouth_points = np.array([(m.mouth_half_width * x, m.mouth_y - 0.04 * (1 - x * x),
-                                  m.surface_z(m.mouth_half_width * x, m.mouth_y) + 0.005) for x in t])
-        mouth = self._feature(pose, mouth_points)
-        if mouth is not None:
-            draw.line(flat(mouth), fill=_MOUTH, width=4 * s, joint="curve")
+        upper, lower = self.mouth_points(pose)
+        top, bottom = self._feature(pose, upper), self._feature(pose, lower)
+        if top is not None and bottom is not None:
+            if np.min(lower[:, 1] - upper[:, 1]) < -0.004:  # lips apart: the mouth's inside shows
+                draw.polygon(flat(np.vstack([top, bottom[::-1]])), fill=_MOUTH_INSIDE)
+            draw.line(flat(top), fill=_MOUTH, width=4 * s, joint="curve")
+            draw.line(flat(bottom), fill=_MOUTH, width=4 * s, joint="curve")
         if self._feature(pose, np.zeros((1, 3))) is not None:
             for points in self.brow_points(pose).values():
                 draw.line(flat(points), fill=BROW_COLOR, width=5 * s, joint="curve")

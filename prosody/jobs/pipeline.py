@@ -12,9 +12,9 @@ from ..errors import ConfigError
 from ..fap.fapfile import read_fap
 from ..fap.stream import FapStream
 from ..motion.conditions import Condition, condition_stream
-from ..motion.expressions import ExpressionSegment, parse_expressions
+from ..motion.expressions import ExpressionSegment
 from ..motion.eyebrows import BrowRule
-from ..motion.face import FaceLayer, face_layer
+from ..motion.face import FaceLayer, make_face
 from ..motion.ground_truth import fit_to_grid, read_motion
 from ..motion.head_models import HeadModel, resolve_head_model, rest_pose
 from ..motion.lips import LIP_FAPS
@@ -43,27 +43,6 @@ def apply_controls(stream: FapStream, *, gains: Mapping[str, float] | None = Non
 def load_ground_truth(path: str | os.PathLike[str], features: Features) -> FapStream:
     """Recorded motion (.head.csv or .fap) on the features' grid."""
     return fit_to_grid(read_motion(path), n_frames=features.n_frames, fps=features.fps, source=str(path))
-
-
-def make_face(audio: str | os.PathLike[str], features: Features, *, lips: str | None = "visemes",
-              transcript: str | None = None, expression: str | Sequence[ExpressionSegment] | None = None,
-              gains: Mapping[str, float] | None = None, disabled: Iterable[str] = ()) -> FaceLayer | None:
-    """The lips and expression layer of a recording on its features' grid (None when there is neither)."""
-    from audio_features import load_audio
-
-    segments = parse_expressions(expression) if isinstance(expression, str) else list(expression or ())
-    if "lips" in disabled:
-        lips = None
-    if lips is None and not segments:
-        return None
-    if transcript is not None and os.path.isfile(transcript):
-        from audio_features.inputs import open_input
-
-        with open_input(transcript, text=True, encoding="utf-8-sig", max_bytes=1 << 20) as handle:
-            transcript = handle.read()
-    sound = load_audio(audio) if lips is not None else None
-    return face_layer(sound, features.n_frames, fps=features.fps, lips=lips, transcript=transcript,
-                      lip_gain=float((gains or {}).get("lips", 1.0)), expressions=segments)
 
 
 def convert(

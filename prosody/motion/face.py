@@ -6,14 +6,15 @@ ones, so that only prosody differs between them (as the thesis kept the recorded
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import os
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..fap.stream import FapStream
-from .expressions import ExpressionSegment, add_brow_raises, expression_curves, mix_with_lips
-from .lips import lip_curves
+from .expressions import ExpressionSegment, add_brow_raises, expression_curves, mix_with_lips, parse_expressions
+from .lips import inner_opening, lip_curves
 
 
 @dataclass(frozen=True, eq=False)
@@ -42,3 +43,37 @@ def face_layer(audio, n_frames: int, *, fps: float, lips: str | None = "visemes"
     if expressions:
         curves = mix_with_lips(curves, expression_curves(expressions, n_frames, fps=fps))
     return FaceLayer(curves)
+
+
+def make_face(audio: str | os.PathLike[str], features, *, lips: str | None = "visemes", transcript: str | None = None,
+              expression: str | Sequence[ExpressionSegment] | None = None, gains: Mapping[str, float] | None = None,
+              disabled: Iterable[str] = ()) -> FaceLayer | None:
+    """The lips and expression layer of a recording on its features' grid (None when there is neither).
+
+    ``transcript`` is the text or the path of a text file; ``expression`` a ``NAME:INTENSITY``, the path of a
+    timed CSV file, or segments; ``gains["lips"]`` scales the lips and ``"lips"`` in ``disabled`` leaves them out.
+    """
+    from audio_features import load_audio
+
+    segments = parse_expressions(expression) if isinstance(expression, str) else list(expression or ())
+    if "lips" in disabled:
+        lips = None
+    if lips is None and not segments:
+        return None
+    if transcript is not None and os.path.isfile(transcript):
+        from audio_features.inputs import open_input
+
+        with open_input(transcript, text=True, encoding="utf-8-sig", max_bytes=1 << 20) as handle:
+            transcript = handle.read()
+    sound = load_audio(audio) if lips is not None else None
+    return face_layer(sound, features.n_frames, fps=features.fps, lips=lips, transcript=transcript,
+                      lip_gain=float((gains or {}).get("lips", 1.0)), expressions=segments)
+
+
+def stream_mouth(stream: FapStream) -> tuple[np.ndarray, np.ndarray] | None:
+    """The inner-lip opening (FAP 3 - 4 - 5, MNS) and protrusion (FAP 16 + 17) of a stream with lips, else None."""
+    if not all(stream.mask[:, fap - 1].all() for fap in (3, 4, 5)):
+        return None
+    curves = {fap: stream.curve(fap) for fap in (3, 4, 5)}
+    rounding = sum((stream.curve(fap) for fap in (16, 17) if stream.mask[:, fap - 1].all()), np.zeros(stream.n_frames))
+    return inner_opening(curves), rounding
