@@ -36,8 +36,9 @@ MAX_UTTERANCE_S = 30.0
 #: clips by mouth-opening agreement: the defaults, 6.5 and 1, give 0.24, these 0.33).
 PHONE_LOOP_SETTINGS = {"lw": 2.0, "pip": 0.3}
 #: Least fraction of a transcript's aligned phones that the phone loop must also hear for the alignment to be
-#: used: on CMU ARCTIC speech the right text scores 0.55-0.6, unrelated text 0.06-0.17.
-MIN_AGREEMENT = 0.3
+#: used: on CMU ARCTIC speech the right text scores 0.55-0.6 and on espeak-ng's synthetic speech 0.31;
+#: unrelated text 0.06-0.17, when it can be aligned at all.
+MIN_AGREEMENT = 0.25
 #: A phone whose loudest 10 ms is below this level (dBFS), or this far below the recording's loud level (its
 #: 95th percentile), is silence.
 QUIET_DBFS, QUIET_BELOW_LOUD_DB = -60.0, 40.0
@@ -146,14 +147,15 @@ def _aligned(samples: np.ndarray, words: list[str]) -> list[Phone] | None:
     decoder = _decoder()
     try:
         decoder.set_align_text(" ".join(words))
+        # in blocks (full_utt=False): the whole-utterance mode loses the path through long pauses
         decoder.start_utt()
-        decoder.process_raw(samples.tobytes(), full_utt=True)
+        decoder.process_raw(samples.tobytes(), full_utt=False)
         decoder.end_utt()
         if decoder.hyp() is None:
             return None
         decoder.set_alignment()
         decoder.start_utt()
-        decoder.process_raw(samples.tobytes(), full_utt=True)
+        decoder.process_raw(samples.tobytes(), full_utt=False)
         decoder.end_utt()
         alignment = decoder.get_alignment()
     except RuntimeError:

@@ -1,0 +1,250 @@
+"""Lips and expressions: dominance blending with known answers, phones, Eq. 14, and whole recordings."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import warnings
+
+import numpy as np
+import pytest
+import soundfile
+from conftest import harmonic_tone, segments
+
+from audio_features import Audio, load_audio
+from audio_features.phones import Phone, TranscriptWarning, recognise_phones, transcript_words
+from prosody.cli import main
+from prosody.errors import ConfigError
+from prosody.fap.fapfile import read_fap
+from prosody.motion.expressions import (
+    EXPRESSIONS,
+    ExpressionSegment,
+    add_brow_raises,
+    expression_curves,
+    mix_with_lips,
+    parse_expressions,
+)
+from prosody.motion.lips import (
+    LIP_FAPS,
+    VISEMES,
+    blend,
+    dominance,
+    inner_opening,
+    lip_curves,
+    shape_faps,
+    shapes_from_phones,
+    viseme_of,
+)
+
+SR = 16000
+
+
+def _blend(times, segments, targets, *, theta=10.0, alpha=1.0):
+    n = len(segments)
+    return blend(np.asarray(times, float), segments, np.asarray(targets, float), alphas=[alpha] * n,
+                 thetas_before=[theta] * n, thetas_after=[theta] * n)
+
+
+def test_two_dominance_functions_give_the_known_values():
+    # targets 0 and 100, centres 0.5 s apart, theta 10/s, alpha 1, c 1
+    values = _blend([0.25, 0.5, 0.0], [(0.0, 0.0), (0.5, 0.5)], [0.0, 100.0])
+    assert values[0] == pytest.approx(50.0, abs=5e-4)
+    assert values[1] == pytest.approx(100 / (1 + np.exp(-5.0)), abs=1e-9)
+    assert round(float(values[1]), 3) == 99.331
+    assert values[2] == pytest.approx(100 * np.exp(-5.0) / (1 + np.exp(-5.0)))
+
+
+def test_one_segment_gives_a_constant_and_a_blend_stays_within_its_targets(rng):
+    times = np.linspace(-2, 5, 400)
+    np.testing.assert_allclose(_blend(times, [(0.3, 0.8)], [42.0]), 42.0)
+    for _ in range(50):
+        k = int(rng.integers(2, 8))
+        starts = np.sort(rng.uniform(0, 3, k))
+        segs = [(s, s + float(rng.uniform(0, 0.3))) for s in starts]
+        targets = rng.normal(0, 100, k)
+        values = blend(times, segs, targets, alphas=rng.uniform(0.1, 20, k), thetas_before=rng.uniform(1, 80, k),
+                       thetas_after=rng.uniform(1, 80, k))
+        assert values.min() >= targets.min() - 1e-9 and values.max() <= targets.max() + 1e-9
+
+
+def test_dominance_is_flat_inside_a_segment_and_asymmetric_outside():
+    times = np.array([0.0, 0.1, 0.2, 0.3, 0.5])
+    d = dominance(times, start_s=0.1, end_s=0.3, alpha=2.0, theta_before=10.0, theta_after=20.0)
+    np.testing.assert_allclose(d, [2 * np.exp(-1.0), 2, 2, 2, 2 * np.exp(-4.0)])
+
+
+def test_a_bilabial_closes_the_lips_between_open_vowels():
+    phones = [Phone("AA", 0.0, 0.2), Phone("P", 0.2, 0.23), Phone("AA", 0.23, 0.43)]
+    opening = inner_opening(shape_faps(shapes_from_phones(phones, 13, fps=30)))
+    assert opening[6] <= 15  # the /p/ at 0.2-0.23 s: lips together (MNS)
+    assert opening[2] > 250 and opening[11] > 250  # the vowels open
+
+
+def test_the_opening_is_shared_by_jaw_and_lips_and_the_outer_lips_follow():
+    faps = shape_faps(shapes_from_phones([Phone("AA", 0.0, 1.0)], 30, fps=30))
+    assert set(faps) == set(LIP_FAPS)
+    a = next(v for v in VISEMES if v.name == "a")
+    np.testing.assert_allclose(inner_opening(faps), a.opening)
+    np.testing.assert_allclose(faps[3], 0.6 * a.opening)
+    np.testing.assert_allclose(faps[51], faps[4])
+    np.testing.assert_allclose(faps[52], faps[5])
+    rounded = shape_faps(shapes_from_phones([Phone("UW", 0.0, 1.0)], 30, fps=30))
+    assert rounded[16][15] > 0 and rounded[6][15] < 0  # /u/ protrudes and narrows
+    assert viseme_of("B").number == viseme_of("M").number == 1 and viseme_of("IY2").name == "i"
+
+
+def test_eq14_same_sign_opposite_sign_and_rest():
+    lips = {12: np.array([10.0, -10.0, 0.0, 40.0]), 3: np.array([100.0, 0.0, 0.0, 0.0])}
+    expression = {12: np.array([30.0, 30.0, 30.0, -20.0]), 31: np.array([5.0, 5.0, 5.0, 5.0])}
+    mixed = mix_with_lips(lips, expression, delta=0.5)
+    np.testing.assert_allclose(mixed[12], [20.0, -10.0, 30.0, 40.0])
+    np.testing.assert_allclose(mixed[3], lips[3])  # the expression does not move it
+    np.testing.assert_allclose(mixed[31], 5.0)  # the visemes do not move it
+    np.testing.assert_allclose(mix_with_lips({12: np.array([10.0])}, {12: np.array([30.0])}, delta=0.25)[12], 25.0)
+
+
+def test_expressions_blend_in_and_out_and_brows_stay_in_range():
+    segments = [ExpressionSegment("joy", 0.5, 1.0, 2.0)]
+    curves = expression_curves(segments, 120, fps=30)
+    corner = curves[12]
+    assert corner[45] == pytest.approx(0.5 * EXPRESSIONS["joy"][12] / (1 + 0.02), rel=1e-6)
+    assert corner[0] < 0.02 * corner[45] and corner[-1] < 0.001 * corner[45]  # neutral 1 s and 2 s away
+    assert 0.5 * corner[45] < corner[25] < corner[45]  # on its way in 0.17 s before the start
+    assert np.all(np.diff(corner[:30]) >= 0)
+    whole = expression_curves(parse_expressions("surprise"), 30, fps=30)
+    np.testing.assert_allclose(whole[31], EXPRESSIONS["surprise"][31] / 1.02)
+    raised = add_brow_raises({31: whole[31]}, {31: np.full(30, 300.0), 32: np.full(30, 10.0)})
+    assert raised[31].max() <= 400 and raised[32][0] == 10.0
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("happiness:0.5", "unknown expression"), ("joy:1.5", "intensity must be in"), ("joy:lots", "NAME:INTENSITY"),
+    ("missing.csv", "no such expression file"),
+])
+def test_bad_expressions_are_refused(spec, message):
+    with pytest.raises(ConfigError, match=message):
+        parse_expressions(spec)
+
+
+def test_timed_expression_file(tmp_path):
+    path = tmp_path / "timed.csv"
+    path.write_text("start_s,end_s,expression,intensity\n0.5,1.5,anger,0.8\n2.0,3.0,sadness,1\n")
+    segments = parse_expressions(str(path))
+    assert segments == [ExpressionSegment("anger", 0.8, 0.5, 1.5), ExpressionSegment("sadness", 1.0, 2.0, 3.0)]
+    path.write_text("start_s,end_s,expression,intensity\n1.5,0.5,anger,0.8\n")
+    with pytest.raises(ConfigError, match="start_s < end_s"):
+        parse_expressions(str(path))
+
+
+def test_silence_gives_a_closed_still_mouth():
+    silence = Audio(np.zeros(2 * SR), SR)
+    assert {phone.label for phone in recognise_phones(silence)} == {"SIL"}
+    faps = lip_curves(silence, 60, fps=30)
+    assert all(np.all(curve == 0) for curve in faps.values())
+    quiet_hum = Audio(1e-5 * np.sin(2 * np.pi * 50 * np.arange(2 * SR) / SR), SR)  # mains hum at -100 dBFS
+    assert np.all(inner_opening(lip_curves(quiet_hum, 60, fps=30)) == 0)
+
+
+def test_a_tone_and_steady_chords_leave_the_mouth_closed_or_nearly():
+    # music is no speech: a sustained chord gives no opening anywhere near a vowel's
+    t = np.arange(3 * SR) / SR
+    chord = sum(0.15 * np.sin(2 * np.pi * f * t) for f in (261.6, 329.6, 392.0))
+    opening = inner_opening(lip_curves(Audio(chord, SR), 90, fps=30))
+    assert np.median(opening) <= 60
+
+
+def test_transcript_words_and_a_transcript_that_does_not_fit(tmp_path):
+    assert transcript_words("It's 5 o'clock -- isn't it?") == ["it's", "5", "o'clock", "isn't", "it"]
+    audio = load_audio(_sample("arctic_a0009.wav"))
+    with pytest.warns(TranscriptWarning, match="does not fit"):
+        phones = recognise_phones(audio, transcript="completely different words about cheese and bread")
+    assert len(phones) > 10
+    with pytest.warns(TranscriptWarning, match="not in the pronouncing dictionary.*xyzzy"):
+        aligned = recognise_phones(audio, transcript="He turned sharply, and faced Gregson across the xyzzy table.")
+    labels = [phone.label for phone in aligned if phone.label != "SIL"]
+    assert labels[:8] == ["HH", "IY", "T", "ER", "N", "D", "SH", "AA"]
+
+
+def test_phones_agree_with_the_labelled_alignment(shared_data):
+    # arctic_a0009 comes with a hand-checked phone alignment (HTK label times in 100 ns)
+    labelled = []
+    for line in (shared_data / "speech" / "arctic_a0009_phone.lab").read_text().splitlines():
+        start, end, label = line.split(maxsplit=2)
+        phone = label.split("-", 1)[1].split("+", 1)[0].upper()
+        labelled.append(Phone("SIL" if phone in ("SIL", "PAU") else phone, int(start) / 1e7, int(end) / 1e7))
+    audio = load_audio(shared_data / "speech" / "arctic_a0009.wav")
+    times = np.arange(int(audio.duration_s * 100)) / 100
+
+    def classes(phones):
+        out = np.zeros(times.size, int)
+        for phone in phones:
+            out[(times >= phone.start_s) & (times < phone.end_s)] = viseme_of(phone.label).number
+        return out
+
+    truth = classes(labelled)
+    aligned = classes(recognise_phones(audio, transcript="he turned sharply and faced gregson across the table"))
+    free = classes(recognise_phones(audio))
+    assert np.mean(aligned == truth) > 0.75  # forced alignment: three quarters of the frames' visemes or more
+    assert np.mean(free == truth) > 0.4  # the phone loop, without the words
+
+
+@pytest.mark.skipif(shutil.which("espeak-ng") is None, reason="needs espeak-ng (apt-get install espeak-ng)")
+def test_papa_mama_closes_the_lips_at_every_p_and_m(tmp_path):
+    wav = tmp_path / "papa.wav"
+    subprocess.run(["espeak-ng", "-v", "en-us", "-s", "110", "-w", str(wav), "papa mama papa mama"], check=True)
+    audio = load_audio(wav)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TranscriptWarning)  # the text must be used
+        phones = recognise_phones(audio, transcript="papa mama papa mama")
+    closures = [phone for phone in phones if phone.label in ("P", "M")]
+    assert [phone.label for phone in closures] == ["P", "P", "M", "M", "P", "P", "M", "M"]
+    n = int(audio.duration_s * 30)
+    opening = inner_opening(shape_faps(shapes_from_phones(phones, n, fps=30)))
+    for phone in closures:
+        during = opening[int(phone.start_s * 30):int(phone.end_s * 30) + 1]
+        assert during.min() <= 15, phone  # lips together (MNS)
+    assert opening.max() > 250  # and the /a/ between them opens
+
+
+def test_convert_writes_lips_in_every_condition_and_the_controls_leave_them_out(tmp_path):
+    wav = tmp_path / "speech.wav"
+    soundfile.write(wav, segments(SR, (0.3, 0, 0), (0.6, 140, 0.5), (0.5, 230, 0.5), (0.3, 0, 0)), SR)
+    lips = {}
+    for condition in ("speech", "none", "random"):
+        out = tmp_path / f"{condition}.fap"
+        assert main(["convert", str(wav), "-o", str(out), "--condition", condition]) == 0
+        stream = read_fap(out).stream
+        assert set(LIP_FAPS) <= set(stream.active_faps)
+        lips[condition] = stream.curves(LIP_FAPS)
+    np.testing.assert_array_equal(lips["speech"], lips["none"])
+    np.testing.assert_array_equal(lips["speech"], lips["random"])
+    out = tmp_path / "off.fap"
+    assert main(["convert", str(wav), "-o", str(out), "--off", "lips"]) == 0
+    assert not set(LIP_FAPS) & set(read_fap(out).stream.active_faps)
+    half = tmp_path / "half.fap"
+    assert main(["convert", str(wav), "-o", str(half), "--lip-gain", "0.5", "--lips", "acoustic"]) == 0
+    whole = tmp_path / "whole.fap"
+    assert main(["convert", str(wav), "-o", str(whole), "--lips", "acoustic"]) == 0
+    np.testing.assert_allclose(read_fap(half).stream.curve(3), 0.5 * read_fap(whole).stream.curve(3), atol=1)
+
+
+def test_an_expression_keeps_the_lips_articulating(tmp_path):
+    wav = tmp_path / "speech.wav"
+    soundfile.write(wav, harmonic_tone(150, 1.5, SR), SR)
+    out = tmp_path / "joy.fap"
+    assert main(["convert", str(wav), "-o", str(out), "--expression", "joy:0.8", "--lips", "acoustic"]) == 0
+    stream = read_fap(out).stream
+    assert stream.curve(12)[20] == pytest.approx(0.8 * EXPRESSIONS["joy"][12] / 1.02, abs=1)
+    assert stream.curve(41)[20] > 0  # cheeks raised
+    plain = tmp_path / "plain.fap"
+    assert main(["convert", str(wav), "-o", str(plain), "--lips", "acoustic"]) == 0
+    # jaw: viseme and smile both open it a little, so Eq. 14 averages them where both move it
+    jaw_v, jaw = read_fap(plain).stream.curve(3), stream.curve(3)
+    both = jaw_v > 0
+    np.testing.assert_allclose(jaw[both], np.rint(0.5 * jaw_v[both] + 0.5 * 0.8 * 40 / 1.02), atol=1)
+
+
+def _sample(name: str):
+    from conftest import REPO
+
+    return REPO / "samples" / name
