@@ -133,3 +133,23 @@ def test_convert_cli_formats_and_controls(tmp_path) -> None:
                                [0.5 * float(r["fap49_head_yaw_au"]) for r in full], rtol=1e-5, atol=1e-3)
     assert main(["convert", str(audio), "-o", str(tmp_path / "x.txt"), "--format", "bvh"]) == 0
     assert (tmp_path / "x.txt").read_text().startswith("HIERARCHY")
+
+
+def test_livelink_mouth_and_face_blendshapes(tmp_path) -> None:
+    n = 3
+    stream = FapStream.from_curves({3: np.array([0.0, 300.0, 0.0]), 4: np.array([0.0, -75.0, 0.0]),
+                                    5: np.array([0.0, -125.0, 0.0]), 12: np.array([150.0, 0.0, -75.0]),
+                                    16: np.array([300.0, 300.0, 0.0]), 17: np.array([300.0, 300.0, 0.0]),
+                                    19: np.array([0.0, 0.0, 300.0])}, fps=30)
+    path = tmp_path / "x.livelink.csv"
+    write_stream(stream, path)
+    with path.open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == n
+    value = [{k: float(v) for k, v in row.items() if k != "Timecode"} for row in rows]
+    assert value[1]["JawOpen"] == pytest.approx(0.5) and value[0]["JawOpen"] == 0
+    assert value[0]["MouthSmileLeft"] == 1 and value[2]["MouthFrownLeft"] == pytest.approx(0.5)
+    assert value[0]["MouthSmileRight"] == 0  # FAP 13 is not in the stream
+    assert value[0]["MouthPucker"] == 1 and value[0]["MouthFunnel"] == 0  # rounded, lips closed
+    assert value[1]["MouthFunnel"] == pytest.approx(1) and value[1]["MouthPucker"] == pytest.approx(0)
+    assert value[2]["EyeBlinkLeft"] == 1 and value[1]["MouthClose"] == 0

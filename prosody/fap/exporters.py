@@ -16,7 +16,14 @@ Formats and their mapping from FAP units (SPEC section 1; AU = 1e-5 rad, ENS = e
   blendshape columns and ``HeadYaw,HeadPitch,HeadRoll`` plus the six eye angles. Head angles in radians with
   the FAPs' signs (HeadYaw + to the character's left, HeadPitch + down, HeadRoll + to its right); BrowInnerUp is
   the mean of FAP 31/32 and BrowOuterUpLeft/Right are FAP 35/36 (or the middle brows 33/34 when the outer ones
-  are absent), divided by ``BROW_FULL_SCALE_ENS`` and clipped to [0, 1]. Every other column is 0.
+  are absent), divided by ``BROW_FULL_SCALE_ENS`` and clipped to [0, 1]. The mouth and the rest of the face,
+  each weight a FAP (or a sum of FAPs) over the full scale in :data:`LIVELINK_FULL_SCALE`, clipped to [0, 1]:
+  JawOpen = FAP 3; MouthClose = the jaw's opening not matched by the lips' (FAP 3 minus the inner-lip opening
+  FAP 3 - 4 - 5); MouthPucker and MouthFunnel share the protrusion (FAP 16, 17) by how open the lips are
+  (closed: pucker, open: funnel); MouthSmile = FAP 12/13 up, MouthFrown = down; MouthStretch = FAP 6/7 outwards;
+  MouthPress = the mid lips pressed together beyond rest (FAP 4 + 5 > 0); MouthUpperUp = FAP 8/9 up,
+  MouthLowerDown = FAP 10/11 down; CheekSquint = FAP 41/42; EyeBlink = FAP 19/20 down, EyeWide = up; BrowDown =
+  FAP 31/32 down; NoseSneer = FAP 63. Every other column is 0.
 """
 
 from __future__ import annotations
@@ -40,6 +47,11 @@ Writer = Callable[[FapStream, "str | os.PathLike[str]"], None]
 #: Brow raise (ENS) written as a full blendshape weight of 1 in Live Link Face CSV: about the largest raise
 #: the eyebrow rule makes with its default gain (0.1 ENS/Hz x 450 Hz - 5 = 40 ENS).
 BROW_FULL_SCALE_ENS = 40.0
+#: FAP values written as a Live Link blendshape weight of 1 (each in its FAP's unit; about the largest the
+#: visemes and expressions make): the jaw 600 MNS (12 mm), lip and corner motion 150, protrusion 300 MNS,
+#: eyelids 300 IRISD, cheeks 150 ENS, brows lowered 150 ENS, nose 80 ENS.
+LIVELINK_FULL_SCALE = {"jaw": 600.0, "lip": 150.0, "protrusion": 300.0, "press": 60.0, "eyelid": 300.0,
+                       "cheek": 150.0, "brow_down": 150.0, "nose": 80.0}
 ARKIT_BLENDSHAPES = (
     "EyeBlinkLeft", "EyeLookDownLeft", "EyeLookInLeft", "EyeLookOutLeft", "EyeLookUpLeft", "EyeSquintLeft",
     "EyeWideLeft", "EyeBlinkRight", "EyeLookDownRight", "EyeLookInRight", "EyeLookOutRight", "EyeLookUpRight",
@@ -150,12 +162,43 @@ def write_livelink(stream: FapStream, path: str | os.PathLike[str]) -> None:
     columns["BrowOuterUpRight"] = brow((36,)) if stream.mask[:, 35].any() else brow((34,))
     for name, fap in (("HeadYaw", 49), ("HeadPitch", 48), ("HeadRoll", 50)):
         columns[name] = stream.curve(fap) * RADIANS_PER_AU
+    columns.update(_livelink_face(stream))
     with atomic_write(path) as handle:
         writer = csv.writer(handle, lineterminator="\n")
         writer.writerow(["Timecode", "BlendShapeCount", *columns])
         for k in range(n):
             writer.writerow([livelink_timecode(k, stream.fps), len(columns),
                              *(_number(values[k]) for values in columns.values())])
+
+
+def _livelink_face(stream: FapStream) -> dict[str, np.ndarray]:
+    """The mouth, eyelid, cheek, lowered-brow and nose blendshapes of a stream (see the module docstring)."""
+    scale = LIVELINK_FULL_SCALE
+    fap = stream.curve  # 0 where masked off: neutral
+
+    def weight(values: np.ndarray, full: float) -> np.ndarray:
+        return np.clip(values / full, 0.0, 1.0)
+
+    opening = fap(3) - fap(4) - fap(5)
+    protrusion = (fap(16) + fap(17)) / 2
+    open_share = weight(opening, scale["jaw"] / 2)
+    out = {"JawOpen": weight(fap(3), scale["jaw"]), "MouthClose": weight(fap(3) - opening, scale["jaw"]),
+           "MouthPucker": weight(protrusion, scale["protrusion"]) * (1 - open_share),
+           "MouthFunnel": weight(protrusion, scale["protrusion"]) * open_share,
+           "NoseSneerLeft": weight(fap(63), scale["nose"]), "NoseSneerRight": weight(fap(63), scale["nose"])}
+    for side, corner, stretch, upper, lower, eyelid, cheek, brow in (
+            ("Left", 12, 6, 8, 10, 19, 41, 31), ("Right", 13, 7, 9, 11, 20, 42, 32)):
+        out[f"MouthSmile{side}"] = weight(fap(corner), scale["lip"])
+        out[f"MouthFrown{side}"] = weight(-fap(corner), scale["lip"])
+        out[f"MouthStretch{side}"] = weight(fap(stretch), scale["lip"])
+        out[f"MouthPress{side}"] = weight(fap(4) + fap(5), scale["press"])
+        out[f"MouthUpperUp{side}"] = weight(-fap(upper), scale["lip"])
+        out[f"MouthLowerDown{side}"] = weight(-fap(lower), scale["lip"])
+        out[f"EyeBlink{side}"] = weight(fap(eyelid), scale["eyelid"])
+        out[f"EyeWide{side}"] = weight(-fap(eyelid), scale["eyelid"] / 2)
+        out[f"CheekSquint{side}"] = weight(fap(cheek), scale["cheek"])
+        out[f"BrowDown{side}"] = weight(-fap(brow), scale["brow_down"])
+    return out
 
 
 #: format name -> (writer, file name endings); longer endings are matched first.
