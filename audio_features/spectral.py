@@ -25,6 +25,33 @@ N_CEPSTRA = 13
 N_SPECTRAL = N_CEPSTRA + 1
 
 
+def _analysis(rate: int) -> tuple[int, int, np.ndarray, np.ndarray]:
+    """FFT size, window length, taper and mel filterbank of the analysis at ``rate``."""
+    import librosa.filters
+
+    if rate < 8000:
+        raise ParameterError(f"sample rate {rate} Hz is below 8000 Hz")
+    window = int(round(WINDOW_S * rate))
+    n_fft = 1 << (window - 1).bit_length()
+    taper = np.zeros(n_fft)
+    taper[(n_fft - window) // 2:(n_fft - window) // 2 + window] = np.hanning(window)
+    mel = librosa.filters.mel(sr=rate, n_fft=n_fft, n_mels=N_MELS, fmin=MEL_LOW_HZ,
+                              fmax=min(MEL_HIGH_HZ, 0.475 * rate))
+    return n_fft, window, taper, mel
+
+
+def _cepstra_of(frames: np.ndarray, taper: np.ndarray, mel: np.ndarray) -> np.ndarray:
+    """Cepstra and log energy of windows (rows of ``frames``)."""
+    from scipy.fft import dct
+
+    power = np.abs(np.fft.rfft(frames * taper, axis=1)) ** 2
+    log_mel = np.log(power @ mel.T + 1e-10)
+    out = np.empty((frames.shape[0], N_SPECTRAL))
+    out[:, :N_CEPSTRA] = dct(log_mel, type=2, norm="ortho", axis=1)[:, :N_CEPSTRA]
+    out[:, N_CEPSTRA] = np.log(power.mean(axis=1) + 1e-10)
+    return out
+
+
 def cepstra(audio: Audio) -> np.ndarray:
     """MFCCs and log energy of every 10 ms frame, shape (n, 14); frame ``j`` is centred at ``j / 100`` s.
 
@@ -34,31 +61,78 @@ def cepstra(audio: Audio) -> np.ndarray:
     >>> cepstra(Audio(0.5 * np.sin(2 * np.pi * 200 * t), 16000)).shape
     (101, 14)
     """
-    import librosa.filters
-    from scipy.fft import dct
-
     rate = audio.sample_rate_hz
-    if rate < 8000:
-        raise ParameterError(f"sample rate {rate} Hz is below 8000 Hz")
-    window = int(round(WINDOW_S * rate))
-    n_fft = 1 << (window - 1).bit_length()
+    n_fft, _, taper, mel = _analysis(rate)
     hop = rate / CEPSTRUM_RATE
     n = int(audio.samples.size / hop) + 1
     padded = np.pad(audio.samples, (n_fft // 2, n_fft))
     starts = np.round(np.arange(n) * hop).astype(int)
-    taper = np.zeros(n_fft)
-    taper[(n_fft - window) // 2:(n_fft - window) // 2 + window] = np.hanning(window)
-    mel = librosa.filters.mel(sr=rate, n_fft=n_fft, n_mels=N_MELS, fmin=MEL_LOW_HZ,
-                              fmax=min(MEL_HIGH_HZ, 0.475 * rate))
     out = np.empty((n, N_SPECTRAL))
     for first in range(0, n, 4096):  # blocks: memory stays bounded on long recordings
         chunk = starts[first:first + 4096]
-        frames = padded[chunk[:, None] + np.arange(n_fft)] * taper
-        power = np.abs(np.fft.rfft(frames, axis=1)) ** 2
-        log_mel = np.log(power @ mel.T + 1e-10)
-        out[first:first + chunk.size, :N_CEPSTRA] = dct(log_mel, type=2, norm="ortho", axis=1)[:, :N_CEPSTRA]
-        out[first:first + chunk.size, N_CEPSTRA] = np.log(power.mean(axis=1) + 1e-10)
+        out[first:first + chunk.size] = _cepstra_of(padded[chunk[:, None] + np.arange(n_fft)], taper, mel)
     return out
+
+
+class CepstraStream:
+    """The frames of :func:`cepstra` for audio that arrives piece by piece: each as soon as its window is in,
+    the same values as the whole-recording analysis however the audio is cut.
+
+    Examples
+    --------
+    >>> t = np.arange(16000) / 16000
+    >>> tone = 0.5 * np.sin(2 * np.pi * 200 * t)
+    >>> live = CepstraStream(16000)
+    >>> parts = [live.push(tone[i:i + 700]) for i in range(0, tone.size, 700)] + [live.finish()]
+    >>> bool(np.allclose(np.vstack(parts), cepstra(Audio(tone, 16000))))
+    True
+    """
+
+    def __init__(self, sample_rate_hz: int) -> None:
+        self.sample_rate_hz = int(sample_rate_hz)
+        self._n_fft, _, self._taper, self._mel = _analysis(self.sample_rate_hz)
+        self._hop = self.sample_rate_hz / CEPSTRUM_RATE
+        self._buffer = np.zeros(self._n_fft // 2)  # the zeros before the start, as the whole analysis pads
+        self._buffer_start = -(self._n_fft // 2)  # absolute index of the buffer's first sample
+        self._received = 0
+        self._next = 0
+
+    @property
+    def latency_s(self) -> float:
+        """Audio needed after a frame's centre before it can be computed."""
+        return (self._n_fft // 2) / self.sample_rate_hz
+
+    def _start(self, j: int) -> int:
+        return int(np.round(j * self._hop)) - self._n_fft // 2
+
+    def _take(self, end_frame: int) -> np.ndarray:
+        frames = []
+        while self._next < end_frame:
+            start = self._start(self._next) - self._buffer_start
+            frames.append(self._buffer[start:start + self._n_fft])
+            self._next += 1
+        out = _cepstra_of(np.array(frames), self._taper, self._mel) if frames else np.zeros((0, N_SPECTRAL))
+        keep_from = self._start(self._next) - self._buffer_start
+        if keep_from > 0:
+            self._buffer = self._buffer[keep_from:]
+            self._buffer_start += keep_from
+        return out
+
+    def push(self, samples: np.ndarray) -> np.ndarray:
+        """Add mono samples; return the frames that became complete, shape (k, 14)."""
+        samples = np.asarray(samples, float).reshape(-1)
+        self._buffer = np.concatenate([self._buffer, samples])
+        self._received += samples.size
+        end = self._next
+        while self._start(end) + self._n_fft <= self._received:
+            end += 1
+        return self._take(end)
+
+    def finish(self) -> np.ndarray:
+        """The remaining frames, with silence after the end (as the whole analysis pads)."""
+        total = int(self._received / self._hop) + 1
+        self._buffer = np.concatenate([self._buffer, np.zeros(self._n_fft)])
+        return self._take(total)
 
 
 def on_grid(frames: np.ndarray, n_frames: int, *, fps: float, offset_s: float = 0.0) -> np.ndarray:

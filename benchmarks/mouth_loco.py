@@ -111,7 +111,7 @@ def main(folder: Path) -> None:
         clips.append({"name": wav.stem, "speaker": speaker_of(wav.stem), "mouth": mouth, "phones": phones,
                       "weights": viseme_weights(np.arange(n) / FPS, phones), "targets": targets(mouth),
                       "energy": np.resize(features.energy.values, n),
-                      "training": mouth_training_clip(audio, mouth, fps=FPS)})
+                      "training": mouth_training_clip(audio, mouth, fps=FPS), "audio": audio})
     if not clips:
         sys.exit(f"{folder}: no <clip>.wav with a <clip>.mouth.csv beside it (see the README's evaluation section)")
     speakers = sorted({clip["speaker"] for clip in clips})
@@ -127,7 +127,7 @@ def main(folder: Path) -> None:
             for key, table in (("visemes", visemes), ("shipped", VISEMES)):
                 faps = shape_faps(shapes_from_phones(clip["phones"], n, fps=FPS, visemes=table))
                 rows[key].append(measured(inner_opening(faps), faps[16], clip))
-            shape = acoustic.predict_clip(clip["training"])
+            shape = acoustic.predict(clip["audio"], n, fps=FPS)
             faps = shape_faps(shape)
             rows["acoustic"].append(measured(inner_opening(faps)[:n], faps[16][:n], clip))
             rows["loudness"].append(measured(clip["energy"], clip["energy"], clip))

@@ -137,10 +137,13 @@ def _add_motion_options(parser: argparse.ArgumentParser, *, live: bool = False) 
     if not live:
         controls.add_argument("--lip-gain", type=_number_in(0, 100), default=1.0, metavar="G",
                               help="scale the lips' motion (FAP 3-11, 16-17, 51-58) by G (default 1)")
-    channels = "pitch, yaw, roll, brows" + ("" if live else ", lips")
     controls.add_argument("--off", action="append", default=[], metavar="CHANNEL[,CHANNEL]",
-                          help=f"leave channels out of the output: {channels} (repeatable)")
-    if not live:
+                          help="leave channels out of the output: pitch, yaw, roll, brows, lips (repeatable)")
+    if live:
+        parser.add_argument("--lips", dest="live_lips", default="acoustic", choices=["acoustic", "none"],
+                            help="lips from the live acoustic mouth model (default; the same in every condition), "
+                                 "or none; the visemes of convert need whole phones and are not offered live")
+    else:
         _add_face_options(parser)
 
 
@@ -257,7 +260,9 @@ def _motion_kwargs(args: argparse.Namespace) -> dict:
     """The keyword arguments of :func:`prosody.jobs.pipeline.convert` set by :func:`_add_motion_options`."""
     gains = {"pitch": args.pitch_gain, "yaw": args.yaw_gain, "roll": args.roll_gain, "brows": args.brow_gain}
     disabled = [name.strip() for value in args.off for name in value.split(",") if name.strip()]
-    face = {}
+    face: dict = {}
+    if hasattr(args, "live_lips"):
+        face = {"live_lips": args.live_lips != "none"}
     if hasattr(args, "lips"):
         gains["lips"] = args.lip_gain
         face = {"lips": None if args.lips == "none" else args.lips, "transcript": args.transcript,
@@ -288,7 +293,8 @@ def _check_motion_options(args: argparse.Namespace) -> None:
         raise ConfigError(f"--ground-truth is the recorded motion of --condition truth; it is not used by "
                           f"--condition {args.condition}")
     off = {name.strip() for value in args.off for name in value.split(",") if name.strip()}
-    channels = {"pitch", "yaw", "roll", "brows"} | ({"lips"} if getattr(args, "lips", "none") != "none" else set())
+    lips = getattr(args, "lips", getattr(args, "live_lips", "none"))
+    channels = {"pitch", "yaw", "roll", "brows"} | ({"lips"} if lips != "none" else set())
     if channels <= off and getattr(args, "expression", None) is None:
         raise ConfigError(f"--off leaves out every channel ({', '.join(sorted(channels))}): the output would be "
                           "empty")

@@ -113,3 +113,26 @@ def test_page_reconnects_when_the_server_comes_back(browser):
         _wait_for(browser, "return window.prosodyStats.inputFrames >= 3")
     finally:
         second.close(drain_s=0.1)
+
+
+def test_page_draws_an_open_mouth_apart_from_a_closed_one(frame_server, browser, tmp_path):
+    browser.get(frame_server.url)
+    _wait_for(browser, "return window.prosodyStats && window.prosodyStats.connected")
+    closed = {3: 0.0, 4: 0.0, 5: 0.0, 48: 0.0}
+    frame_server.publish([LiveFrame(k, k / 30, closed) for k in range(3)])
+    _wait_for(browser, "return window.prosodyStats.inputFrames >= 3")
+    time.sleep(0.3)
+    shut = _face(browser)
+    opened = {3: 300.0, 4: -75.0, 5: -125.0, 6: -40.0, 7: -40.0, 48: 0.0}  # an open, slightly rounded /o/
+    frame_server.publish([LiveFrame(k, k / 30, opened) for k in range(3, 6)])
+    _wait_for(browser, "return window.prosodyStats.inputFrames >= 6")
+    time.sleep(0.3)
+    open_mouth = _face(browser)
+    (tmp_path / "open.png").write_bytes(browser.find_element("id", "face").screenshot_as_png)
+    changed = np.any(np.abs(shut.astype(int) - open_mouth.astype(int)) > 30, axis=2)
+    rows = np.flatnonzero(changed.any(axis=1))
+    assert changed.sum() > 100  # the mouth's inside shows
+    size = shut.shape[0]
+    assert rows.min() > 0.6 * size and rows.max() < 0.85 * size  # and only the mouth changed
+    dark = np.all(open_mouth < [120, 60, 70], axis=2) & changed
+    assert dark.sum() > 50  # dark red: the inside of the mouth

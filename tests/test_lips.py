@@ -248,3 +248,33 @@ def _sample(name: str):
     from conftest import REPO
 
     return REPO / "samples" / name
+
+
+def test_live_cepstra_do_not_depend_on_how_the_audio_arrives(rng):
+    from audio_features.spectral import CepstraStream, cepstra
+
+    samples = rng.normal(0, 0.1, 20000)
+    whole = cepstra(Audio(samples, SR))
+    live = CepstraStream(SR)
+    parts, start = [], 0
+    while start < samples.size:
+        size = int(rng.integers(1, 900))
+        parts.append(live.push(samples[start:start + size]))
+        start += size
+    parts.append(live.finish())
+    np.testing.assert_allclose(np.vstack(parts), whole, atol=1e-9)
+
+
+def test_live_lips_close_in_silence_and_open_on_a_voice():
+    from prosody.jobs.stream import LiveConverter
+
+    voice = segments(SR, (1.0, 0, 0), (1.0, 150, 0.5), (1.0, 0, 0))
+    converter = LiveConverter(SR, condition="none")
+    frames = []
+    for start in range(0, voice.size, 160):
+        frames += converter.push(voice[start:start + 160])
+    frames += converter.finish()
+    opening = np.array([f.faps[3] - f.faps[4] - f.faps[5] for f in frames])
+    assert len(frames) == 90
+    assert np.all(opening[5:25] == 0) and np.all(opening[70:] == 0)  # digital silence: closed
+    assert opening[30:62].max() > 80  # the voice opens it (a steady tone is no speech: not throughout)

@@ -14,6 +14,7 @@ from audio_features.streaming import stream_file
 from prosody.errors import ConfigError
 from prosody.jobs.stream import SHIPPED_LOOKAHEADS_MS, LiveConverter, live_head_model, shipped_live_model_path
 from prosody.motion.eyebrows import EyebrowRule, accent_raises, eyebrow_raises
+from prosody.motion.lips import LIP_FAPS
 from prosody.motion.live import (
     LiveAccentBrows,
     LiveHeadModel,
@@ -236,7 +237,7 @@ def test_converter_gives_as_many_frames_as_convert(speech):
     frames += converter.finish()
     assert len(frames) == offline.n_frames
     assert [frame.frame for frame in frames] == list(range(len(frames)))
-    assert all(sorted(frame.faps) == [31, 32, 33, 34, 48, 49, 50] for frame in frames)
+    assert all(sorted(frame.faps) == sorted([*LIP_FAPS, 31, 32, 33, 34, 48, 49, 50]) for frame in frames)
     assert frames[10].time_s == pytest.approx(10 / 30)
 
 
@@ -244,14 +245,16 @@ def test_converter_gains_off_and_conditions():
     samples = harmonic_tone(150.0, 1.0, 16000)
     base = LiveConverter(16000, seed=2)
     plain = base.push(samples) + base.finish()
-    scaled = LiveConverter(16000, seed=2, gains={"yaw": 0.5}, disabled=["brows", "roll"])
+    scaled = LiveConverter(16000, seed=2, gains={"yaw": 0.5}, disabled=["brows", "roll", "lips"])
     half = scaled.push(samples) + scaled.finish()
     assert sorted(half[0].faps) == [48, 49]
     for a, b in zip(plain, half, strict=True):
         assert b.faps[49] == pytest.approx(0.5 * a.faps[49])
         assert b.faps[48] == a.faps[48]
     still = LiveConverter(16000, condition="none")
-    assert all(v == 0 for f in still.push(samples) + still.finish() for v in f.faps.values())
+    still_frames = still.push(samples) + still.finish()
+    assert all(f.faps[fap] == 0 for f in still_frames for fap in (31, 32, 33, 34, 48, 49, 50))
+    assert max(f.faps[3] for f in still_frames) > 0  # the lips move in every condition
     noisy = LiveConverter(16000, condition="random", seed=1)
     values = [f.faps[48] for f in noisy.push(samples) + noisy.finish()]
     assert np.std(values) > 0
@@ -261,7 +264,7 @@ def test_converter_gains_off_and_conditions():
     ({"condition": "truth"}, "no live form"),
     ({"lookahead_ms": -5}, "lookahead_ms"),
     ({"lookahead_ms": math.nan}, "lookahead_ms"),
-    ({"disabled": ["pitch", "yaw", "roll", "brows"]}, "every channel"),
+    ({"disabled": ["pitch", "yaw", "roll", "brows", "lips"]}, "every channel"),
     ({"gains": {"nose": 1.0}}, "unknown channel"),
     ({"fps": 25.0}, "runs at 30 fps"),
 ])

@@ -28,6 +28,7 @@ from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
 from ..motion.conditions import Condition
 from ..motion.eyebrows import BrowRule
+from ..motion.lips import LIP_FAPS, shape_faps
 from ..motion.live import LiveHeadModel, LivePerlin, live_brows
 from ..motion.model_files import read_model_json
 from .pipeline import CHANNELS
@@ -94,14 +95,18 @@ class LiveConverter:
         The brows' rule (default: the accent rule).
     gains, disabled
         Intensity per channel and channels left out, as :func:`prosody.jobs.pipeline.convert`.
+    live_lips : bool
+        Lips from the live acoustic mouth model (the same in every condition; the shipped model with the most
+        look-ahead within ``lookahead_ms``: 0 or 100 ms). The visemes need whole phones and their neighbours,
+        so they are not offered live.
 
     Examples
     --------
     >>> t = np.arange(32000) / 16000
     >>> converter = LiveConverter(16000)
     >>> frames = converter.push(0.5 * np.sin(2 * np.pi * 150 * t)) + converter.finish()
-    >>> len(frames), sorted(frames[0].faps)
-    (60, [31, 32, 33, 34, 48, 49, 50])
+    >>> len(frames), sorted(frames[0].faps)[:8]
+    (60, [3, 4, 5, 6, 7, 8, 9, 10])
     """
 
     def __init__(self, sample_rate_hz: int, *, condition: Condition | str = Condition.SPEECH_DRIVEN,
@@ -109,7 +114,7 @@ class LiveConverter:
                  lookahead_ms: float = DEFAULT_LOOKAHEAD_MS, seed: int = 0, fps: float = DEFAULT_FPS,
                  f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ, f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ,
                  eyebrow_rule: BrowRule | None = None, gains: Mapping[str, float] | None = None,
-                 disabled: Iterable[str] = ()) -> None:
+                 disabled: Iterable[str] = (), live_lips: bool = True) -> None:
         chosen = condition if isinstance(condition, Condition) else Condition.parse(condition)
         if chosen is Condition.GROUND_TRUTH:
             raise ConfigError("recorded motion (condition truth) has no live form; choose speech, random or none")
@@ -131,7 +136,14 @@ class LiveConverter:
                 raise ConfigError(f"gain of {name!r} must be a finite number, got {gain!r}")
         self._gain = {fap: float(gains.get(name, 1.0)) for name, faps in CHANNELS.items() for fap in faps}
         off = {fap for name in disabled for fap in CHANNELS[name]}
-        self.faps = tuple(fap for fap in PROSODY_FAPS if fap not in off)
+        self._mouth = None
+        if live_lips and not set(LIP_FAPS) <= off:
+            from ..motion.mouth_model import SHIPPED_LIVE_MOUTH_MS, LiveMouthModel, live_mouth_path
+
+            usable = max(ms for ms in SHIPPED_LIVE_MOUTH_MS if ms <= lookahead_ms + 1e-9)
+            self._mouth = LiveMouthModel.load(live_mouth_path(usable)).start(sample_rate_hz, fps=self.analyser.fps)
+        produced = (LIP_FAPS if self._mouth is not None else ()) + PROSODY_FAPS
+        self.faps = tuple(sorted(fap for fap in produced if fap not in off))
         if not self.faps:
             raise ConfigError("every channel is off: the frames would be empty")
         self._head = self._brows = self._perlin = None
@@ -177,6 +189,8 @@ class LiveConverter:
         for value in values:
             k = self._next
             self._next += 1
+            if self._mouth is not None:
+                value.update({fap: float(curve[0]) for fap, curve in shape_faps(self._mouth.shape(k)).items()})
             frames.append(LiveFrame(k, k / self.fps, {fap: value[fap] * self._gain[fap] for fap in self.faps}))
         return frames
 
@@ -185,6 +199,8 @@ class LiveConverter:
         if self.finished:
             raise ConfigError("push() after finish(): make a new LiveConverter for new audio")
         f0, energy = self.analyser.push(samples)
+        if self._mouth is not None:
+            self._mouth.push(samples)
         return self._frames(f0, energy, final=False)
 
     def finish(self) -> list[LiveFrame]:
@@ -193,6 +209,8 @@ class LiveConverter:
             return []
         self.finished = True
         f0, energy = self.analyser.finish()
+        if self._mouth is not None:
+            self._mouth.finish()
         return self._frames(f0, energy, final=True)
 
 

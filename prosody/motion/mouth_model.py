@@ -11,6 +11,7 @@ turns into lip FAPs. It is trained on recordings with a video-tracked ``<clip>.m
 from __future__ import annotations
 
 import os
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,6 +25,10 @@ from .model_files import MAX_MODEL_MAGNITUDE, read_model_json, write_model_json
 
 MODEL_FORMAT = "visual-prosody-mouth-model"
 MODEL_VERSION = 1
+#: The mouth closes where the sound is this far below the recording's loud level (its 95th percentile of
+#: 10 ms frame powers), opening fully 10 dB above it: the regression alone never closes it in a pause.
+QUIET_BELOW_LOUD_DB = 35.0
+GATE_RAMP_DB = 10.0
 #: Offsets at which the features are read, s.
 CONTEXT_S = tuple(np.round(np.arange(-0.3, 0.301, 0.05), 3))
 DEFAULT_MOUTH_MODEL_PATH = os.path.join(os.path.dirname(__file__), "models", "mouth_acoustic.json")
@@ -38,6 +43,21 @@ class MouthTrainingClip:
     opening: np.ndarray
     rounding: np.ndarray
     spread: np.ndarray
+
+
+def frame_db(frames: np.ndarray) -> np.ndarray:
+    """The 10 ms frames' power in dB (on the spectral analysis's own scale) from their log-energy column."""
+    return frames[:, -1] * (10 / np.log(10))
+
+
+def voice_gate(db: np.ndarray, loud_db: float | np.ndarray) -> np.ndarray:
+    """0 where a frame is :data:`QUIET_BELOW_LOUD_DB` below the loud level, 1 from 10 dB above that."""
+    return np.clip((db - (loud_db - QUIET_BELOW_LOUD_DB)) / GATE_RAMP_DB, 0.0, 1.0)
+
+
+def gated(shape: MouthShape, gate: np.ndarray) -> MouthShape:
+    """A mouth shape brought to rest (closed, neither rounded nor spread) where ``gate`` is 0."""
+    return MouthShape(shape.opening * gate, shape.rounding * gate, shape.spread * gate)
 
 
 def context_features(audio: Audio, n_frames: int, *, fps: float) -> np.ndarray:
@@ -93,8 +113,16 @@ class AcousticMouthModel:
         return self.predict_features(clip.features)
 
     def predict(self, audio: Audio, n_frames: int, *, fps: float) -> MouthShape:
-        """The mouth's shape at every frame of a grid."""
-        return self.predict_features(context_features(audio, n_frames, fps=fps))
+        """The mouth's shape at every frame of a grid, closed where there is no sound (see :func:`voice_gate`)."""
+        frames = cepstra(audio)
+        spread = frames.std(axis=0)
+        standardized = (frames - frames.mean(axis=0)) / np.where(spread > 1e-9, spread, 1.0)
+        features = np.hstack([on_grid(standardized, n_frames, fps=fps, offset_s=o) for o in CONTEXT_S])
+        db = frame_db(frames)
+        gate = voice_gate(db, float(np.quantile(db, 0.95)))
+        # the gate at each grid frame: its 10 ms frames over +-50 ms, averaged
+        smooth = np.convolve(gate, np.ones(11) / 11, mode="same")
+        return gated(self.predict_features(features), on_grid(smooth[:, None], n_frames, fps=fps)[:, 0])
 
     def save(self, path: str | os.PathLike[str]) -> None:
         write_model_json({"format": MODEL_FORMAT, "version": MODEL_VERSION, "kind": "mouth-acoustic",
@@ -160,3 +188,196 @@ def train_mouth(folder: str | os.PathLike[str], output: str | os.PathLike[str], 
     model = AcousticMouthModel().fit(clips)
     model.save(output)
     return model
+
+
+# the live form -----------------------------------------------------------------------------------------------
+LIVE_MODEL_FORMAT = "visual-prosody-live-mouth-model"
+#: Look-aheads of the shipped live mouth models, ms.
+SHIPPED_LIVE_MOUTH_MS = (0, 100)
+#: Half-life of the running feature statistics of the live model, in 10 ms frames (30 s).
+RUNNING_HALF_LIFE_FRAMES = 3000
+#: Weight of the training data's feature statistics at the start of a stream, in 10 ms frames (0.5 s).
+PRIOR_FRAMES = 50
+#: The live loud level is that of the last minute of 10 ms frames.
+LOUD_WINDOW_FRAMES = 6000
+
+
+def live_mouth_path(lookahead_ms: int) -> str:
+    return os.path.join(os.path.dirname(__file__), "models", f"live_mouth_{lookahead_ms}ms.json")
+
+
+class RunningStandardizer:
+    """Features standardised by their mean and spread so far (exponential forgetting), starting from a prior:
+    the causal counterpart of standardising over the whole recording."""
+
+    def __init__(self, prior_mean: np.ndarray, prior_var: np.ndarray) -> None:
+        self.mean = np.array(prior_mean, float)
+        self.var = np.array(prior_var, float)
+        self.count = float(PRIOR_FRAMES)
+        self.floor = 1.0 - 0.5 ** (1.0 / RUNNING_HALF_LIFE_FRAMES)
+
+    def push(self, frames: np.ndarray) -> np.ndarray:
+        out = np.empty_like(frames)
+        for i, frame in enumerate(frames):
+            self.count += 1.0
+            rate = max(1.0 / self.count, self.floor)
+            delta = frame - self.mean
+            self.mean = self.mean + rate * delta
+            self.var = (1 - rate) * (self.var + rate * delta * delta)
+            out[i] = (frame - self.mean) / np.sqrt(np.maximum(self.var, 1e-6))
+        return out
+
+
+def _live_offsets(lookahead_s: float) -> tuple[float, ...]:
+    return tuple(float(x) for x in np.round(np.arange(-0.3, lookahead_s + 1e-9, 0.05), 3))
+
+
+class LiveMouthModel:
+    """The acoustic mouth model in causal form, for ``prosody stream``: spectral features standardised by
+    their running statistics and read from 0.3 s before each frame to ``lookahead_s`` after it.
+
+    Parameters
+    ----------
+    lookahead_s : float in [0, 0.5], in s
+    ridge : float >= 0
+    """
+
+    def __init__(self, lookahead_s: float = 0.1, ridge: float = 100.0) -> None:
+        self.lookahead_s = lookahead_s
+        self.ridge = ridge
+
+    @property
+    def offsets_s(self) -> tuple[float, ...]:
+        return _live_offsets(self.lookahead_s)
+
+    def features(self, standardized: np.ndarray, n_frames: int, *, fps: float) -> np.ndarray:
+        return np.hstack([on_grid(standardized, n_frames, fps=fps, offset_s=o) for o in self.offsets_s])
+
+    def fit(self, clips: list[tuple[np.ndarray, MouthTrainingClip]]) -> LiveMouthModel:
+        """Fit on (cepstra of the recording, its training clip) pairs; the cepstra are standardised causally
+        here, starting from the pooled statistics of all of them."""
+        pooled = np.vstack([frames for frames, _ in clips])
+        self.prior_mean_, self.prior_var_ = pooled.mean(axis=0), pooled.var(axis=0)
+        self.prior_loud_db_ = float(np.median([np.quantile(frame_db(frames), 0.95) for frames, _ in clips]))
+        designs = []
+        for frames, clip in clips:
+            standardized = RunningStandardizer(self.prior_mean_, self.prior_var_).push(frames)
+            designs.append(MouthTrainingClip(clip.name, self.features(standardized, clip.opening.size, fps=30.0),
+                                             clip.opening, clip.rounding, clip.spread))
+        inner = AcousticMouthModel(self.ridge).fit(designs)
+        self.weights_, self.training_ = inner.weights_, inner.training_
+        return self
+
+    def start(self, sample_rate_hz: int, *, fps: float) -> LiveMouth:
+        return LiveMouth(self, sample_rate_hz, fps=fps)
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        write_model_json({"format": LIVE_MODEL_FORMAT, "version": MODEL_VERSION, "kind": "mouth-live",
+                          "lookahead_s": self.lookahead_s, "offsets_s": list(self.offsets_s), "ridge": self.ridge,
+                          "prior_mean": self.prior_mean_.tolist(), "prior_var": self.prior_var_.tolist(),
+                          "prior_loud_db": self.prior_loud_db_,
+                          "weights": self.weights_.tolist(), "training": self.training_}, path)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> LiveMouthModel:
+        payload = read_model_json(path)
+        name = str(path)
+        if not isinstance(payload, dict) or payload.get("format") != LIVE_MODEL_FORMAT:
+            raise ModelError(f"{name}: not a live mouth model file (format {LIVE_MODEL_FORMAT!r})")
+        try:
+            model = cls(float(payload["lookahead_s"]), float(payload["ridge"]))
+            model.weights_ = np.array(payload["weights"], dtype=float)
+            model.prior_mean_ = np.array(payload["prior_mean"], dtype=float)
+            model.prior_var_ = np.array(payload["prior_var"], dtype=float)
+            model.prior_loud_db_ = float(payload["prior_loud_db"])
+            model.training_ = [str(item) for item in payload["training"]]
+        except (KeyError, TypeError, ValueError) as error:
+            raise ModelError(f"{name}: missing or malformed field ({error!r})") from None
+        if not 0 <= model.lookahead_s <= 0.5:
+            raise ModelError(f"{name}: lookahead_s must be in [0, 0.5], got {model.lookahead_s!r}")
+        shapes = {"weights": (len(model.offsets_s) * N_SPECTRAL + 1, 3), "prior_mean": (N_SPECTRAL,),
+                  "prior_var": (N_SPECTRAL,)}
+        for key, shape in shapes.items():
+            array = getattr(model, key + "_")
+            if array.shape != shape:
+                raise ModelError(f"{name}: field {key!r} has shape {array.shape!r}, expected {shape!r}")
+            if not np.all(np.isfinite(array)) or np.any(np.abs(array) > MAX_MODEL_MAGNITUDE):
+                raise ModelError(f"{name}: field {key!r} must hold finite numbers within {MAX_MODEL_MAGNITUDE:g}")
+        if not abs(model.prior_loud_db_) <= 1000:
+            raise ModelError(f"{name}: field 'prior_loud_db' must be a number of dB, got {model.prior_loud_db_!r}")
+        if np.any(model.prior_var_ <= 0):
+            raise ModelError(f"{name}: field 'prior_var' must be positive")
+        return model
+
+
+class LiveMouth:
+    """A live mouth model running on a stream: push audio, then ask for any frame whose look-ahead is in."""
+
+    def __init__(self, model: LiveMouthModel, sample_rate_hz: int, *, fps: float) -> None:
+        from audio_features.spectral import CepstraStream
+
+        self.model, self.fps = model, fps
+        self._cepstra = CepstraStream(sample_rate_hz)
+        self._standardizer = RunningStandardizer(model.prior_mean_, model.prior_var_)
+        self._frames = np.zeros((0, N_SPECTRAL))
+        self._gates = np.zeros(0)
+        self._first = 0  # absolute index of self._frames[0]
+        self._recent_db: deque[float] = deque(maxlen=LOUD_WINDOW_FRAMES)
+
+    def _add(self, frames: np.ndarray) -> None:
+        if not frames.size:
+            return
+        gates = []
+        for db in frame_db(frames):
+            # the loud level of the last minute (its 95th percentile), as the whole recording's offline
+            self._recent_db.append(float(db))
+            # at the start of a stream the training recordings' loud level stands in for one not yet heard
+            loud = max(float(np.quantile(np.array(self._recent_db), 0.95)), self.model.prior_loud_db_)
+            gates.append(float(voice_gate(np.array(db), loud)))
+        self._frames = np.vstack([self._frames, self._standardizer.push(frames)])
+        self._gates = np.concatenate([self._gates, gates])
+
+    def push(self, samples: np.ndarray) -> None:
+        self._add(self._cepstra.push(samples))
+
+    def finish(self) -> None:
+        self._add(self._cepstra.finish())
+
+    def shape(self, k: int) -> MouthShape:
+        """The mouth's shape at grid frame ``k`` (features beyond those in are held at the newest)."""
+        last = self._first + self._frames.shape[0] - 1
+        index = np.round((k / self.fps + np.array(self.model.offsets_s)) * 100).astype(int)
+        index = np.clip(index, 0, max(last, 0)) - self._first
+        row = self._frames[np.clip(index, 0, self._frames.shape[0] - 1)].reshape(-1) if self._frames.size else \
+            np.zeros(len(self.model.offsets_s) * N_SPECTRAL)
+        opening, rounding, spread = np.append(row, 1.0) @ self.model.weights_
+        # the gate over the 10 ms frames within 50 ms of this one that are in
+        centre = int(np.round(k / self.fps * 100)) - self._first
+        near = self._gates[max(centre - 5, 0):max(centre + 6, 0)]
+        gate = float(near.mean()) if near.size else 0.0
+        opening, rounding, spread = max(opening, 0.0) * gate, rounding * gate, spread * gate
+        # what no later frame reads any more is let go
+        oldest = int(np.round((k / self.fps + self.model.offsets_s[0]) * 100)) - self._first
+        if oldest > 200:
+            self._frames = self._frames[oldest - 100:]
+            self._gates = self._gates[oldest - 100:]
+            self._first += oldest - 100
+        return MouthShape(np.array([opening]), np.array([rounding]), np.array([spread]))
+
+
+def train_live_mouth(folder: str | os.PathLike[str], *, lookahead_ms: float, fps: float = 30.0):
+    """The clips of ``folder`` (``<name>.wav`` + ``<name>.mouth.csv``) as (cepstra, training clip) pairs."""
+    from pathlib import Path
+
+    from audio_features import AUDIO_EXTENSIONS, load_audio
+
+    from .ground_truth import read_mouth_csv
+
+    pairs = []
+    for audio_path in sorted(p for p in Path(folder).iterdir() if p.suffix.lower() in AUDIO_EXTENSIONS):
+        mouth_path = audio_path.with_name(audio_path.stem + ".mouth.csv")
+        if mouth_path.is_file():
+            audio = load_audio(audio_path)
+            clip = mouth_training_clip(audio, read_mouth_csv(mouth_path), fps=fps, name=audio_path.stem)
+            pairs.append((cepstra(audio), clip))
+    return pairs

@@ -1,0 +1,56 @@
+"""Fit the shipped live mouth models (``prosody/motion/models/live_mouth_<MS>ms.json``) on the talking-heads
+clips, and print each one's leave-one-speaker-out mouth measures beside the offline acoustic model's.
+
+Usage: python benchmarks/train_live_mouth.py [DIR] [--write]
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from prosody.measures import mouth_metrics
+from prosody.motion.ground_truth import read_mouth_csv
+from prosody.motion.lips import inner_opening, shape_faps
+from prosody.motion.mouth_model import (
+    SHIPPED_LIVE_MOUTH_MS,
+    LiveMouthModel,
+    live_mouth_path,
+    train_live_mouth,
+)
+
+sys.path.insert(0, str(Path(__file__).parent))
+from mouth_loco import DEFAULT_DATA, speaker_of  # noqa: E402
+
+
+def main(folder: Path, write: bool) -> None:
+    from audio_features import load_audio
+
+    pairs = train_live_mouth(folder, lookahead_ms=0)
+    print("| mouth model | opening r | closure F1 | rounding r |\n|---|---|---|---|")
+    for ms in SHIPPED_LIVE_MOUTH_MS:
+        results = []
+        for _, clip in pairs:
+            rest = [pair for pair in pairs if speaker_of(pair[1].name) != speaker_of(clip.name)]
+            model = LiveMouthModel(ms / 1000).fit(rest)
+            live = model.start(16000, fps=30.0)
+            audio = load_audio(folder / f"{clip.name}.wav")
+            live.push(audio.samples)
+            live.finish()
+            shapes = [live.shape(k) for k in range(clip.opening.size)]
+            faps = shape_faps(type(shapes[0])(*(np.concatenate([getattr(s, key) for s in shapes])
+                                                 for key in ("opening", "rounding", "spread"))))
+            mouth = read_mouth_csv(folder / f"{clip.name}.mouth.csv")
+            results.append(mouth_metrics(inner_opening(faps), faps[16], mouth.lip_opening, mouth.rounding, fps=30))
+        print(f"| live, {ms} ms look-ahead, held out by speaker | {np.mean([r['opening_r'] for r in results]):.3f} | "
+              f"{np.mean([r['closures']['f1'] or 0 for r in results]):.2f} | "
+              f"{np.mean([r['rounding_r'] for r in results]):.3f} |")
+        if write:
+            LiveMouthModel(ms / 1000).fit(pairs).save(live_mouth_path(ms))
+
+
+if __name__ == "__main__":
+    arguments = [a for a in sys.argv[1:] if a != "--write"]
+    main(Path(arguments[0]) if arguments else DEFAULT_DATA, "--write" in sys.argv)
