@@ -245,6 +245,29 @@ def read_blocks(sound, block_frames: int) -> Iterator[np.ndarray]:
             return
 
 
+def file_blocks(path: str | os.PathLike[str], *, seconds_per_block: float = 10.0) -> tuple[int, Iterator[np.ndarray]]:
+    """``(sample rate, blocks)`` of a file read ``seconds_per_block`` at a time, mixed to mono (float64): bounded memory
+    for recordings of any length. The file is checked as :func:`load_audio` checks it."""
+    sound = open_sound_file(path)
+    check_shape(max(sound.frames, 1), source=str(path), sample_rate_hz=sound.samplerate)
+    rate = int(sound.samplerate)
+
+    def blocks() -> Iterator[np.ndarray]:
+        import soundfile
+
+        with sound:
+            try:
+                for block in read_blocks(sound, max(1, int(seconds_per_block * rate))):
+                    mono = block[:, 0] if block.shape[1] == 1 else block.mean(axis=1)
+                    if not np.isfinite(mono).all():
+                        raise AudioLoadError(f"{path}: a sample is not finite; audio must have no NaN or infinity")
+                    yield mono
+            except (soundfile.SoundFileError, RuntimeError) as error:
+                raise AudioLoadError(decode_failure(path, sound.format, error)) from None
+
+    return rate, blocks()
+
+
 def load_audio(path: str | os.PathLike[str]) -> Audio:
     """Read an audio file into memory as mono float64.
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .audio import Audio, load_audio
+from .audio import Audio
 from .errors import AudioFeaturesError, ParameterError
 
 #: Sample rate of the acoustic model, Hz.
@@ -83,17 +83,27 @@ def _decoder(**settings):
     return Decoder(loglevel="FATAL", samprate=MODEL_RATE_HZ, **settings)
 
 
-def _to_model_rate(audio: Audio) -> np.ndarray:
+def _resampled(samples: np.ndarray, rate: int) -> np.ndarray:
     """Mono 16-bit samples at 16 kHz, as the acoustic model was trained on."""
-    samples = audio.samples
-    if audio.sample_rate_hz != MODEL_RATE_HZ:
+    if rate != MODEL_RATE_HZ:
         from math import gcd
 
         from scipy.signal import resample_poly
 
-        common = gcd(audio.sample_rate_hz, MODEL_RATE_HZ)
-        samples = resample_poly(samples, MODEL_RATE_HZ // common, audio.sample_rate_hz // common)
+        common = gcd(rate, MODEL_RATE_HZ)
+        samples = resample_poly(samples, MODEL_RATE_HZ // common, rate // common)
     return (np.clip(samples, -1.0, 1.0) * 32767).astype("<i2")
+
+
+def _to_model_rate(source: Audio | str | os.PathLike[str]) -> np.ndarray:
+    """A recording at the model's rate and format; a file is read block by block (a 2-hour 44.1 kHz file
+    never holds more than its 16 kHz 16-bit form, 230 MB, in memory)."""
+    if isinstance(source, Audio):
+        return _resampled(source.samples, source.sample_rate_hz)
+    from .audio import file_blocks
+
+    rate, blocks = file_blocks(source, seconds_per_block=60.0)
+    return np.concatenate([_resampled(block, rate) for block in blocks] or [np.zeros(0, "<i2")])
 
 
 def _cuts(samples: np.ndarray) -> list[tuple[int, int]]:
@@ -199,8 +209,7 @@ def recognise_phones(source: Audio | str | os.PathLike[str], *, transcript: str 
     >>> {phone.label for phone in phones}
     {'SIL'}
     """
-    audio = source if isinstance(source, Audio) else load_audio(source)
-    samples = _to_model_rate(audio)
+    samples = _to_model_rate(source)
     duration_s = samples.size / MODEL_RATE_HZ
     phones: list[Phone] | None = None
     if transcript is not None:

@@ -8,6 +8,8 @@ then read at any grid time by the nearest one.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from .audio import Audio
@@ -141,3 +143,14 @@ def on_grid(frames: np.ndarray, n_frames: int, *, fps: float, offset_s: float = 
         raise ParameterError(f"fps must be a positive number, got {fps!r}")
     index = np.round((np.arange(n_frames) / fps + offset_s) * CEPSTRUM_RATE).astype(int)
     return frames[np.clip(index, 0, frames.shape[0] - 1)]
+
+
+def file_cepstra(source: Audio | str | os.PathLike[str]) -> np.ndarray:
+    """:func:`cepstra` of a recording, a file read block by block (bounded memory for any length)."""
+    if isinstance(source, Audio):
+        return cepstra(source)
+    from .audio import file_blocks
+
+    rate, blocks = file_blocks(source)
+    stream = CepstraStream(rate)
+    return np.vstack([stream.push(block) for block in blocks] + [stream.finish()])

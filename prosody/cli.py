@@ -641,7 +641,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
 
     conditions = [name for value in args.condition for name in value.split(",") if name.strip()] or None
     options = BatchOptions(model=args.model, seed=args.seed, seeds=args.seeds, normalize=args.normalize,
-                           plots=args.plots, brows=args.brows, **_analysis_kwargs(args))
+                           plots=args.plots, brows=args.brows, lips=None if args.lips == "none" else args.lips,
+                           **_analysis_kwargs(args))
     if conditions:
         options = dataclasses.replace(options, conditions=tuple(conditions))
     total = len(find_audio_files(args.input))
@@ -929,6 +930,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="run on a Dask distributed cluster, e.g. tcp://host:8786 (needs the 'cluster' extra)")
     _add_generator_options(batch)
     _add_seeds_option(batch)
+    batch.add_argument("--lips", default="visemes", choices=["visemes", "acoustic", "none"],
+                       help="how the lips move, alike in every condition (default visemes; see convert --help); "
+                            "with a <clip>.mouth.csv beside the ground truth, the lips are measured against it")
     batch.add_argument("--brows", default="accent", choices=["accent", "thesis"],
                        help="eyebrow rule of the speech-driven condition, with its default settings (default "
                             "accent; thesis: the thesis's 207 Hz / 45 dB rule)")

@@ -57,12 +57,15 @@ class BatchOptions:
     plots: bool = False
     seeds: int = 10
     brows: str = "accent"
+    lips: str | None = "visemes"
 
     def __post_init__(self) -> None:
         parsed = tuple(Condition.parse(name).value for name in self.conditions)
         if not parsed:
             raise ConfigError("choose at least one condition")
         object.__setattr__(self, "conditions", parsed)
+        if self.lips not in ("visemes", "acoustic", None):
+            raise ConfigError(f"lips must be 'visemes', 'acoustic' or None, got {self.lips!r}")
         if self.brows not in ("accent", "thesis"):
             raise ConfigError(f"brows must be 'accent' or 'thesis', got {self.brows!r}")
         if not (isinstance(self.seeds, int) and not isinstance(self.seeds, bool) and 1 <= self.seeds <= 1000):
@@ -204,7 +207,7 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
             comparison = compare(audio, ground_truth=truth, model=options.model, seed=options.seed,
                                  seeds=options.seeds, eyebrow_rule=rule, normalize=options.normalize,
                                  conditions=conditions, fps=options.fps, f0_floor_hz=options.f0_floor_hz,
-                                 f0_ceiling_hz=options.f0_ceiling_hz)
+                                 f0_ceiling_hz=options.f0_ceiling_hz, lips=options.lips)
         outcome.warnings = list(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
         folder.mkdir(parents=True, exist_ok=True)
         # the features let the summary drive the generator with this recording's audio against other ones

@@ -53,8 +53,6 @@ def make_face(audio: str | os.PathLike[str], features, *, lips: str | None = "vi
     ``transcript`` is the text or the path of a text file; ``expression`` a ``NAME:INTENSITY``, the path of a
     timed CSV file, or segments; ``gains["lips"]`` scales the lips and ``"lips"`` in ``disabled`` leaves them out.
     """
-    from audio_features import load_audio
-
     segments = parse_expressions(expression) if isinstance(expression, str) else list(expression or ())
     if "lips" in disabled:
         lips = None
@@ -65,8 +63,7 @@ def make_face(audio: str | os.PathLike[str], features, *, lips: str | None = "vi
 
         with open_input(transcript, text=True, encoding="utf-8-sig", max_bytes=1 << 20) as handle:
             transcript = handle.read()
-    sound = load_audio(audio) if lips is not None else None
-    return face_layer(sound, features.n_frames, fps=features.fps, lips=lips, transcript=transcript,
+    return face_layer(audio, features.n_frames, fps=features.fps, lips=lips, transcript=transcript,
                       lip_gain=float((gains or {}).get("lips", 1.0)), expressions=segments)
 
 

@@ -287,7 +287,8 @@ def lip_curves(audio, n_frames: int, *, fps: float, method: str = "visemes", tra
 
     Parameters
     ----------
-    audio : audio_features.Audio
+    audio : audio_features.Audio or path
+        The recording (a file is read block by block).
     n_frames : int >= 0
     fps : float > 0
     method : {"visemes", "acoustic"}

@@ -112,9 +112,12 @@ class AcousticMouthModel:
     def predict_clip(self, clip: MouthTrainingClip) -> MouthShape:
         return self.predict_features(clip.features)
 
-    def predict(self, audio: Audio, n_frames: int, *, fps: float) -> MouthShape:
-        """The mouth's shape at every frame of a grid, closed where there is no sound (see :func:`voice_gate`)."""
-        frames = cepstra(audio)
+    def predict(self, audio: Audio | str | os.PathLike[str], n_frames: int, *, fps: float) -> MouthShape:
+        """The mouth's shape at every frame of a grid, closed where there is no sound (see :func:`voice_gate`);
+        ``audio`` in memory or a file (read block by block)."""
+        from audio_features.spectral import file_cepstra
+
+        frames = file_cepstra(audio)
         spread = frames.std(axis=0)
         standardized = (frames - frames.mean(axis=0)) / np.where(spread > 1e-9, spread, 1.0)
         features = np.hstack([on_grid(standardized, n_frames, fps=fps, offset_s=o) for o in CONTEXT_S])
