@@ -32,6 +32,8 @@ DECODER_FPS = 100
 #: Audio decoded as one utterance at the most, in s; longer recordings are cut at their quietest 10 ms
 #: within the last 5 s before the limit, so memory stays bounded and cuts fall in pauses.
 MAX_UTTERANCE_S = 30.0
+#: Recordings of at least twice this many utterances are decoded on several cores (one process each).
+PARALLEL_UTTERANCES = 2
 #: Phone-loop decoder settings: language weight and phone insertion penalty (chosen on the talking-heads
 #: clips by mouth-opening agreement: the defaults, 6.5 and 1, give 0.24, these 0.33).
 PHONE_LOOP_SETTINGS = {"lw": 2.0, "pip": 0.3}
@@ -108,7 +110,8 @@ def _to_model_rate(source: Audio | str | os.PathLike[str]) -> np.ndarray:
 
 def _cuts(samples: np.ndarray) -> list[tuple[int, int]]:
     """Utterances of at most :data:`MAX_UTTERANCE_S`, cut at the quietest 10 ms before each limit."""
-    limit, search, step = int(MAX_UTTERANCE_S * MODEL_RATE_HZ), 5 * MODEL_RATE_HZ, MODEL_RATE_HZ // 100
+    limit, step = int(MAX_UTTERANCE_S * MODEL_RATE_HZ), MODEL_RATE_HZ // 100
+    search = min(5 * MODEL_RATE_HZ, limit // 2)
     pieces, start = [], 0
     while samples.size - start > limit:
         window = samples[start + limit - search:start + limit].astype(float)
@@ -126,18 +129,41 @@ def _label(word: str) -> str:
     return name if name in PHONES else "SIL"
 
 
-def _phone_loop(samples: np.ndarray) -> list[Phone]:
-    decoder = _decoder(allphone=os.path.join(_model_dir(), "en-us-phone.lm.bin"), **PHONE_LOOP_SETTINGS)
+def _decode_utterances(pieces: list[tuple[int, np.ndarray]]) -> list[Phone]:
+    """Phone-loop decoding of (first sample, samples) utterances, each on its own: a fresh decoder for each,
+    since a decoder carries its cepstral mean from one utterance to the next, and an utterance's phones must not
+    depend on which ones came before it in the same process."""
     phones: list[Phone] = []
-    for start, end in _cuts(samples):
+    for start, samples in pieces:
+        decoder = _decoder(allphone=os.path.join(_model_dir(), "en-us-phone.lm.bin"), **PHONE_LOOP_SETTINGS)
         decoder.start_utt()
-        decoder.process_raw(samples[start:end].tobytes(), full_utt=True)
+        decoder.process_raw(samples.tobytes(), full_utt=True)
         decoder.end_utt()
         offset = start / MODEL_RATE_HZ
         for segment in decoder.seg() or ():
             phones.append(Phone(_label(segment.word), offset + segment.start_frame / DECODER_FPS,
                                 offset + (segment.end_frame + 1) / DECODER_FPS))
     return phones
+
+
+def _phone_loop(samples: np.ndarray) -> list[Phone]:
+    pieces = [(start, samples[start:end]) for start, end in _cuts(samples)]
+    import multiprocessing
+    import threading
+
+    workers = min(os.cpu_count() or 1, len(pieces) // PARALLEL_UTTERANCES)
+    # utterances are decoded independently, so the result is the same in one process or several: a long
+    # recording's are shared among the cores (the decoder holds Python's lock while it works). Forked
+    # workers need no importable main module (a script on standard input, a notebook), and forking is safe
+    # only where this process runs no other Python thread (the live server's, a progress monitor's)
+    if workers < 2 or threading.active_count() > 1 or "fork" not in multiprocessing.get_all_start_methods():
+        return _decode_utterances(pieces)
+    from concurrent.futures import ProcessPoolExecutor
+
+    shares = [pieces[i::workers] for i in range(workers)]
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork")) as pool:
+        parts = list(pool.map(_decode_utterances, shares))
+    return sorted((phone for part in parts for phone in part), key=lambda phone: phone.start_s)
 
 
 def transcript_words(text: str) -> list[str]:

@@ -278,3 +278,16 @@ def test_live_lips_close_in_silence_and_open_on_a_voice():
     assert len(frames) == 90
     assert np.all(opening[5:25] == 0) and np.all(opening[70:] == 0)  # digital silence: closed
     assert opening[30:62].max() > 80  # the voice opens it (a steady tone is no speech: not throughout)
+
+
+def test_phones_of_a_long_recording_are_the_same_on_one_core_or_several(monkeypatch):
+    import audio_features.phones as phones_module
+
+    speech = load_audio(_sample("arctic_a0009.wav"))
+    long = Audio(np.tile(speech.samples, 4), speech.sample_rate_hz)  # 12 s, cut into 2 s utterances
+    monkeypatch.setattr(phones_module, "MAX_UTTERANCE_S", 2.0)
+    monkeypatch.setattr(phones_module, "PARALLEL_UTTERANCES", 1)
+    several = recognise_phones(long)
+    monkeypatch.setattr(phones_module, "PARALLEL_UTTERANCES", 10**6)
+    one = recognise_phones(long)
+    assert several == one and len(one) > 40

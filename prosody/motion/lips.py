@@ -170,21 +170,34 @@ def blend(times_s: np.ndarray, segments: Sequence[tuple[float, float]], targets:
     targets = np.asarray(targets, dtype=float)
     if len(segments) == 0 or targets.shape[0] != len(segments):
         raise ConfigError(f"need one target per segment, got {targets.shape[0]} targets for {len(segments)} segments")
-    weights = np.empty((len(segments), times_s.size))
+    times_s = np.asarray(times_s, dtype=float)
+    flat = targets.reshape(len(segments), -1)
+    numerator = np.zeros((times_s.size, flat.shape[1]))
+    total = np.zeros(times_s.size)
+    ordered = bool(np.all(np.diff(times_s) >= 0))
     for i, (start, end) in enumerate(segments):
-        weights[i] = dominance(times_s, start_s=start, end_s=end, alpha=alphas[i], theta_before=thetas_before[i],
-                               theta_after=thetas_after[i], exponent=exponent)
-    # far from every segment all dominances underflow: the nearest segment's target then holds
-    total = weights.sum(axis=0)
+        # a segment's dominance is read where it is above exp(-40) of its peak (all of it if the times are
+        # not in order): the sum over thousands of phones stays linear in the recording's length
+        lo, hi = 0, times_s.size
+        if ordered and exponent > 0:
+            reach_before = (40.0 / thetas_before[i]) ** (1 / exponent)
+            reach_after = (40.0 / thetas_after[i]) ** (1 / exponent)
+            lo, hi = np.searchsorted(times_s, [start - reach_before, end + reach_after], side="left")
+        if hi <= lo:
+            continue
+        weight = dominance(times_s[lo:hi], start_s=start, end_s=end, alpha=alphas[i],
+                           theta_before=thetas_before[i], theta_after=thetas_after[i], exponent=exponent)
+        total[lo:hi] += weight
+        numerator[lo:hi] += weight[:, None] * flat[i]
+    # far from every segment all dominances vanish: the nearest segment's target then holds
     empty = total <= 1e-300
     if empty.any():
         centres = np.array([0.5 * (a + b) for a, b in segments])
         nearest = np.abs(times_s[empty, None] - centres[None, :]).argmin(axis=1)
-        weights[:, empty] = 0.0
-        weights[nearest, np.flatnonzero(empty)] = 1.0
-        total = weights.sum(axis=0)
-    normalised = weights / total
-    return normalised.T @ targets
+        numerator[empty] = flat[nearest]
+        total[empty] = 1.0
+    out = numerator / total[:, None]
+    return out.reshape((times_s.size, *targets.shape[1:]))
 
 
 def viseme_weights(times_s: np.ndarray, phones: Sequence, *, visemes: Sequence[Viseme] = VISEMES) -> np.ndarray:
