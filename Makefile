@@ -36,6 +36,8 @@ bench: $(STAMP)
 evaluate: $(STAMP)
 	$(BIN)/python benchmarks/head_loco.py
 	$(BIN)/python benchmarks/live_loco.py
+	$(BIN)/python benchmarks/mouth_loco.py
+	$(BIN)/python benchmarks/train_live_mouth.py
 
 clean:
 	rm -rf $(VENV) out build *.egg-info .pytest_cache

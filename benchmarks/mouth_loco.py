@@ -13,7 +13,9 @@ and its spread over clips). Rows:
 - acoustic: the acoustic mouth model (spectral features, ridge), trained on the other speakers;
 - loudness: the intensity envelope alone (a baseline).
 
-Then it prints the shapes fitted on every clip, for comparison with ``VISEMES``.
+Then the phones against the hand-checked alignment of ``speech/arctic_a0009`` (viseme class agreement per 10 ms
+frame, and the median distance from each labelled boundary to the nearest recognised one), without and with
+the transcript, and the shapes fitted on every clip, for comparison with ``VISEMES``.
 
 Usage: python benchmarks/mouth_loco.py [DIR]  (default ../shared/data/talking-heads)
 """
@@ -29,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from audio_features import extract_features, load_audio
-from audio_features.phones import recognise_phones
+from audio_features.phones import Phone, recognise_phones
 from prosody.measures import average_mouth_metrics, mouth_metrics
 from prosody.motion.ground_truth import read_mouth_csv
 from prosody.motion.lips import (
@@ -39,6 +41,7 @@ from prosody.motion.lips import (
     inner_opening,
     shape_faps,
     shapes_from_phones,
+    viseme_of,
     viseme_weights,
 )
 from prosody.motion.mouth_model import AcousticMouthModel, mouth_training_clip
@@ -95,6 +98,43 @@ def row(label: str, results: list[tuple[dict, dict]]) -> str:
             f"{mean(control, 'opening_r'):+.3f} ± {spread:.2f} | {mean(control, 'f1', 'closures'):.2f} |")
 
 
+def read_lab(path: Path) -> list[Phone]:
+    """An HTS full-context label file (times in 100 ns) as phones."""
+    phones = []
+    for line in path.read_text().splitlines():
+        start, end, label = line.split(maxsplit=2)
+        phone = label.split("-", 1)[1].split("+", 1)[0].upper()
+        phones.append(Phone("SIL" if phone in ("SIL", "PAU") else phone, int(start) / 1e7, int(end) / 1e7))
+    return phones
+
+
+def labelled_phones(folder: Path) -> None:
+    """Viseme-class agreement and boundary error of the recognised phones against labelled ones."""
+    print("\n| phones of arctic_a0009 against its labels | viseme class agreement (10 ms frames) | "
+          "median boundary error (ms) |\n|---|---|---|")
+    wav, lab = folder / "arctic_a0009.wav", folder / "arctic_a0009_phone.lab"
+    if not lab.is_file():
+        print("| (no labelled speech found) | | |")
+        return
+    truth = read_lab(lab)
+    audio = load_audio(wav)
+    times = np.arange(int(audio.duration_s * 100)) / 100
+
+    def classes(phones: list[Phone]) -> np.ndarray:
+        out = np.zeros(times.size, int)
+        for phone in phones:
+            out[(times >= phone.start_s) & (times < phone.end_s)] = viseme_of(phone.label).number
+        return out
+
+    edges = np.array([phone.start_s for phone in truth[1:]])
+    for label, transcript in (("phone loop", None),
+                              ("aligned transcript", "he turned sharply and faced gregson across the table")):
+        phones = recognise_phones(audio, transcript=transcript)
+        found = np.array([phone.start_s for phone in phones[1:]])
+        error_ms = np.median([np.min(np.abs(found - edge)) for edge in edges]) * 1000
+        print(f"| {label} | {np.mean(classes(phones) == classes(truth)):.2f} | {error_ms:.0f} |")
+
+
 def main(folder: Path) -> None:
     clips = []
     for wav in sorted(folder.glob("*.wav")):
@@ -140,6 +180,7 @@ def main(folder: Path) -> None:
     order = [c for s in speakers for c in clips if c["speaker"] == s]
     print("\nper clip, default visemes (opening r):",
           ", ".join(f"{c['name']} {r['opening_r']:.2f}" for c, (r, _) in zip(order, rows["shipped"], strict=True)))
+    labelled_phones(folder.parent / "speech")
     print("\nshapes fitted on every clip (opening MNS, rounding, spread):")
     for viseme in fitted_visemes(clips):
         print(f"    {viseme.number:2d} {viseme.name:9s} {viseme.opening:6.1f} {viseme.rounding:+.3f} "

@@ -161,6 +161,9 @@ def _add_face_options(parser: argparse.ArgumentParser) -> None:
                       help="what is said (the text, or a text file): its words are aligned to the audio for the "
                            "visemes; words the pronouncing dictionary lacks are left out, and a text that does "
                            "not fit the audio is ignored with a warning")
+    face.add_argument("--mouth-model", default=None, metavar="FILE",
+                      help="with --lips acoustic: a mouth model from 'prosody train --kind mouth' (default: the "
+                           "shipped one)")
     face.add_argument("--expression", default=None, metavar="NAME[:INTENSITY]|FILE.csv",
                       help=f"a facial expression for the whole recording ({', '.join(EXPRESSIONS)}; intensity "
                            "0-1, default 1), or a CSV file of timed ones with the columns "
@@ -266,7 +269,7 @@ def _motion_kwargs(args: argparse.Namespace) -> dict:
     if hasattr(args, "lips"):
         gains["lips"] = args.lip_gain
         face = {"lips": None if args.lips == "none" else args.lips, "transcript": args.transcript,
-                "expression": args.expression}
+                "expression": args.expression, "mouth_model": args.mouth_model}
     return {"condition": args.condition, "ground_truth": getattr(args, "ground_truth", None), "model": args.model,
             "seed": args.seed, "eyebrow_rule": _eyebrow_rule(args), "gains": gains, "disabled": disabled, **face,
             **_analysis_kwargs(args)}
@@ -298,6 +301,8 @@ def _check_motion_options(args: argparse.Namespace) -> None:
     if channels <= off and getattr(args, "expression", None) is None:
         raise ConfigError(f"--off leaves out every channel ({', '.join(sorted(channels))}): the output would be "
                           "empty")
+    if getattr(args, "mouth_model", None) is not None and getattr(args, "lips", None) != "acoustic":
+        raise ConfigError("--mouth-model is the model of --lips acoustic; add --lips acoustic")
     if getattr(args, "transcript", None) is not None and getattr(args, "lips", None) != "visemes":
         raise ConfigError("--transcript is read by the visemes; it is not used by --lips "
                           f"{getattr(args, 'lips', 'none')}")
@@ -621,7 +626,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                          seeds=args.seeds, normalize=args.normalize, eyebrow_rule=_eyebrow_rule(args),
                          other_head_models={name: name for name in args.also_model},
                          lips=None if args.lips == "none" else args.lips, transcript=args.transcript,
-                         expression=args.expression, mouth=args.mouth, **_analysis_kwargs(args))
+                         expression=args.expression, mouth=args.mouth, mouth_model=args.mouth_model,
+                         **_analysis_kwargs(args))
     written = write_comparison(comparison, args.output, plots=not args.no_plots, video=args.video,
                                exaggerate=args.exaggerate,
                                progress=_frame_progress(f"{args.output}/conditions.mp4") if args.video else None)

@@ -194,6 +194,7 @@ def compare(
     transcript: str | None = None,
     expression: str | Sequence[ExpressionSegment] | None = None,
     mouth: str | os.PathLike[str] | RecordedMouth | None = None,
+    mouth_model: str | os.PathLike[str] | None = None,
 ) -> Comparison:
     """Compute every condition for a recording and compare them.
 
@@ -228,7 +229,7 @@ def compare(
         Analysis settings (see :func:`audio_features.extract_features`).
     features : Features, optional
         Already extracted features of ``audio``.
-    lips, transcript, expression
+    lips, transcript, expression, mouth_model
         The lips and expression given to every condition alike (see :func:`prosody.jobs.pipeline.convert`).
     mouth : path or RecordedMouth, optional
         A video-tracked mouth (``<clip>.mouth.csv``) for the mouth measures; by default the one beside
@@ -261,7 +262,8 @@ def compare(
     stem = Path(str(audio)).stem
     streams: dict[Condition, FapStream] = {}
     # the same lips and expression in every condition: the comparison is about prosody
-    face = make_face(audio, features, lips=lips, transcript=transcript, expression=expression)
+    face = make_face(audio, features, lips=lips, transcript=transcript, expression=expression,
+                     mouth_model=mouth_model)
 
     def make(condition: Condition, run_seed: int, source: Features = features) -> FapStream:
         with warnings.catch_warnings():

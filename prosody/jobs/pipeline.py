@@ -67,6 +67,7 @@ def convert(
     lips: str | None = "visemes",
     transcript: str | None = None,
     expression: str | Sequence[ExpressionSegment] | None = None,
+    mouth_model: str | os.PathLike[str] | None = None,
 ) -> FapStream:
     """Convert a speech recording into the FAP stream of one condition, and write it if ``output`` is given.
 
@@ -107,6 +108,8 @@ def convert(
         What is said (text, or a text file), aligned to the audio for the visemes.
     expression : str or sequence of ExpressionSegment, optional
         ``NAME:INTENSITY`` for the whole recording (``joy:0.6``), a CSV file of timed expressions, or segments.
+    mouth_model : path, optional
+        A mouth model from ``prosody train --kind mouth`` for ``lips="acoustic"`` (default: the shipped one).
 
     Returns
     -------
@@ -124,7 +127,7 @@ def convert(
     stream = condition_stream(chosen, features, seed=seed, model=head_model, ground_truth=truth,
                               eyebrow_rule=eyebrow_rule, perlin=perlin, name=name)
     face = make_face(audio, features, lips=lips, transcript=transcript, expression=expression, gains=gains,
-                     disabled=disabled)
+                     disabled=disabled, mouth_model=mouth_model)
     recorded = None
     if base is not None:
         # the base must be of this recording: the same length within two frames, like recorded motion

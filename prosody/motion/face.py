@@ -47,11 +47,12 @@ def face_layer(audio, n_frames: int, *, fps: float, lips: str | None = "visemes"
 
 def make_face(audio: str | os.PathLike[str], features, *, lips: str | None = "visemes", transcript: str | None = None,
               expression: str | Sequence[ExpressionSegment] | None = None, gains: Mapping[str, float] | None = None,
-              disabled: Iterable[str] = ()) -> FaceLayer | None:
+              disabled: Iterable[str] = (), mouth_model: str | os.PathLike[str] | None = None) -> FaceLayer | None:
     """The lips and expression layer of a recording on its features' grid (None when there is neither).
 
     ``transcript`` is the text or the path of a text file; ``expression`` a ``NAME:INTENSITY``, the path of a
-    timed CSV file, or segments; ``gains["lips"]`` scales the lips and ``"lips"`` in ``disabled`` leaves them out.
+    timed CSV file, or segments; ``gains["lips"]`` scales the lips and ``"lips"`` in ``disabled`` leaves them out;
+    ``mouth_model`` is a file from ``prosody train --kind mouth`` for ``lips="acoustic"``.
     """
     segments = parse_expressions(expression) if isinstance(expression, str) else list(expression or ())
     if "lips" in disabled:
@@ -63,8 +64,13 @@ def make_face(audio: str | os.PathLike[str], features, *, lips: str | None = "vi
 
         with open_input(transcript, text=True, encoding="utf-8-sig", max_bytes=1 << 20) as handle:
             transcript = handle.read()
+    model = None
+    if mouth_model is not None and lips == "acoustic":
+        from .mouth_model import AcousticMouthModel
+
+        model = AcousticMouthModel.load(mouth_model)
     return face_layer(audio, features.n_frames, fps=features.fps, lips=lips, transcript=transcript,
-                      lip_gain=float((gains or {}).get("lips", 1.0)), expressions=segments)
+                      lip_gain=float((gains or {}).get("lips", 1.0)), expressions=segments, mouth_model=model)
 
 
 def stream_mouth(stream: FapStream) -> tuple[np.ndarray, np.ndarray] | None:
