@@ -371,32 +371,44 @@ def mean_of(rows: Sequence[dict], key: str) -> float | None:
     return float(np.mean(values)) if values else None
 
 
+#: Each block of measures: its single values, and the name and keys of its one nested group.
+_HEAD_LAYOUT = (HEAD_MEASURES, "std_ratio", ("48", "49", "50"))
+_BROW_LAYOUT = (BROW_MEASURES, "onsets", ("precision", "recall", "f1"))
+
+
+def _empty_block(layout: tuple) -> dict:
+    values, nested, keys = layout
+    return {**dict.fromkeys(values), nested: dict.fromkeys(keys)}
+
+
+def _average_block(rows: Sequence[dict], layout: tuple) -> dict:
+    """The mean of blocks of measures (None entries left out), in their layout."""
+    values, nested, keys = layout
+    if not rows:
+        return _empty_block(layout)
+    result: dict = {key: mean_of(rows, key) for key in values}
+    result[nested] = {key: mean_of([row[nested] for row in rows], key) for key in keys}
+    return result
+
+
 def empty_head_metrics() -> dict:
     """The head block where it is undefined (no recorded head to compare with)."""
-    return {**dict.fromkeys(HEAD_MEASURES), "std_ratio": dict.fromkeys(("48", "49", "50"))}
+    return _empty_block(_HEAD_LAYOUT)
 
 
 def empty_brow_metrics() -> dict:
     """The brow block where it is undefined (no recorded brows, or a condition without brows)."""
-    return {**dict.fromkeys(BROW_MEASURES), "onsets": dict.fromkeys(("precision", "recall", "f1"))}
+    return _empty_block(_BROW_LAYOUT)
 
 
 def average_head_metrics(rows: Sequence[dict]) -> dict:
     """The mean of :func:`head_metrics` results (None entries left out), in the same layout."""
-    if not rows:
-        return empty_head_metrics()
-    result: dict = {key: mean_of(rows, key) for key in HEAD_MEASURES}
-    result["std_ratio"] = {axis: mean_of([row["std_ratio"] for row in rows], axis) for axis in ("48", "49", "50")}
-    return result
+    return _average_block(rows, _HEAD_LAYOUT)
 
 
 def average_brow_metrics(rows: Sequence[dict]) -> dict:
     """The mean of :func:`brow_metrics` results (None entries left out), in the same layout."""
-    if not rows:
-        return empty_brow_metrics()
-    result: dict = {key: mean_of(rows, key) for key in BROW_MEASURES}
-    result["onsets"] = {key: mean_of([row["onsets"] for row in rows], key) for key in ("precision", "recall", "f1")}
-    return result
+    return _average_block(rows, _BROW_LAYOUT)
 
 
 # the mouth (SPEC section 6: lips) -------------------------------------------------------------------------
@@ -485,15 +497,14 @@ def mouth_metrics(generated_opening_mns: np.ndarray, generated_rounding: np.ndar
             "closures": {"precision": precision, "recall": recall, "f1": f1}}
 
 
+_MOUTH_LAYOUT = (MOUTH_MEASURES, "closures", ("precision", "recall", "f1"))
+
+
 def empty_mouth_metrics() -> dict:
     """The mouth block where it is undefined (no recorded mouth, or a stream without lips)."""
-    return {**dict.fromkeys(MOUTH_MEASURES), "closures": dict.fromkeys(("precision", "recall", "f1"))}
+    return _empty_block(_MOUTH_LAYOUT)
 
 
 def average_mouth_metrics(rows: Sequence[dict]) -> dict:
     """The mean of :func:`mouth_metrics` results (None entries left out), in the same layout."""
-    if not rows:
-        return empty_mouth_metrics()
-    result: dict = {key: mean_of(rows, key) for key in MOUTH_MEASURES}
-    result["closures"] = {key: mean_of([row["closures"] for row in rows], key) for key in ("precision", "recall", "f1")}
-    return result
+    return _average_block(rows, _MOUTH_LAYOUT)
