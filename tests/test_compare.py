@@ -222,7 +222,8 @@ def test_batch_cli_mixes_good_broken_and_paired_files(corpus, tmp_path, capsys) 
     assert truth_pitch["ci95"] == pytest.approx([1.0, 1.0])
     speech = summary["measures"]["SPEECH_DRIVEN"]["head"]["speed_envelope_r"]
     assert speech["ci95"][0] <= speech["mean"] <= speech["ci95"][1]
-    assert set(summary["controls"]) == {"mismatched_audio", "mismatched_audio_brows", "other_recordings"}
+    assert set(summary["controls"]) == {"mismatched_audio", "mismatched_audio_brows", "mismatched_audio_mouth",
+                                        "other_recordings"}
     assert summary["controls"]["other_recordings"]["pitch_r"]["recordings"] == 2
     assert by_file["a.wav"]["other_recordings_control"]["pitch_r"] is not None
     assert by_file["day1/c.flac"]["other_recordings_control"] is None  # no truth to compare with

@@ -262,6 +262,20 @@ def _batch_measures(summary: Mapping) -> list[str]:
                               _interval(brow["onset_f1"], 2)])
         lines += ["", "## Eyebrows over recordings with recorded brows", ""]
         lines += _table(["condition", "raise r", "onset F1"], brow_rows)
+
+    def mouth_row(name: str, block: Mapping) -> list[str]:
+        return [name, _interval(block["opening_r"], 3), _interval(block["closure_f1"], 2),
+                _interval(block["rounding_r"], 3)]
+
+    mouth_rows = [mouth_row(name, block["mouth"]) for name, block in measures.items()
+                  if "mouth" in block and block["mouth"]["opening_r"]["recordings"]]
+    if mouth_rows:
+        control = controls.get("mismatched_audio_mouth")
+        if control and control["opening_r"]["recordings"]:
+            mouth_rows.append(mouth_row("the lips shifted in time (control)", control))
+        lines += ["", "## Lips over recordings with a recorded mouth (`<clip>.mouth.csv`)", "",
+                  "Every condition has the same lips; the control shifts them by 5 s or more.", ""]
+        lines += _table(["condition", "opening r", "closure F1", "rounding r"], mouth_rows)
     return lines
 
 

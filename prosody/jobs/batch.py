@@ -481,6 +481,12 @@ def _brow_summary(blocks: list[dict]) -> dict:
             "onset_f1": _summary_entry([(b.get("onsets") or {}).get("f1") for b in blocks])}
 
 
+def _mouth_summary(blocks: list[dict]) -> dict:
+    return {"opening_r": _summary_entry([b.get("opening_r") for b in blocks]),
+            "closure_f1": _summary_entry([(b.get("closures") or {}).get("f1") for b in blocks]),
+            "rounding_r": _summary_entry([b.get("rounding_r") for b in blocks])}
+
+
 def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions, *,
                              others: int = OTHER_RECORDINGS) -> dict[str, dict]:
     """The cross-recording control: for each recording with recorded head motion, the speech-driven head
@@ -562,13 +568,16 @@ def summarize(outcomes: Iterable[FileOutcome], *, indir: str, outdir: str,
         cca = [v for v in cca if v is not None]
         aggregate[name] = {"faps": faps, "cca_head_vs_ground_truth": float(np.mean(cca)) if cca else None}
         measures[name] = {"head": _measure_summary([m["conditions"][name].get("head") or {} for m in present]),
-                          "brows": _brow_summary([m["conditions"][name].get("brows") or {} for m in present])}
+                          "brows": _brow_summary([m["conditions"][name].get("brows") or {} for m in present]),
+                          "mouth": _mouth_summary([m["conditions"][name].get("mouth") or {} for m in present])}
     controls = {}
     if with_truth and any("controls" in m for m in with_truth):
         controls["mismatched_audio"] = _measure_summary(
             [(m.get("controls") or {}).get("mismatched_audio") or {} for m in with_truth])
         controls["mismatched_audio_brows"] = _brow_summary(
             [(m.get("controls") or {}).get("mismatched_audio_brows") or {} for m in with_truth])
+        controls["mismatched_audio_mouth"] = _mouth_summary(
+            [(m.get("controls") or {}).get("mismatched_audio_mouth") or {} for m in with_truth])
     if cross:
         controls["other_recordings"] = _measure_summary(list(cross.values()))
     counts = {status: sum(o.status == status for o in outcomes) for status in ("done", "skipped", "failed")}
