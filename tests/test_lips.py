@@ -165,6 +165,7 @@ def test_transcript_words_and_a_transcript_that_does_not_fit(tmp_path):
     assert labels[:8] == ["HH", "IY", "T", "ER", "N", "D", "SH", "AA"]
 
 
+@pytest.mark.shared_data
 def test_phones_agree_with_the_labelled_alignment(shared_data):
     # arctic_a0009 comes with a hand-checked phone alignment (HTK label times in 100 ns)
     labelled = []
