@@ -295,6 +295,9 @@ def _check_motion_options(args: argparse.Namespace) -> None:
     if getattr(args, "ground_truth", None) is not None and args.condition != "truth":
         raise ConfigError(f"--ground-truth is the recorded motion of --condition truth; it is not used by "
                           f"--condition {args.condition}")
+    if getattr(args, "model", None) is not None and args.condition in ("none", "random", "truth"):
+        raise ConfigError(f"--model is the head model of --condition speech; it is not used by --condition "
+                          f"{args.condition}")
     off = {name.strip() for value in args.off for name in value.split(",") if name.strip()}
     lips = getattr(args, "lips", getattr(args, "live_lips", "none"))
     channels = {"pitch", "yaw", "roll", "brows"} | ({"lips"} if lips != "none" else set())

@@ -50,6 +50,7 @@ def test_a_reader_that_goes_away_is_not_an_error(tmp_path, speech) -> None:
     (["--ground-truth", "x.head.csv"], "not used by --condition speech"),
     (["--off", "pitch,yaw", "--off", "roll,brows,lips"], "every channel"),
     (["--lips", "acoustic", "--transcript", "hello"], "not used by --lips acoustic"),
+    (["--condition", "random", "--model", "arx"], "not used by --condition random"),
     (["--condition", "random", "--ground-truth", "x.head.csv"], "not used by --condition random"),
 ])
 def test_options_that_would_silently_do_nothing_are_refused(tmp_path, speech, capsys, arguments, message) -> None:

@@ -399,3 +399,14 @@ def test_sigterm_leaves_no_half_written_file(tmp_path) -> None:
     _, err = process.communicate(timeout=60)
     assert process.returncode == 130 and b"interrupted" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["long.wav"]
+
+
+def test_a_second_comparison_leaves_no_file_of_the_first_behind(tmp_path, speech) -> None:
+    out = tmp_path / "out"
+    assert main(["compare", str(speech), "-o", str(out), "--seeds", "1", "--lips", "none"]) == 0
+    assert (out / "features.png").exists() and (out / "head.png").exists()
+    (out / "conditions.mp4").write_bytes(b"an earlier run's video")
+    (out / "notes.txt").write_text("the user's own file")
+    assert main(["compare", str(speech), "-o", str(out), "--seeds", "1", "--no-plots", "--lips", "none"]) == 0
+    assert not (out / "features.png").exists() and not (out / "conditions.mp4").exists()
+    assert (out / "notes.txt").read_text() == "the user's own file" and (out / "metrics.json").exists()

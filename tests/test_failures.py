@@ -449,3 +449,19 @@ def test_model_numbers_beyond_any_fit_and_motion_beyond_a_turn_are_refused(tmp_p
     (tmp_path / "x.head.csv").write_text("frame,time_s,rx_rad,ry_rad,rz_rad\n0,0.0,1e200,0,0\n")
     with pytest.raises(GroundTruthError, match="beyond pi rad"):
         read_head_csv(tmp_path / "x.head.csv")
+
+
+def test_a_byte_order_mark_is_accepted_in_every_text_input(tmp_path) -> None:
+    import json
+
+    from prosody.fap.fapfile import read_fap
+    from prosody.motion.ground_truth import read_head_csv
+    from prosody.motion.head_models import ARX_MODEL_PATH, load_head_model
+
+    bom = b"\xef\xbb\xbf"
+    (tmp_path / "x.head.csv").write_bytes(bom + b"frame,time_s,rx_rad,ry_rad,rz_rad\n0,0.0,0.01,0,0\n1,0.0333,0,0,0\n")
+    assert read_head_csv(tmp_path / "x.head.csv").n_frames == 2
+    (tmp_path / "x.fap").write_bytes(bom + b"2.1 x 30 1\n" + b"0 " * 47 + b"1 " + b"0 " * 19 + b"0\n0 500\n")
+    assert read_fap(tmp_path / "x.fap").stream.curve(48)[0] == 500
+    (tmp_path / "m.json").write_bytes(bom + json.dumps(json.loads(ARX_MODEL_PATH.read_text())).encode())
+    assert load_head_model(tmp_path / "m.json").kind == "arx"

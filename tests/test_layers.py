@@ -89,3 +89,18 @@ def test_the_check_catches_an_upward_import(tmp_path, statement) -> None:
     (tmp_path / "prosody" / "motion" / "rule.py").write_text(f"def f():\n    {statement}\n")
     problems = upward_imports(tmp_path)
     assert len(problems) >= 1 and "prosody.motion.rule" in problems[0]
+
+
+def test_the_public_facade_imports_lazily() -> None:
+    import subprocess
+    import sys
+
+    code = ("import sys, prosody; before = 'prosody.jobs.pipeline' in sys.modules; "
+            "from prosody import convert, compare, LiveConverter, read_fap, write_stream, FapStream; "
+            "print(before, convert.__module__, LiveConverter.__module__, read_fap.__module__)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "prosody.jobs.pipeline", "prosody.jobs.stream", "prosody.fap.fapfile"]
+    import prosody
+
+    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
+        prosody.nothing  # noqa: B018

@@ -6,6 +6,7 @@ its presence marks a complete output folder), the plots and the Markdown report.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import warnings
@@ -372,6 +373,10 @@ def condition_file_name(condition: Condition) -> str:
 
 #: File name of the side-by-side video in a comparison folder.
 VIDEO_FILE = "conditions.mp4"
+#: Files a comparison folder may hold; writing it again removes those the new settings no longer write, so
+#: an earlier run's video or plots never stand beside newer results.
+OUTPUT_NAMES = (*(condition_file_name(c) for c in CONDITION_ORDER), "features.png", "head.png", "report.md",
+                VIDEO_FILE, "metrics.json")
 
 
 def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, plots: bool = True,
@@ -429,5 +434,10 @@ def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, 
         json.dump(payload, handle, indent=1, allow_nan=False)
         handle.write("\n")
     written.append(path)
+    kept = {path.name for path in written}
+    for name in OUTPUT_NAMES:
+        if name not in kept:
+            with contextlib.suppress(FileNotFoundError):
+                (folder / name).unlink()
     return written
 

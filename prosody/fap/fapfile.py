@@ -102,6 +102,8 @@ def _read_lines(path: str | os.PathLike[str], name: str) -> list[str]:
                                          "not a .fap file")
                 if total > MAX_FAP_BYTES:
                     raise FapFormatError(name, None, f"larger than {MAX_FAP_BYTES >> 20} MiB: not a .fap file")
+                if not lines and raw.startswith(b"\xef\xbb\xbf"):
+                    raw = raw[3:]  # a UTF-8 byte-order mark, as some editors write: not part of the header
                 lines.append(raw.decode("latin-1"))
     except FileNotFoundError:
         raise FapFormatError(name, None, "no such file") from None

@@ -145,11 +145,6 @@ def file_digest(path: str | os.PathLike[str] | None) -> str | None:
     return digest.hexdigest()
 
 
-#: Files a comparison folder may hold; a redo removes those the new settings no longer write.
-_OUTPUT_NAMES = ("no_prosody.fap", "random.fap", "speech_driven.fap", "ground_truth.fap", "features.png",
-                 "head.png", "report.md", "conditions.mp4", FEATURES_FILE, "metrics.json")
-
-
 def _settings(options: BatchOptions, ground_truth: Path | None, audio: str) -> dict:
     """What makes an output folder current: the options, the paths, and the content of every input."""
     model = options.model
@@ -212,13 +207,8 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
         folder.mkdir(parents=True, exist_ok=True)
         # the features let the summary drive the generator with this recording's audio against other ones
         comparison.features.write_csv(folder / FEATURES_FILE)
-        written = write_comparison(comparison, folder, plots=options.plots, report=options.plots,
-                                   extra={"settings": settings})
-        kept = {path.name for path in written} | {FEATURES_FILE}
-        for name in _OUTPUT_NAMES:
-            if name not in kept:
-                with contextlib.suppress(FileNotFoundError):
-                    (folder / name).unlink()
+        # write_comparison removes what an earlier run with other settings wrote there and this one does not
+        write_comparison(comparison, folder, plots=options.plots, report=options.plots, extra={"settings": settings})
         outcome.metrics = comparison.metrics
     except (VisualProsodyError, OSError, ValueError) as error:
         outcome.status, outcome.error = "failed", _one_line(error)

@@ -36,7 +36,8 @@ def _csv_rows(path: str | os.PathLike[str], name: str) -> list[list[str]]:
     """All rows of a CSV file; unreadable files and malformed rows (a cell over the csv module's size limit)
     are a GroundTruthError naming the file and line."""
     try:
-        with open_input(path, text=True, newline="", encoding="utf-8", max_bytes=MAX_CSV_BYTES) as handle:
+        # utf-8-sig: a byte-order mark (spreadsheets write one) is not part of the first column's name
+        with open_input(path, text=True, newline="", encoding="utf-8-sig", max_bytes=MAX_CSV_BYTES) as handle:
             reader = csv.reader(handle)
             try:
                 return list(reader)

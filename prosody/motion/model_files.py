@@ -65,7 +65,7 @@ def read_model_json(path: str | os.PathLike[str], *, shipped: tuple[str, ...] = 
     if len(data) > MAX_MODEL_BYTES:
         raise ModelError(f"{name}: larger than {MAX_MODEL_BYTES >> 20} MiB; not a model file")
     try:
-        return json.loads(data.decode("utf-8"))
+        return json.loads(data.decode("utf-8-sig"))  # a byte-order mark, as some editors write, is no error
     except UnicodeDecodeError:
         raise ModelError(f"{name}: not a text (JSON) model file") from None
     except json.JSONDecodeError as error:
