@@ -256,8 +256,9 @@ def test_batch_on_a_local_dask_cluster(corpus, tmp_path) -> None:
     distributed = pytest.importorskip("distributed")
     indir, truth = corpus
     out = tmp_path / "out"
+    # ":0": a free port for the dashboard (None still binds the default 8787, which may be taken)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp",
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address=":0") as cluster:
         code = main(["batch", str(indir), "-o", str(out), "--ground-truth-dir", str(truth),
                      "--scheduler", cluster.scheduler_address])
     assert code == 1
