@@ -343,7 +343,7 @@ def test_close_is_bounded_with_a_stalled_client_and_publish_after_close_is_refus
         time.sleep(0.3)
         started = time.monotonic()
         server.close(drain_s=0.5)
-        assert time.monotonic() - started < 0.5 + 2.5
+        assert time.monotonic() - started < 0.5 + 6.5  # about 1 s; it used to return with the thread alive
         assert server._thread is not None and not server._thread.is_alive()
     with pytest.raises(ServerClosedError):
         server.publish(_frames(0, 1))

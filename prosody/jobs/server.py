@@ -168,9 +168,9 @@ class FrameServer:
     def close(self, *, drain_s: float = 1.0) -> None:
         """Send what is queued (for up to ``drain_s``), close every connection and stop listening.
 
-        Returns when the server's thread has ended: within ``drain_s`` plus :data:`CLOSE_TIMEOUT_S` (and a
-        second's grace), however its clients behave. Later :meth:`publish` calls raise
-        :class:`ServerClosedError`.
+        Returns when the server's thread has ended: about ``drain_s`` plus :data:`CLOSE_TIMEOUT_S`, however its
+        clients behave (at most 5 s more on a loaded machine, after which it says so). Later :meth:`publish`
+        calls raise :class:`ServerClosedError`.
         """
         self._closed = True
         if self._loop is None or self._stop is None or self._thread is None or not self._thread.is_alive():
@@ -185,7 +185,7 @@ class FrameServer:
 
         with contextlib.suppress(RuntimeError):  # the loop has already ended
             asyncio.run_coroutine_threadsafe(drained(), self._loop)
-        self._thread.join(timeout=drain_s + CLOSE_TIMEOUT_S + 1.0)
+        self._thread.join(timeout=drain_s + CLOSE_TIMEOUT_S + 5.0)
         if self._thread.is_alive():
             self.report("the server did not stop in time; its connections are dropped with the process")
 
