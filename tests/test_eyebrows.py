@@ -125,3 +125,21 @@ def test_rule_parameters_are_checked() -> None:
         EyebrowRule(ramp_frames=0)
     with pytest.raises(ConfigError):
         EyebrowRule(threshold_hz=-1)
+
+
+def test_an_octave_jump_of_a_few_frames_raises_no_brow_offline_or_live():
+    # Praat's octave errors on a low voice last up to three frames, 17-20 semitones above the speaker's median
+    # (reagan_clip1 at 21.77 s: 380, 353, 317 Hz on a voice near 118 Hz); a 5-frame median keeps three
+    from prosody.motion.eyebrows import AccentRule, accent_raises
+    from prosody.motion.live import live_brows
+
+    f0 = np.full(90, 118.0)
+    f0[40:43] = (380.0, 353.0, 317.0)
+    features = make_features(f0, np.full(90, 70.0))
+    assert accent_raises(features).events == ()
+    assert accent_raises(features, AccentRule(octave_error_semitones=24)).events != ()  # what it guards against
+    for rule in (AccentRule(), AccentRule(octave_error_semitones=24)):
+        live = live_brows(rule, fps=30.0, lookahead=3)
+        values = [live.push(float(f), 70.0) for f in f0] + live.finish()
+        raised = max(value for value in values if value is not None) > 0
+        assert raised == (rule.octave_error_semitones == 24)

@@ -235,6 +235,10 @@ class AccentRule:
         ... plus this much per semitone by which the accent's peak exceeds it ...
     max_ens : float > 0, in ENS
         ... capped here (the thesis's recorded subjects: inner-brow spreads of 5 to 17 ENS).
+    octave_error_semitones : float in [6, 48], in semitones
+        Pitch more than this above the speaker's median is taken as a tracking error (Praat's octave jumps on
+        a low voice last up to a few frames: 17-20 semitones above the median on recorded speech) and counts
+        as unvoiced.
     """
 
     threshold_semitones: float = 4.0
@@ -246,9 +250,11 @@ class AccentRule:
     base_ens: float = 12.0
     gain_ens_per_semitone: float = 3.0
     max_ens: float = 30.0
+    octave_error_semitones: float = 12.0
 
     def __post_init__(self) -> None:
         checks = (("threshold_semitones", 0.0, 24.0), ("hysteresis_semitones", 0.0, 12.0),
+                  ("octave_error_semitones", 6.0, 48.0),
                   ("loudness_db", -60.0, 0.0), ("min_hold_s", 0.0, 10.0), ("max_hold_s", 0.0, 60.0),
                   ("base_ens", 0.0, 1000.0), ("gain_ens_per_semitone", 0.0, 1000.0), ("max_ens", 1e-9, 1000.0))
         for name, low, high in checks:
@@ -313,6 +319,8 @@ def accent_raises(features: Features, rule: AccentRule | None = None) -> Eyebrow
         return EyebrowRaises(out, (), float("inf"), float("inf"), rule="accent")
     f0 = features.f0.values
     median_hz = float(np.median(f0[voiced]))
+    # octave jumps of a few frames (a 5-frame median keeps three): counted as unvoiced
+    voiced = voiced & ~(12 * np.log2(np.where(voiced, f0, median_hz) / median_hz) > rule.octave_error_semitones)
     semitones = np.full(n, -np.inf)
     voiced_index = np.flatnonzero(voiced)
     # an octave error is one or two frames: a 5-frame median over the voiced frames removes it

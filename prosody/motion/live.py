@@ -151,13 +151,18 @@ class LiveAccentBrows:
             self._start = None
         return values
 
+    def _octave_error(self, f0_hz: float) -> bool:
+        """A pitch too far above the speaker's median so far to be a voice's (as the offline rule judges it)."""
+        median = self._levels.median_f0_hz
+        return median == median and 12 * math.log2(f0_hz / median) > self.rule.octave_error_semitones
+
     def _semitones(self, k: int) -> float:
         """Octave-filtered semitones of voiced frame ``k`` re 1 Hz: a median over voiced neighbours."""
         f0, _ = self._frames.at(k)
         after: list[float] = []
         for j in range(k + 1, self._frames.received):
             f0_after, _ = self._frames.at(j)
-            if not math.isnan(f0_after):
+            if not math.isnan(f0_after) and not self._octave_error(f0_after):
                 after.append(12 * math.log2(f0_after))
                 if len(after) == 2:
                     break
@@ -169,9 +174,9 @@ class LiveAccentBrows:
         k = self._frames.next
         self._frames.next += 1
         f0, energy = self._frames.at(k)
-        voiced = not math.isnan(f0)
-        semitones = -math.inf
         trusted = self._levels.voiced_frames >= MIN_VOICED_FRAMES
+        voiced = not math.isnan(f0) and not (trusted and self._octave_error(f0))
+        semitones = -math.inf
         if voiced:
             semitones = self._semitones(k) - 12 * math.log2(self._levels.median_f0_hz)
             self._voiced_before.append(12 * math.log2(f0))
