@@ -143,3 +143,23 @@ def test_an_octave_jump_of_a_few_frames_raises_no_brow_offline_or_live():
         values = [live.push(float(f), 70.0) for f in f0] + live.finish()
         raised = max(value for value in values if value is not None) > 0
         assert raised == (rule.octave_error_semitones == 24)
+
+
+def test_the_accent_rule_counts_seconds_not_frames():
+    # one accent, at 25, 30 and 60 fps: the same raise in seconds (it once raised 2.8, 3.1 and 3.9 times a file)
+    from prosody.motion.eyebrows import AccentRule, accent_raises
+
+    rule = AccentRule()
+    assert [rule.median_frames_at(fps) for fps in (25, 30, 60)] == [5, 5, 11]
+    assert [rule.ramp_frames_at(fps) for fps in (25, 30, 60)] == [2, 3, 6]
+    spans = []
+    for fps in (25.0, 30.0, 60.0):
+        t = np.arange(int(3 * fps)) / fps
+        f0 = np.where((t >= 1.0) & (t < 1.6), 200.0, 140.0)
+        f0[int(2.2 * fps)] = 200.0  # a one-frame jitter after it: no second raise at any rate
+        raises = accent_raises(make_features(f0, np.full(t.size, 70.0), fps=fps), rule)
+        assert len(raises.events) == 1
+        start, end = raises.events[0]
+        spans.append((start / fps, end / fps))
+    for start_s, end_s in spans:
+        assert start_s == pytest.approx(1.0, abs=0.05) and end_s == pytest.approx(1.6, abs=0.05)

@@ -362,7 +362,7 @@ def test_thesis_rule_stays_available_by_name() -> None:
 
 
 @pytest.mark.parametrize("kwargs", [dict(threshold_semitones=-1), dict(loudness_db=float("nan")),
-                                    dict(min_hold_s=1.0, max_hold_s=0.5), dict(ramp_frames=0),
+                                    dict(min_hold_s=1.0, max_hold_s=0.5), dict(ramp_s=0.0), dict(median_s=2.0),
                                     dict(max_ens=0.0), dict(base_ens=True)])
 def test_accent_rule_refuses_bad_settings(kwargs) -> None:
     with pytest.raises(ConfigError):

@@ -227,8 +227,11 @@ class AccentRule:
         Only frames at least this loud relative to the speaker's median voiced energy can raise.
     min_hold_s, max_hold_s : float, in s
         Shortest and longest raise (0.3 s, as the thesis; 1.2 s).
-    ramp_frames : int >= 1
-        Frames of the rise at the start and of the return to neutral at the end.
+    ramp_s : float in (0, 1], in s
+        Length of the rise at the start and of the return to neutral at the end (0.1 s: 3 frames at 30 fps).
+    median_s : float in (0, 1], in s
+        Span of the running median over voiced frames that removes short octave errors (an odd number of frames
+        nearest to it: 5 at 30 fps, 5 at 25, 11 at 60), so the rule acts the same at any frame rate.
     base_ens : float >= 0, in ENS
         Raise at the threshold...
     gain_ens_per_semitone : float >= 0
@@ -246,7 +249,8 @@ class AccentRule:
     loudness_db: float = -10.0
     min_hold_s: float = 0.3
     max_hold_s: float = 1.2
-    ramp_frames: int = 3
+    ramp_s: float = 0.1
+    median_s: float = 1 / 6
     base_ens: float = 12.0
     gain_ens_per_semitone: float = 3.0
     max_ens: float = 30.0
@@ -254,7 +258,7 @@ class AccentRule:
 
     def __post_init__(self) -> None:
         checks = (("threshold_semitones", 0.0, 24.0), ("hysteresis_semitones", 0.0, 12.0),
-                  ("octave_error_semitones", 6.0, 48.0),
+                  ("octave_error_semitones", 6.0, 48.0), ("ramp_s", 1e-3, 1.0), ("median_s", 1e-3, 1.0),
                   ("loudness_db", -60.0, 0.0), ("min_hold_s", 0.0, 10.0), ("max_hold_s", 0.0, 60.0),
                   ("base_ens", 0.0, 1000.0), ("gain_ens_per_semitone", 0.0, 1000.0), ("max_ens", 1e-9, 1000.0))
         for name, low, high in checks:
@@ -264,8 +268,15 @@ class AccentRule:
                 raise ConfigError(f"{name} must be a number in [{low:g}, {high:g}], got {value!r}")
         if self.max_hold_s < self.min_hold_s:
             raise ConfigError(f"max_hold_s ({self.max_hold_s!r}) must be >= min_hold_s ({self.min_hold_s!r})")
-        if not (isinstance(self.ramp_frames, int) and not isinstance(self.ramp_frames, bool) and self.ramp_frames >= 1):
-            raise ConfigError(f"ramp_frames must be a whole number >= 1, got {self.ramp_frames!r}")
+
+    def ramp_frames_at(self, fps: float) -> int:
+        """Frames of the rise and of the fall at ``fps``."""
+        return max(1, int(round(self.ramp_s * fps)))
+
+    def median_frames_at(self, fps: float) -> int:
+        """Voiced frames in the octave-error median at ``fps`` (odd)."""
+        frames = max(1, int(round(self.median_s * fps)))
+        return frames if frames % 2 else frames + 1
 
 
 def running_median(values: np.ndarray, size: int) -> np.ndarray:
@@ -323,8 +334,9 @@ def accent_raises(features: Features, rule: AccentRule | None = None) -> Eyebrow
     voiced = voiced & ~(12 * np.log2(np.where(voiced, f0, median_hz) / median_hz) > rule.octave_error_semitones)
     semitones = np.full(n, -np.inf)
     voiced_index = np.flatnonzero(voiced)
-    # an octave error is one or two frames: a 5-frame median over the voiced frames removes it
-    semitones[voiced_index] = running_median(12 * np.log2(f0[voiced_index] / median_hz), 5)
+    # an octave error is one or two frames: a median over 1/6 s of voiced frames removes it
+    semitones[voiced_index] = running_median(12 * np.log2(f0[voiced_index] / median_hz),
+                                             rule.median_frames_at(features.fps))
     energy = features.energy.values
     level_db = float(np.median(energy[voiced])) + rule.loudness_db
     accented = voiced & (energy >= level_db) & (semitones >= rule.threshold_semitones)
@@ -345,7 +357,7 @@ def accent_raises(features: Features, rule: AccentRule | None = None) -> Eyebrow
             peak = max(peak, semitones[end])
             end += 1
         height = min(rule.max_ens, rule.base_ens + rule.gain_ens_per_semitone * (peak - rule.threshold_semitones))
-        ramp = rule.ramp_frames
+        ramp = rule.ramp_frames_at(features.fps)
         rise = np.minimum(1.0, (np.arange(end - start) + 1) / ramp)
         out[start:end] = np.maximum(out[start:end], height * rise)
         fall = height * (1 - np.arange(1, ramp + 1) / ramp)[: max(0, n - end)]

@@ -116,9 +116,9 @@ class _Delayed:
 class LiveAccentBrows:
     """The accent rule (:class:`prosody.motion.eyebrows.AccentRule`), causally.
 
-    The octave-error filter is the median of the semitones of the frame and of the two voiced frames before
-    and the two after it, as offline, but only those of the later ones that the look-ahead reaches; the
-    raise's height grows with the accent's peak so far.
+    The octave-error filter is the median of the semitones of the frame and of the voiced frames before and
+    after it (two each at 30 fps), as offline, but only those of the later ones that the look-ahead reaches;
+    the raise's height grows with the accent's peak so far.
     """
 
     def __init__(self, rule: AccentRule | None = None, *, fps: float, lookahead: int) -> None:
@@ -126,7 +126,10 @@ class LiveAccentBrows:
         self.fps = fps
         self._frames = _Delayed(lookahead=lookahead, behind=8)
         self._levels = SpeakerLevels()
-        self._voiced_before: deque[float] = deque(maxlen=2)  # semitones (re 1 Hz) of the last voiced frames
+        self._half_median = self.rule.median_frames_at(fps) // 2
+        self._ramp = self.rule.ramp_frames_at(fps)
+        # semitones (re 1 Hz) of the last voiced frames, for the octave-error median
+        self._voiced_before: deque[float] = deque(maxlen=self._half_median)
         self._shortest = int(round(self.rule.min_hold_s * fps))
         self._longest = max(self._shortest, int(round(self.rule.max_hold_s * fps)))
         self._was_accented = False
@@ -164,7 +167,7 @@ class LiveAccentBrows:
             f0_after, _ = self._frames.at(j)
             if not math.isnan(f0_after) and not self._octave_error(f0_after):
                 after.append(12 * math.log2(f0_after))
-                if len(after) == 2:
+                if len(after) == self._half_median:
                     break
         # five voiced frames as offline, fewer where the look-ahead does not reach the later ones
         return float(np.median([*self._voiced_before, 12 * math.log2(f0), *after]))
@@ -191,7 +194,7 @@ class LiveAccentBrows:
             if held >= self._longest or (held >= self._shortest and not (voiced and semitones >= release_below)):
                 height = self._height()
                 self.events.append((self._start, k))
-                self._falling = [height * (1 - i / rule.ramp_frames) for i in range(1, rule.ramp_frames + 1)]
+                self._falling = [height * (1 - i / self._ramp) for i in range(1, self._ramp + 1)]
                 self._start = None
             else:
                 self._peak = max(self._peak, semitones)
@@ -200,7 +203,7 @@ class LiveAccentBrows:
         self._was_accented = accented
         value = self._falling.pop(0) if self._falling else 0.0
         if self._start is not None:
-            rise = min(1.0, (k - self._start + 1) / rule.ramp_frames)
+            rise = min(1.0, (k - self._start + 1) / self._ramp)
             value = max(value, self._height() * rise)
         return value
 
