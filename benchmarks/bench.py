@@ -34,8 +34,8 @@ _PEAK_SNIPPET = ("import sys; sys.path.insert(0, {folder!r}); from {module} impo
                  "print(int(status.split()[0]), file=sys.stderr); sys.exit(code or 0)")
 
 
-def shared_data() -> Path:
-    return Path(os.environ.get("PROSODY_SHARED_DATA", REPO.parent / "shared" / "data"))
+sys.path.insert(0, str(Path(__file__).parent))
+from shared import shared_data  # noqa: E402
 
 
 def build_speech(path: Path, *, duration_s: float = DURATION_S) -> Path:
@@ -47,7 +47,9 @@ def build_speech(path: Path, *, duration_s: float = DURATION_S) -> Path:
     sources = sorted((shared_data() / "talking-heads").glob("*.wav")) + sorted(
         (shared_data() / "speech").glob("*.wav"))
     if not sources:
-        raise SystemExit(f"no recordings found under {shared_data()} (set PROSODY_SHARED_DATA)")
+        raise SystemExit(f"{shared_data()}: no recordings found. The benchmark needs real speech: the project's "
+                         "shared data folder beside the checkout (../shared/data), or set "
+                         "PROSODY_SHARED_DATA=/path/to/data")
     pieces = []
     for source in sources:
         data, rate = soundfile.read(source, dtype="float64", always_2d=True)

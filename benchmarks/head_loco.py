@@ -33,7 +33,12 @@ from prosody.motion.training import (
     select_prosodic,
 )
 
-DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "talking-heads"
+sys.path.insert(0, str(Path(__file__).parent))
+from shared import data_folder  # noqa: E402
+
+
+def default_data() -> Path:
+    return data_folder("talking-heads", needs="the talking-heads clips (speech with tracked head motion)")
 
 
 def _array(curves: dict) -> np.ndarray:
@@ -63,7 +68,7 @@ def _row(label: str, per_recording: list[dict], control: list[dict] | None = Non
 
 
 def main(argv: list[str]) -> int:
-    directory = Path(argv[0]) if argv else DEFAULT_DATA
+    directory = Path(argv[0]) if argv else default_data()
     warnings.simplefilter("ignore")
     data = load_training_set(find_pairs(directory), report=lambda message: None)
     names, fps = data.names, data.fps

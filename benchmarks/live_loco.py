@@ -25,7 +25,7 @@ from prosody.motion.live_training import held_out_live, load_streamed, nested_he
 from prosody.motion.training import find_pairs
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from head_loco import DEFAULT_DATA, _row  # noqa: E402
+from head_loco import _row, default_data  # noqa: E402
 
 LOOKAHEADS_MS = (0, 100, 200, 300, 500)
 
@@ -49,7 +49,7 @@ def brow_agreement(paths: list[Path], lookahead: int) -> dict[str, tuple[int, in
 
 
 def main(argv: list[str]) -> int:
-    directory = Path(argv[0]) if argv else DEFAULT_DATA
+    directory = Path(argv[0]) if argv else default_data()
     warnings.simplefilter("ignore")
     recordings = load_streamed(find_pairs(directory), report=lambda message: None)
     print(f"{len(recordings)} recordings analysed as streams, leave-one-recording-out, 10 seeds")

@@ -46,7 +46,12 @@ from prosody.motion.lips import (
 )
 from prosody.motion.mouth_model import AcousticMouthModel, mouth_training_clip
 
-DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "talking-heads"
+sys.path.insert(0, str(Path(__file__).parent))
+from shared import data_folder  # noqa: E402
+
+
+def default_data() -> Path:
+    return data_folder("talking-heads", needs="the talking-heads clips (speech with tracked mouths)")
 FPS = 30.0
 
 
@@ -188,4 +193,4 @@ def main(folder: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else DEFAULT_DATA)
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else default_data())

@@ -22,7 +22,7 @@ from prosody.motion.mouth_model import (
 )
 
 sys.path.insert(0, str(Path(__file__).parent))
-from mouth_loco import DEFAULT_DATA, speaker_of  # noqa: E402
+from mouth_loco import default_data, speaker_of  # noqa: E402
 
 
 def main(folder: Path, write: bool) -> None:
@@ -53,4 +53,4 @@ def main(folder: Path, write: bool) -> None:
 
 if __name__ == "__main__":
     arguments = [a for a in sys.argv[1:] if a != "--write"]
-    main(Path(arguments[0]) if arguments else DEFAULT_DATA, "--write" in sys.argv)
+    main(Path(arguments[0]) if arguments else default_data(), "--write" in sys.argv)

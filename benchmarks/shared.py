@@ -1,0 +1,22 @@
+"""Where the benchmarks find the recordings they need: ``../shared/data`` beside the checkout, or the folder
+``PROSODY_SHARED_DATA`` names (the same as the tests)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def shared_data() -> Path:
+    return Path(os.environ.get("PROSODY_SHARED_DATA", REPO.parent / "shared" / "data"))
+
+
+def data_folder(name: str, *, needs: str) -> Path:
+    """``<shared data>/<name>``, or exit with one line saying what is missing and how to point at it."""
+    folder = shared_data() / name
+    if not folder.is_dir():
+        raise SystemExit(f"{folder}: not found. This benchmark needs {needs}: the project's shared data folder "
+                         "beside the checkout (../shared/data), or set PROSODY_SHARED_DATA=/path/to/data")
+    return folder
