@@ -397,3 +397,15 @@ def test_irregularities_are_a_warning_category_and_strict_refuses_them(tmp_path,
     assert main(["inspect", str(path)]) == 0
     err = capsys.readouterr().err
     assert err.count("comment lines") == 1 and err.count("warning:") == 2  # each irregularity said once
+
+
+def test_inspect_and_reports_speak_degrees_and_fap_units(tmp_path) -> None:
+    from prosody.fap.inspect import inspect_summary
+
+    stream = FapStream.from_curves({31: np.array([0.0, 24.0]), 48: np.array([0.0, 17453.3]),
+                                    3: np.array([0.0, 300.0])}, fps=30)
+    write_fap(stream, tmp_path / "x.fap")
+    summary = inspect_summary(read_fap(tmp_path / "x.fap"))
+    words = " ".join(summary.split())
+    assert "+24 ENS" in words and "+10 deg" in words  # 17453 AU = 0.1745 rad = 10 degrees
+    assert "+300 MNS" in words and "ENS0" not in summary

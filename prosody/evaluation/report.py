@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
@@ -27,7 +28,16 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
 
 
 def _unit(fap: int) -> str:
-    return "AU" if BY_NUMBER[fap].fapu == "AU" else BY_NUMBER[fap].fapu
+    """How a FAP's values are shown: angles in degrees, the rest in their FAP unit (ENS for the brows)."""
+    return "deg" if BY_NUMBER[fap].fapu == "AU" else BY_NUMBER[fap].fapu
+
+
+def _shown(fap: int, value: float | None) -> float | None:
+    """A FAP-unit value in the unit of :func:`_unit`, without a negative zero."""
+    if value is None:
+        return None
+    shown = math.degrees(value * 1e-5) if BY_NUMBER[fap].fapu == "AU" else value
+    return shown + 0.0 if round(shown, 2) != 0 else 0.0
 
 
 def _brow_rule_line(metrics: Mapping) -> str:
@@ -64,7 +74,7 @@ def comparison_markdown(comparison: Comparison, *, figures: Mapping[str, str] | 
     lines += _mouth_section(metrics)
     lines += [
         "",
-        "## Motion statistics (mean ± standard deviation, FAP units)",
+        "## Motion statistics (mean ± standard deviation; head angles in degrees, brows in ENS)",
         "",
     ]
     header = ["condition", *(f"{fap} {BY_NUMBER[fap].name} ({_unit(fap)})" for fap in PROSODY_FAPS)]
@@ -73,22 +83,24 @@ def comparison_markdown(comparison: Comparison, *, figures: Mapping[str, str] | 
         cells = [name]
         for fap in PROSODY_FAPS:
             entry = stats[str(fap)]
-            digits = 0 if _unit(fap) == "AU" else 1
-            cells.append("–" if entry["mean"] is None else
-                         f"{_number(entry['mean'], digits)} ± {_number(entry['std'], digits)}")
+            digits = 2 if _unit(fap) == "deg" else 1
+            mean, spread = _shown(fap, entry["mean"]), _shown(fap, entry["std"])
+            cells.append("–" if mean is None else f"{_number(mean, digits)} ± {_number(spread, digits)}")
         rows.append(cells)
     lines += _table(header, rows)
     if comparison.ground_truth is not None:
         lines += ["", "## Agreement with the ground truth", "",
-                  "Pearson r (and RMSE in FAP units) of each condition against the recorded motion; "
+                  "Pearson r (and RMSE: degrees for the head, ENS for the brows) of each condition against the "
+                  "recorded motion; "
                   "– where undefined (a still curve, or a FAP the recording lacks).", ""]
         rows = []
         for name, stats in conditions.items():
             cells = [name]
             for fap in PROSODY_FAPS:
                 entry = stats[str(fap)]
+                digits = 2 if _unit(fap) == "deg" else 1
                 cells.append("–" if entry["rmse"] is None else
-                             f"{_number(entry['pearson_r'], 3)} ({_number(entry['rmse'])})")
+                             f"{_number(entry['pearson_r'], 3)} ({_number(_shown(fap, entry['rmse']), digits)})")
             rows.append(cells)
         lines += _table(header, rows)
     lines += ["", "## Canonical correlation (first canonical r)", "",

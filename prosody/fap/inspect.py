@@ -30,23 +30,23 @@ def inspect_json(fap: FapFile) -> dict:
 
 
 def inspect_summary(fap: FapFile) -> str:
-    """A few lines for a person: duration, active FAPs by name, and their ranges in physical units."""
+    """A few lines for a person: duration, active FAPs by name, and their ranges: head and eye angles in
+    degrees, the rest in their FAP units (ENS, MNS, MW, IRISD, ES: 1/1024 of the face's reference distance),
+    the units everything else in the project speaks."""
     stream = fap.stream
     lines = [
         f"{fap.path}: MPEG-4 FAP {fap.version or '(no header)'}, name {stream.name!r}",
         f"  {stream.n_frames} frames at {stream.fps:g} fps = {stream.duration_s:.2f} s",
         f"  {len(stream.active_faps)} active FAPs",
     ]
-    physical = stream.to_physical()
     for number in stream.active_faps:
         info = BY_NUMBER[number]
-        column = physical[:, number - 1]
-        active = column[~np.isnan(column)]
+        active = stream.values[stream.mask[:, number - 1], number - 1]
         share = active.size / max(1, stream.n_frames)
         if info.fapu == "AU":
-            low, high, unit = np.degrees(active.min()), np.degrees(active.max()), "deg"
+            low, high, unit = np.degrees(active.min() * 1e-5), np.degrees(active.max() * 1e-5), "deg"
         else:
-            low, high, unit = active.min(), active.max(), info.physical_unit
+            low, high, unit = active.min(), active.max(), info.fapu
         lines.append(f"  {number:>2} {info.name:<24} {low:+10.4g} .. {high:+10.4g} {unit:<6} "
                      f"(active in {share:.0%} of frames)")
     return "\n".join(lines)
