@@ -404,7 +404,8 @@ def _cmd_preview(args: argparse.Namespace) -> int:
             raise ConfigError(f"--strip-scale takes BROW_ENS,HEAD_DEG (e.g. 30,10), got {args.strip_scale!r}") from None
         scales = (brow_ens, math.radians(head_deg) * 1e5)
     write_preview(stream, args.output, audio=audio, width=args.width, exaggerate=args.exaggerate,
-                  start_s=args.start, duration_s=args.duration, progress=_frame_progress(args.output), scales=scales)
+                  brow_scale=args.brow_scale, start_s=args.start, duration_s=args.duration,
+                  progress=_frame_progress(args.output), scales=scales)
     sound = " with sound" if audio is not None and Path(args.output).suffix.lower() == ".mp4" else ""
     print(f"{args.output}: preview of {stream.name} ({stream.duration_s:.2f} s){sound}", file=sys.stderr)
     return EXIT_OK
@@ -779,8 +780,10 @@ def build_parser() -> argparse.ArgumentParser:
     preview.add_argument("--width", type=int, default=480, metavar="PX",
                          help="frame width in pixels (default 480; the height is 5/4 of it)")
     preview.add_argument("--exaggerate", type=_exaggeration, default=1.0, metavar="X",
-                         help="draw head angles and brow raises X times larger (default 1: true scale; "
-                              "the thesis-sized brow raises are a few pixels at true scale)")
+                         help="draw head angles and brow raises X times larger (default 1: true scale)")
+    preview.add_argument("--brow-scale", type=_exaggeration, default=4.0, metavar="X",
+                         help="draw the brow raises X times larger again (default 4, said on every frame: a brow "
+                              "raise of speech is under a millimetre, invisible at true scale; 1: true size)")
     preview.add_argument("--start", type=_seconds, default=0.0, metavar="S", help="first second shown (default 0)")
     preview.add_argument("--strip-scale", default=None, metavar="BROW_ENS,HEAD_DEG",
                          help="full scale of the curve strip: brow raise in ENS and head angle in degrees (default: "

@@ -46,8 +46,8 @@ def _brows(frame: np.ndarray, renderer: FaceRenderer) -> tuple[np.ndarray, np.nd
     return left, right
 
 
-def _frames(curves: dict[int, np.ndarray]) -> list[np.ndarray]:
-    return list(render_frames(FapStream.from_curves(curves, fps=30), width=WIDTH, strip=False))
+def _frames(curves: dict[int, np.ndarray], *, brow_scale: float = 1.0) -> list[np.ndarray]:
+    return list(render_frames(FapStream.from_curves(curves, fps=30), width=WIDTH, strip=False, brow_scale=brow_scale))
 
 
 def test_brow_height_follows_fap_31_to_36_at_true_scale() -> None:
@@ -67,7 +67,7 @@ def test_fap_31_raises_the_inner_end_of_the_characters_left_brow_only() -> None:
     width = 640
     renderer = FaceRenderer(width)
     frames = list(render_frames(FapStream.from_curves({31: np.array([0.0, 800.0]), 32: np.zeros(2)}, fps=30),
-                                width=width, strip=False))
+                                width=width, strip=False, brow_scale=1))
     rise_px = 800 / 1024 * renderer.ens_pixels
     inner_x, middle_x, outer_x = renderer.brow_points(FacePose())["left"][:, 0]
     neutral_left, neutral_right = _brows(frames[0], renderer)
@@ -259,3 +259,17 @@ def test_previews_to_be_compared_can_share_the_strip_scale(tmp_path: Path) -> No
     assert main(["preview", str(tmp_path / "small.fap"), "-o", str(tmp_path / "y.gif"), "--strip-scale", "a"]) == 2
     assert main(["preview", str(tmp_path / "small.fap"), "-o", str(tmp_path / "y.gif"), "--strip-scale", "0,5"]) == 2
     assert not (tmp_path / "y.gif").exists()
+
+
+def test_brows_are_drawn_four_times_larger_by_default_and_every_frame_says_so() -> None:
+    raises = np.array([0.0, 100.0])
+    renderer = FaceRenderer(WIDTH)
+    true_size = _frames({fap: raises for fap in (31, 32, 33, 34)})
+    default = list(render_frames(FapStream.from_curves({fap: raises for fap in (31, 32, 33, 34)}, fps=30),
+                                 width=WIDTH, strip=False))
+    rise = [_centroid(_brows(f[0], renderer)[0])[1] - _centroid(_brows(f[1], renderer)[0])[1]
+            for f in (true_size, default)]
+    assert rise[1] == pytest.approx(4 * rise[0], rel=0.1)
+    from prosody.evaluation.preview import BROW_VIEW_SCALE, poses
+
+    assert BROW_VIEW_SCALE == 4 and poses(FapStream.from_curves({31: raises}, fps=30))[1].left_brow_ens[0] == 400

@@ -5,7 +5,9 @@ the top of the neck, with eyes, nose, mouth and three points per eyebrow on its 
 are applied in FAP units at true scale (SPEC section 1): FAP 48-50 rotate the head (R = Rz(roll) Ry(yaw)
 Rx(pitch), the signs of the .fap conventions: + pitch bows down, + yaw turns to the character's left, + roll
 tilts to its right), and FAP 31-36 raise the inner, middle and outer brow points by ``value / 1024`` of the
-model's eye-nose separation (ENS0). ``exaggerate`` multiplies both for viewing; the caption says so.
+model's eye-nose separation (ENS0). ``exaggerate`` multiplies both for viewing; the caption says so. The brows
+are drawn :data:`BROW_VIEW_SCALE` times larger than true by default (a 20 ENS raise is well under a millimetre
+on a face: invisible at true scale), which every frame's caption says; ``brow_scale=1`` draws them true.
 
 A strip under the face plots the brow and head curves over a window around the current frame.
 
@@ -116,7 +118,11 @@ def rotation(pitch_rad: float, yaw_rad: float, roll_rad: float) -> np.ndarray:
     return rz @ ry @ rx
 
 
-def poses(stream: FapStream, *, exaggerate: float = 1.0) -> list[FacePose]:
+#: How much larger than true the brows are drawn by default (said on every frame).
+BROW_VIEW_SCALE = 4.0
+
+
+def poses(stream: FapStream, *, exaggerate: float = 1.0, brow_scale: float = BROW_VIEW_SCALE) -> list[FacePose]:
     """One pose per frame of ``stream``; FAPs masked off count as 0 (neutral)."""
 
     def curve(fap: int, fallback: int | None = None) -> np.ndarray:
@@ -126,8 +132,8 @@ def poses(stream: FapStream, *, exaggerate: float = 1.0) -> list[FacePose]:
 
     head = [curve(fap) * RADIANS_PER_AU for fap in (48, 49, 50)]
     # outer brows follow the middle ones when a stream has no FAP 35/36, as in the Live Link export
-    left = [curve(31), curve(33), curve(35, fallback=33)]
-    right = [curve(32), curve(34), curve(36, fallback=34)]
+    left = [brow_scale * curve(31), brow_scale * curve(33), brow_scale * curve(35, fallback=33)]
+    right = [brow_scale * curve(32), brow_scale * curve(34), brow_scale * curve(36, fallback=34)]
     # the lips at their true size: an exaggerated mouth is no longer a mouth
     lips = {fap: stream.curve(fap) for fap in DRAWN_LIP_FAPS if stream.mask[:, fap - 1].any()}
     return [FacePose(float(head[0][k]), float(head[1][k]), float(head[2][k]),
@@ -362,6 +368,7 @@ def strip_scales(streams: list[FapStream]) -> tuple[float, float]:
 
 
 def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.0,
+                  brow_scale: float = BROW_VIEW_SCALE,
                   first_frame: int = 0, n_frames: int | None = None, strip: bool = True,
                   label: str | None = None, scales: tuple[float, float] | None = None) -> Iterator[np.ndarray]:
     """Frames of the preview of ``stream``, one RGB array (height, width, 3) uint8 per stream frame.
@@ -374,6 +381,8 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
         Frame width in pixels (height = 5/4 of it, even).
     exaggerate : float > 0
         Multiplies head angles and brow raises as drawn (1 = true scale).
+    brow_scale : float > 0
+        Draws the brow raises this much larger again (default :data:`BROW_VIEW_SCALE`; 1: true size).
     first_frame, n_frames : int
         The excerpt to draw (default: the whole stream).
     strip : bool
@@ -392,12 +401,15 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
     """
     if not exaggerate > 0:
         raise ConfigError(f"exaggerate must be a positive number, got {exaggerate!r}")
+    if not (math.isfinite(brow_scale) and brow_scale > 0):
+        raise ConfigError(f"brow_scale must be a positive number, got {brow_scale!r}")
     renderer = FaceRenderer(width)
     curves = CurveStrip(stream, width=renderer.width, height=renderer.height - renderer.face_height, scales=scales)
     last = stream.n_frames if n_frames is None else min(stream.n_frames, first_frame + n_frames)
     excerpt = FapStream(stream.values[first_frame:last], stream.mask[first_frame:last], stream.fps, stream.name)
-    note = f"  x{exaggerate:g}" if exaggerate != 1 else ""
-    for offset, pose in enumerate(poses(excerpt, exaggerate=exaggerate)):
+    note = (f"  x{exaggerate:g}" if exaggerate != 1 else "") + (
+        f"  brows x{exaggerate * brow_scale:g}" if brow_scale != 1 and stream.mask[:, 30:36].any() else "")
+    for offset, pose in enumerate(poses(excerpt, exaggerate=exaggerate, brow_scale=brow_scale)):
         frame = first_frame + offset
         caption = f"{label or stream.name}  {frame / stream.fps:7.2f} s{note}"
         yield renderer.render(pose, strip=curves.render(frame) if strip else None, caption=caption)
@@ -478,7 +490,7 @@ def _reporting(frames: Iterator[np.ndarray], progress: Callable[[int, int], None
 def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: str | os.PathLike[str] | None = None,
                   width: int = 480, exaggerate: float = 1.0, start_s: float = 0.0, duration_s: float | None = None,
                   ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None,
-                  scales: tuple[float, float] | None = None) -> Path:
+                  scales: tuple[float, float] | None = None, brow_scale: float = BROW_VIEW_SCALE) -> Path:
     """Write the drawn-face preview of ``stream`` to ``output`` (``.mp4`` or ``.gif``).
 
     Parameters
@@ -493,6 +505,8 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
         Frame width in pixels.
     exaggerate : float > 0
         Multiplies the drawn motion (1 = true scale).
+    brow_scale : float > 0
+        Draws the brow raises this much larger again (default 4, said on every frame; 1: true size).
     start_s, duration_s : float >= 0
         The excerpt to show, in seconds (default: all of it).
     ffmpeg : str or None
@@ -510,13 +524,15 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
     if scales is not None and not all(math.isfinite(v) and v > 0 for v in scales):
         raise ConfigError(f"strip scales must be positive numbers, got {scales!r}")
     return _write_video([(None, stream)], output, audio=audio, width=width, exaggerate=exaggerate,
-                        start_s=start_s, duration_s=duration_s, ffmpeg=ffmpeg, progress=progress, scales=scales)
+                        brow_scale=brow_scale, start_s=start_s, duration_s=duration_s, ffmpeg=ffmpeg,
+                        progress=progress, scales=scales)
 
 
 def write_side_by_side(streams: Mapping[str, FapStream], output: str | os.PathLike[str], *,
                        audio: str | os.PathLike[str] | None = None, panel_width: int = 320,
                        exaggerate: float = 1.0, start_s: float = 0.0, duration_s: float | None = None,
-                       ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None) -> Path:
+                       ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None,
+                       brow_scale: float = BROW_VIEW_SCALE) -> Path:
     """One video of several streams side by side, each face labelled with its name, with the recording's
     audio: the stimulus of a paired-comparison study, and the quickest way to judge the motion by eye.
 
@@ -526,11 +542,13 @@ def write_side_by_side(streams: Mapping[str, FapStream], output: str | os.PathLi
     if not streams:
         raise ConfigError("no stream to draw")
     return _write_video(list(streams.items()), output, audio=audio, width=panel_width, exaggerate=exaggerate,
-                        start_s=start_s, duration_s=duration_s, ffmpeg=ffmpeg, progress=progress, scales=None)
+                        brow_scale=brow_scale, start_s=start_s, duration_s=duration_s, ffmpeg=ffmpeg,
+                        progress=progress, scales=None)
 
 
 def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.PathLike[str], *,
-                 audio: str | os.PathLike[str] | None, width: int, exaggerate: float, start_s: float,
+                 audio: str | os.PathLike[str] | None, width: int, exaggerate: float, brow_scale: float,
+                 start_s: float,
                  duration_s: float | None, ffmpeg: str | None, progress: Callable[[int, int], None] | None,
                  scales: tuple[float, float] | None) -> Path:
     """The panels (label, stream) side by side as one .mp4 or .gif; the strips share ``scales`` (default:
@@ -549,8 +567,8 @@ def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.Pa
         raise ConfigError(f"start {start_s:g} s is past the end of the stream ({n / fps:.2f} s)")
     count = n - first if duration_s is None else min(n - first, max(1, round(duration_s * fps)))
     shared = scales if scales is not None else strip_scales([s for _, s in panels])
-    drawn = [render_frames(s, width=width, exaggerate=exaggerate, first_frame=first, n_frames=count, label=label,
-                           scales=shared) for label, s in panels]
+    drawn = [render_frames(s, width=width, exaggerate=exaggerate, brow_scale=brow_scale, first_frame=first,
+                           n_frames=count, label=label, scales=shared) for label, s in panels]
     frames: Iterator[np.ndarray] = drawn[0] if len(drawn) == 1 else (np.hstack(row) for row in zip(*drawn,
                                                                                                   strict=True))
     if progress is not None:
