@@ -37,6 +37,19 @@ sys.path.insert(0, str(Path(__file__).parent))
 from shared import data_folder  # noqa: E402
 
 
+def _shipped_arx_orders() -> dict:
+    import json
+
+    from prosody.motion.head import DEFAULT_MODEL_PATH
+
+    shipped = json.loads(Path(DEFAULT_MODEL_PATH).read_text())
+    return {**shipped["orders"], "ridge": float(shipped["ridge"])}
+
+
+#: The orders and ridge of the shipped ARX model (chosen by `prosody train --kind arx --cv`).
+SHIPPED_ARX = _shipped_arx_orders()
+
+
 def default_data() -> Path:
     return data_folder("talking-heads", needs="the talking-heads clips (speech with tracked head motion)")
 
@@ -98,14 +111,15 @@ def main(argv: list[str]) -> int:
     arx_rows, arx_control = [], []
     for held in range(len(names)):
         keep = [i for i in range(len(names)) if i != held]
-        model = ArxHeadModel().fit([data.features[i] for i in keep], [data.motion_au[i] for i in keep])
+        model = ArxHeadModel(**SHIPPED_ARX).fit([data.features[i] for i in keep], [data.motion_au[i] for i in keep])
         recorded = data.motion_au[held]
         arx_rows.append(head_metrics(model.simulate_arrays(data.inputs[held]), recorded, fps=fps))
         shifted = [head_metrics(model.simulate_arrays(arx_inputs(shifted_features(data.features[held], k))),
                                 recorded, fps=fps)
                    for k in shift_offsets(data.features[held].n_frames, fps=fps)]
         arx_control.append(average_head_metrics(shifted))
-    print(_row("thesis ARX (na=1, nb=5, nk=0)", arx_rows, arx_control))
+    print(_row("thesis ARX (na={na}, nb={nb}, nk={nk}, ridge {ridge:g}: the shipped orders)".format(**SHIPPED_ARX),
+               arx_rows, arx_control))
     perlin = []
     for recorded in data.motion_au:
         runs = [head_metrics(_array(perlin_curves(recorded.shape[0], fps=fps, seed=seed)), recorded, fps=fps)

@@ -190,3 +190,31 @@ def test_diagnostics_of_a_simulated_system_poles_and_white_residuals(rng) -> Non
     small = [p for axis in diagnostics(drifting, TrainingSet(["a", "b", "c"], inputs, smooth))["ljung_box_p"].values()
              for p in axis.values()]
     assert max(small) < 0.01
+
+
+@pytest.mark.shared_data
+@pytest.mark.parametrize("kind, shipped", [("prosodic", "default_head.json"), ("arx", "default_arx.json"),
+                                           ("mouth", "mouth_acoustic.json")])
+def test_train_reproduces_the_shipped_model(shared_data, tmp_path, kind, shipped) -> None:
+    # the shipped files are what `prosody train` writes from ../shared/data/talking-heads, to the last digit
+    import json
+
+    from conftest import REPO
+
+    from prosody.cli import main
+
+    out = tmp_path / "model.json"
+    argv = ["train", "--data", str(shared_data / "talking-heads"), "-o", str(out), "--kind", kind]
+    assert main(argv + ([] if kind == "mouth" else ["--cv"])) == 0
+    made = json.loads(out.read_text())
+    ship = json.loads((REPO / "prosody" / "motion" / "models" / shipped).read_text())
+    assert set(made) == set(ship)
+    for key, value in ship.items():
+        if key in ("diagnostics", "cross_validation", "training"):
+            continue  # statistics and the record of the clips, compared loosely below
+        if isinstance(value, list) and value and not isinstance(value[0], str):
+            np.testing.assert_allclose(np.array(made[key], dtype=float), np.array(value, dtype=float),
+                                       rtol=1e-9, atol=1e-12, err_msg=key)
+        else:
+            assert made[key] == value, key
+    assert len(made["training"]) == len(ship["training"]) == 7
