@@ -63,6 +63,18 @@ class PcmFormat:
         return RAW_FORMATS[self.encoding][0] * self.channels
 
 
+def _container_of(head: bytes) -> str | None:
+    """The name of a compressed or other container from its first bytes, if it is a known one."""
+    if head[:3] == b"ID3" or (len(head) > 1 and head[0] == 0xFF and head[1] & 0xE0 == 0xE0):
+        return "MP3"
+    for magic, name in ((b"fLaC", "FLAC"), (b"OggS", "Ogg"), (b"FORM", "AIFF"), (b".snd", "AU"), (b"caff", "CAF")):
+        if head.startswith(magic):
+            return name
+    if head[4:8] == b"ftyp":
+        return "MP4/M4A"
+    return None
+
+
 class PcmDecoder:
     """Bytes in any piece sizes -> mono float samples (full scale +-1); a sample split between two pieces
     waits for the rest.
@@ -135,8 +147,12 @@ def read_wav_header(read: Callable[[int], bytes], *, source: str = "<stream>") -
 
     riff = exactly(12, "RIFF header")
     if riff[:4] not in (b"RIFF", b"RF64") or riff[8:12] != b"WAVE":
-        raise AudioLoadError(f"{source}: not a WAV stream (it starts with {riff[:4]!r}, expected b'RIFF'); give "
-                             "raw samples with --raw-rate HZ")
+        known = _container_of(riff)
+        if known:
+            raise AudioLoadError(f"{source}: {known} is read from a file, not from a stream: give the file itself, "
+                                 "or pipe WAV or raw samples (e.g. ffmpeg -i IN -f wav -)")
+        raise AudioLoadError(f"{source}: not a WAV stream (it starts with {riff[:4]!r}); pipe WAV, or raw samples "
+                             "with --raw-rate HZ")
     pcm: PcmFormat | None = None
     while True:
         chunk_id, size = struct.unpack("<4sI", exactly(8, "chunk header"))

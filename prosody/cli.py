@@ -1011,6 +1011,7 @@ _FLAGS = (
     ("start_s= and duration_s=", "--start and --duration"),
     ("fps=25 or 30, or FapStream.resampled", "--fps 25 or 30"),
     ("scheduler=", "--scheduler"),
+    ("(give fps=", "(give --fps "),
     ("f0_floor_hz", "--f0-floor"),
     ("f0_ceiling_hz", "--f0-ceiling"),
 )

@@ -465,3 +465,37 @@ def test_a_byte_order_mark_is_accepted_in_every_text_input(tmp_path) -> None:
     assert read_fap(tmp_path / "x.fap").stream.curve(48)[0] == 500
     (tmp_path / "m.json").write_bytes(bom + json.dumps(json.loads(ARX_MODEL_PATH.read_text())).encode())
     assert load_head_model(tmp_path / "m.json").kind == "arx"
+
+
+def test_asymmetries_between_what_is_written_and_what_is_read(tmp_path, capsys) -> None:
+    import subprocess
+    import sys
+
+    from prosody.errors import FapWriteError
+    from prosody.fap.fapfile import read_fap, write_fap
+    from prosody.fap.stream import FapStream
+
+    with pytest.raises(FapWriteError, match="outside 1-1000 fps"):
+        write_fap(FapStream.from_curves({48: np.zeros(3)}, fps=5000), tmp_path / "fast.fap")
+    # a 25 fps base with outer brows: resampled with a warning, and its outer brows left out beside ours
+    wav = tmp_path / "speech.wav"
+    soundfile.write(wav, harmonic_tone(150, 2.0, 16000), 16000)
+    write_fap(FapStream.from_curves({35: np.full(50, 80.0), 36: np.full(50, 80.0), 3: np.full(50, 100.0)}, fps=25),
+              tmp_path / "base.fap")
+    assert main(["convert", str(wav), "-o", str(tmp_path / "out.fap"), "--base", str(tmp_path / "base.fap"),
+                 "--lips", "none"]) == 0
+    assert "resampled to 30 fps (give --fps 25" in capsys.readouterr().err
+    out = read_fap(tmp_path / "out.fap").stream
+    assert 3 in out.active_faps and not {35, 36} & set(out.active_faps)
+    # a live model where an offline one is read, and the other way round
+    from conftest import REPO
+
+    models = REPO / "prosody" / "motion" / "models"
+    live_model = str(models / "live_head_100ms.json")
+    assert main(["convert", str(wav), "-o", str(tmp_path / "x.fap"), "--model", live_model]) == 1
+    assert "is for 'prosody stream'" in capsys.readouterr().err
+    # compressed audio piped to stream is told to give the file
+    mp3 = b"ID3\x04\x00\x00\x00\x00\x00\x00" + bytes(200)
+    result = subprocess.run([sys.executable, "-m", "prosody", "stream", "-", "-o", "-"], input=mp3,
+                            capture_output=True, timeout=120)
+    assert result.returncode == 1 and b"MP3 is read from a file" in result.stderr

@@ -185,7 +185,8 @@ def test_a_real_wav_file_read_as_a_stream_matches_soundfile(tmp_path):
 
 
 @pytest.mark.parametrize("data, message", [
-    (b"OggS" + b"\x00" * 20, "not a WAV stream"),
+    (b"OggS" + b"\x00" * 20, "Ogg is read from a file, not from a stream"),
+    (b"JUNK" + b"\x00" * 20, "not a WAV stream"),
     (b"RIFF\x00\x00\x00\x00WAVEfmt ", "ended inside the WAV header"),
     (b"RIFF\xff\xff\xff\xffWAVEdata\x00\x00\x00\x00", "before its format"),
 ])

@@ -289,6 +289,9 @@ def _header_name(name: str) -> str:
 
 def _fap_lines(stream: FapStream, *, name: str | None = None) -> Iterator[str]:
     """The lines of :func:`format_fap`, each with its newline, produced one frame at a time."""
+    if not FPS_RANGE[0] <= stream.fps <= FPS_RANGE[1]:
+        raise FapWriteError(f"frame rate {stream.fps!r} is outside {FPS_RANGE[0]:g}-{FPS_RANGE[1]:g} fps, the rates a "
+                            ".fap reader accepts (this one's included)")
     if stream.fps != int(stream.fps):
         raise FapWriteError(
             f"frame rate {stream.fps!r} is not an integer: the .fap header carries integer fps; write at an "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
@@ -11,6 +12,7 @@ from audio_features import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_F
 from ..errors import ConfigError
 from ..fap.fapfile import read_fap
 from ..fap.stream import FapStream
+from ..fap.table import EYEBROW_FAPS
 from ..motion.conditions import Condition, condition_stream
 from ..motion.expressions import ExpressionSegment
 from ..motion.eyebrows import BrowRule
@@ -22,6 +24,10 @@ from ..motion.perlin import PerlinSettings
 
 #: Channels of the intensity controls and the FAPs each one drives.
 CHANNELS = {"pitch": (48,), "yaw": (49,), "roll": (50,), "brows": (31, 32, 33, 34), "lips": LIP_FAPS}
+
+
+class BaseResampledWarning(UserWarning):
+    """A ``base`` .fap at another frame rate than the output was resampled to it."""
 
 
 def apply_controls(stream: FapStream, *, gains: Mapping[str, float] | None = None,
@@ -131,7 +137,14 @@ def convert(
     recorded = None
     if base is not None:
         # the base must be of this recording: the same length within two frames, like recorded motion
-        recorded = fit_to_grid(read_fap(base).stream, n_frames=stream.n_frames, fps=stream.fps, source=str(base))
+        original = read_fap(base).stream
+        if original.fps != stream.fps:
+            warnings.warn(f"{base}: the base is at {original.fps:g} fps and is resampled to {stream.fps:g} fps (give "
+                          f"fps={original.fps:g} to keep its rate)", BaseResampledWarning, stacklevel=2)
+        recorded = fit_to_grid(original, n_frames=stream.n_frames, fps=stream.fps, source=str(base))
+        if set(EYEBROW_FAPS) & set(stream.active_faps):
+            # the brows are the condition's: the base's outer brows (35, 36) would not match its inner ones
+            recorded = recorded.without([35, 36])
         if face is not None:
             # the base's own lips (a recording's) are kept: generated lips fill only what it lacks
             face = FaceLayer({fap: curve for fap, curve in face.curves.items() if fap not in recorded.active_faps})

@@ -206,6 +206,12 @@ def read_prosodic_model(cls, payload: object, *, source: str, kind: str, unsuppo
     if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
         raise fail(f"not a {MODEL_FORMAT} model file (no \"format\": \"{MODEL_FORMAT}\")")
     if payload.get("version") != MODEL_VERSION or payload.get("kind") != kind:
+        if payload.get("kind") == "prosodic-live" and kind != "prosodic-live":
+            raise fail("a live head model (kind 'prosodic-live') is for 'prosody stream'; convert, compare and "
+                       "preview take a model from 'prosody train' without --kind live")
+        if payload.get("kind") == "prosodic" and kind == "prosodic-live":
+            raise fail("an offline head model (kind 'prosodic') is for convert, compare and preview; 'prosody "
+                       "stream' takes a model from 'prosody train --kind live'")
         raise fail(f"model version {payload.get('version')!r} of kind {payload.get('kind')!r} {unsupported}")
     try:
         settings = payload["settings"]
