@@ -385,6 +385,10 @@ def _cmd_preview(args: argparse.Namespace) -> int:
         from .fap.fapfile import read_fap
 
         stream = read_fap(args.input).stream
+    elif Path(args.input).suffix.lower() in (".json", ".jsonl"):
+        from .fap.exporters import read_stream_json
+
+        stream = read_stream_json(args.input)
     else:
         from .jobs.pipeline import convert
 
@@ -766,10 +770,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     preview = commands.add_parser(
         "preview", help="draw the motion on a simple face, as an MP4 (with the audio) or a GIF",
-        description="Animate a drawn face from one condition's stream (as 'prosody convert' makes it) or from "
-                    "a .fap file: the head outline turns and tilts (FAP 48-50), the brows rise (FAP 31-36), at "
-                    "true scale unless --exaggerate; a strip below plots the brow and head curves around the "
-                    "current frame. .mp4 (H.264, with the recording's audio) needs ffmpeg on PATH or the "
+        description="Animate a drawn face from one condition's stream (as 'prosody convert' makes it), from "
+                    "a .fap file, or from this package's .json or stream .jsonl output: the head outline turns and "
+                    "tilts (FAP 48-50), the brows rise (FAP 31-36, drawn 4 times larger unless --brow-scale 1), "
+                    "the lips part and round (FAP 3-7, 12-13), the head and lips at true scale unless "
+                    "--exaggerate; a strip below plots the brow and head curves around the current frame. .mp4 (H.264, with the recording's audio) needs ffmpeg on PATH or the "
                     "imageio-ffmpeg package; .gif (no sound, at most 1 minute at 30 fps) always works.",
     )
     preview.add_argument("input", help="speech recording, or a .fap file to show as it is")

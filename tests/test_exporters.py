@@ -153,3 +153,21 @@ def test_livelink_mouth_and_face_blendshapes(tmp_path) -> None:
     assert value[0]["MouthPucker"] == 1 and value[0]["MouthFunnel"] == 0  # rounded, lips closed
     assert value[1]["MouthFunnel"] == pytest.approx(1) and value[1]["MouthPucker"] == pytest.approx(0)
     assert value[2]["EyeBlinkLeft"] == 1 and value[1]["MouthClose"] == 0
+
+
+def test_json_and_json_lines_are_read_back_for_preview(tmp_path, stream) -> None:
+    from prosody.errors import FapFormatError
+    from prosody.fap.exporters import read_stream_json
+
+    write_stream(stream, tmp_path / "x.json")
+    back = read_stream_json(tmp_path / "x.json")
+    assert back.fps == stream.fps and back.n_frames == stream.n_frames
+    for fap in stream.active_faps:
+        np.testing.assert_allclose(back.curve(fap), stream.curve(fap))
+    lines = [json.dumps({"frame": k, "time_s": k / 30, "faps": {"48": 10.0 * k, "3": 5.0}}) for k in range(6)]
+    (tmp_path / "x.jsonl").write_text("\n".join(lines) + "\n")
+    live = read_stream_json(tmp_path / "x.jsonl")
+    assert live.fps == 30 and live.n_frames == 6 and live.curve(48).tolist() == [0, 10, 20, 30, 40, 50]
+    (tmp_path / "bad.jsonl").write_text('{"frame": 0}\n')
+    with pytest.raises(FapFormatError, match="not a stream this package wrote"):
+        read_stream_json(tmp_path / "bad.jsonl")

@@ -120,6 +120,51 @@ def write_json(stream: FapStream, path: str | os.PathLike[str]) -> None:
         handle.write("\n")
 
 
+#: Largest JSON or JSON-lines stream read back (a 2-hour stream with lips is about 300 MB as JSON).
+MAX_JSON_BYTES = 1 << 30
+
+
+def read_stream_json(path: str | os.PathLike[str]) -> FapStream:
+    """Read back a stream this package wrote: the ``json`` export, or the JSON lines of ``prosody stream``
+    (``{"frame", "time_s", "faps": {"<n>": value}}`` per line, frame rate from the times).
+
+    Raises
+    ------
+    FapFormatError
+        Not such a file (the message names the file and, for JSON lines, the line).
+    """
+    from audio_features.inputs import open_input
+
+    from ..errors import FapFormatError
+
+    name = str(path)
+    try:
+        with open_input(path, text=True, encoding="utf-8-sig", max_bytes=MAX_JSON_BYTES) as handle:
+            text = handle.read()
+    except (OSError, UnicodeDecodeError) as error:
+        raise FapFormatError(name, None, f"cannot be read ({getattr(error, 'strerror', None) or error})") from None
+    try:
+        if name.lower().endswith(".jsonl"):
+            rows = [json.loads(line) for line in text.splitlines() if line.strip()]
+            if not rows:
+                raise ValueError("no frames")
+            times = np.array([float(row["time_s"]) for row in rows])
+            fps = round(1 / float(np.median(np.diff(times))), 3) if len(rows) > 1 else 30.0
+            faps = sorted({int(fap) for row in rows for fap in row["faps"]})
+            curves = {fap: np.array([float(row["faps"].get(str(fap), 0.0)) for row in rows]) for fap in faps}
+            return FapStream.from_curves(curves, fps=fps, name=Path(name).stem, n_frames=len(rows))
+        payload = json.loads(text)
+        if payload.get("format") != "visual-prosody-faps":
+            raise ValueError("not a visual-prosody-faps JSON file")
+        n = int(payload["frames"])
+        curves = {int(entry["fap"]): np.array([0.0 if v is None else float(v) for v in entry["values"]])
+                  for entry in payload["faps"]}
+        return FapStream.from_curves(curves, fps=float(payload["fps"]), name=str(payload.get("name", "")),
+                                     n_frames=n)
+    except (ValueError, KeyError, TypeError, AttributeError, RecursionError, ConfigError) as error:
+        raise FapFormatError(name, None, f"not a stream this package wrote ({error})") from None
+
+
 def _degrees(stream: FapStream, fap: int) -> np.ndarray:
     return np.degrees(stream.curve(fap) * RADIANS_PER_AU)
 
