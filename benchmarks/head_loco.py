@@ -7,6 +7,7 @@ recordings of the control's figure) and each speech-driven row's control beside 
 - prosodic: the default generator (10 seeds), and the same driven by the recording's own audio shifted
   by 5 s or more (the mismatched-audio control);
 - arx: the thesis's model with the shipped orders, and its control;
+- seed 000's PAD-driven gestures and their random baseline (nothing fitted; 10 seeds), with their control;
 - Perlin noise (20 seeds), a still head, and another recording's real motion (trimmed or tiled).
 
 Usage: python benchmarks/head_loco.py [DIR]  (default ../shared/data/talking-heads)
@@ -23,6 +24,7 @@ import numpy as np
 from prosody.measures import average_head_metrics, head_metrics
 from prosody.motion.controls import shift_offsets, shifted_features
 from prosody.motion.head import ArxHeadModel, arx_inputs
+from prosody.motion.pad_head import PadHeadModel
 from prosody.motion.perlin import perlin_curves
 from prosody.motion.speech_head import ProsodicHeadModel
 from prosody.motion.training import (
@@ -120,6 +122,17 @@ def main(argv: list[str]) -> int:
         arx_control.append(average_head_metrics(shifted))
     print(_row("thesis ARX (na={na}, nb={nb}, nk={nk}, ridge {ridge:g}: the shipped orders)".format(**SHIPPED_ARX),
                arx_rows, arx_control))
+    # seed 000's gestures have nothing fitted: every clip is held out by construction
+    for label, model in (("seed 000's PAD gestures (pad), 10 seeds", PadHeadModel()),
+                         ("seed 000's random baseline (pad-random), 10 seeds", PadHeadModel(randomized=True))):
+        rows, controls = [], []
+        for features, recorded in zip(data.features, data.motion_au, strict=True):
+            rows.append(average_head_metrics([head_metrics(_array(model.generate(features, seed=seed)), recorded,
+                                                           fps=fps) for seed in range(10)]))
+            controls.append(average_head_metrics([
+                head_metrics(_array(model.generate(shifted_features(features, k), seed=seed)), recorded, fps=fps)
+                for seed in range(10) for k in shift_offsets(features.n_frames, fps=fps)]))
+        print(_row(label, rows, controls))
     perlin = []
     for recorded in data.motion_au:
         runs = [head_metrics(_array(perlin_curves(recorded.shape[0], fps=fps, seed=seed)), recorded, fps=fps)

@@ -112,7 +112,8 @@ def _add_generator_options(parser: argparse.ArgumentParser, *, live: bool = Fals
     else:
         parser.add_argument("--model", default=None, metavar="NAME|FILE",
                             help="head model for the speech-driven condition: 'prosodic' (the default: motion of "
-                                 "a person's size timed by the speech), 'arx' (the thesis's linear model), or a "
+                                 "a person's size timed by the speech), 'arx' (the thesis's linear model), 'pad' "
+                                 "(seed 000's nod per prosodic word), 'pad-random' (its random baseline), or a "
                                  "file from 'prosody train'")
     parser.add_argument("--seed", type=_seed, default=0,
                         help="seed of the random condition and of the speech-driven head's motion (a whole "
@@ -774,10 +775,11 @@ def build_parser() -> argparse.ArgumentParser:
                     "a .fap file, or from this package's .json or stream .jsonl output: the head outline turns and "
                     "tilts (FAP 48-50), the brows rise (FAP 31-36, drawn 4 times larger unless --brow-scale 1), "
                     "the lips part and round (FAP 3-7, 12-13), the head and lips at true scale unless "
-                    "--exaggerate; a strip below plots the brow and head curves around the current frame. .mp4 (H.264, with the recording's audio) needs ffmpeg on PATH or the "
-                    "imageio-ffmpeg package; .gif (no sound, at most 1 minute at 30 fps) always works.",
+                    "--exaggerate; a strip below plots the brow and head curves around the current frame. .mp4 "
+                    "(H.264, with the recording's audio) needs ffmpeg on PATH or the imageio-ffmpeg package; .gif "
+                    "(no sound, at most 1 minute at 30 fps) always works.",
     )
-    preview.add_argument("input", help="speech recording, or a .fap file to show as it is")
+    preview.add_argument("input", help="speech recording, or a .fap, .json or .jsonl stream to show as it is")
     preview.add_argument("-o", "--output", required=True, metavar="OUT.mp4|OUT.gif", help="video to write")
     preview.add_argument("--audio", default=None, metavar="FILE",
                          help="sound for the MP4 when INPUT is a .fap file (default: INPUT itself if audio)")

@@ -19,17 +19,21 @@ from .head import DEFAULT_MODEL_PATH as ARX_MODEL_PATH
 from .head import MODEL_FORMAT as ARX_FORMAT
 from .head import ArxHeadModel
 from .model_files import read_model_json
+from .pad_head import MODEL_FORMAT as PAD_FORMAT
+from .pad_head import PadHeadModel
 from .speech_head import MODEL_FORMAT as PROSODIC_FORMAT
 from .speech_head import ProsodicHeadModel
 
-HeadModel = Union[ArxHeadModel, ProsodicHeadModel]  # noqa: UP007 - a runtime alias on Python 3.10
+HeadModel = Union[ArxHeadModel, ProsodicHeadModel, PadHeadModel]  # noqa: UP007 - a runtime alias on Python 3.10
+#: Models made from their settings, by name: seed 000's PAD-driven gestures and its random baseline.
+NAMED_MODELS = {"pad": lambda: PadHeadModel(), "pad-random": lambda: PadHeadModel(randomized=True)}
 PROSODIC_MODEL_PATH = Path(__file__).with_name("models") / "default_head.json"
 #: Shipped models by name: ``prosodic`` (the default) and ``arx`` (the thesis's model).
 SHIPPED_MODELS = {"prosodic": PROSODIC_MODEL_PATH, "arx": ARX_MODEL_PATH}
 
 
 def load_head_model(source: str | os.PathLike[str]) -> HeadModel:
-    """A head model from a shipped name (``prosodic``, ``arx``) or a model file of either kind.
+    """A head model from a name (``prosodic``, ``arx``, ``pad``, ``pad-random``) or a model file of any kind.
 
     Raises
     ------
@@ -37,15 +41,19 @@ def load_head_model(source: str | os.PathLike[str]) -> HeadModel:
         The file is missing, unreadable, too large, not JSON, or not a model this release reads.
     """
     text_source = os.fspath(source)
+    if isinstance(text_source, str) and text_source in NAMED_MODELS:
+        return NAMED_MODELS[text_source]()
     if isinstance(text_source, str) and text_source in SHIPPED_MODELS:
         source = SHIPPED_MODELS[text_source]
     name = str(source)
-    payload = read_model_json(source, shipped=tuple(SHIPPED_MODELS))
+    payload = read_model_json(source, shipped=(*SHIPPED_MODELS, *NAMED_MODELS))
     kind = payload.get("format") if isinstance(payload, dict) else None
     if kind == PROSODIC_FORMAT:
         return ProsodicHeadModel.from_dict(payload, source=name)
     if kind == ARX_FORMAT:
         return ArxHeadModel.from_dict(payload, source=name)
+    if kind == PAD_FORMAT:
+        return PadHeadModel.from_dict(payload, source=name)
     raise ModelError(f"{name}: not a head model file (its \"format\" must be {PROSODIC_FORMAT!r} or "
                      f"{ARX_FORMAT!r})")
 
@@ -61,7 +69,7 @@ def resolve_head_model(model: HeadModel | str | os.PathLike[str] | None) -> Head
     """A model object from what a caller passed: None (the default), a name, a path or a model."""
     if model is None:
         return default_head_model()
-    if isinstance(model, (ArxHeadModel, ProsodicHeadModel)):
+    if isinstance(model, (ArxHeadModel, ProsodicHeadModel, PadHeadModel)):
         return model
     return load_head_model(model)
 
@@ -77,4 +85,4 @@ def rest_pose(model: HeadModel) -> dict[int, float]:
 
 def is_stochastic(model: HeadModel) -> bool:
     """Whether the model's motion depends on the seed (summaries then average over several seeds)."""
-    return isinstance(model, ProsodicHeadModel)
+    return isinstance(model, (ProsodicHeadModel, PadHeadModel))

@@ -1,0 +1,88 @@
+"""Seed 000's PAD-driven head gestures: Eq. 1, 2 and 13 and the peak rule (doctests), and on real speech."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import make_features
+
+from prosody.errors import ConfigError
+from prosody.motion.head_models import load_head_model
+from prosody.motion.pad_head import (
+    AU_PER_DEGREE,
+    TABLE3_AMPLITUDE_DEG,
+    PadHeadModel,
+    amplitude,
+    pad_from_questionnaire,
+    prosodic_words,
+    smooth_boundaries,
+)
+
+
+def test_eq2_with_the_default_coefficients_gives_table3_at_neutral_settings():
+    for axis, mean in enumerate(TABLE3_AMPLITUDE_DEG):
+        coefficients = PadHeadModel().coefficients_[axis]
+        assert amplitude(0, 0.5, coefficients) == pytest.approx(mean)
+        assert amplitude(0, -0.5, coefficients) == 0  # silence: no gesture
+        assert amplitude(0, 0, coefficients) < amplitude(0, 0.5, coefficients) < amplitude(0, 1, coefficients)
+
+
+def test_boundary_smoothing_keeps_a_constant_and_ramps_a_step_over_five_frames():
+    np.testing.assert_array_equal(smooth_boundaries(np.full(40, 3.0), [10, 25], window=6), 3.0)
+    ramp = smooth_boundaries(np.r_[np.zeros(20), np.ones(20)], [20], window=6)
+    between = np.flatnonzero((ramp > 1e-9) & (ramp < 1 - 1e-9))
+    assert between.size == 5 and np.all(np.diff(ramp[between]) > 0)
+
+
+def test_the_questionnaire_is_checked():
+    assert pad_from_questionnaire([0] * 12) == (0.0, 0.0, 0.0)
+    with pytest.raises(ConfigError, match="twelve answers"):
+        pad_from_questionnaire([5] * 12)
+
+
+def test_prosodic_words_a_peak_on_the_accent_and_a_still_head_in_silence():
+    # 1 s of silence, then 1.2 s of speech-like syllables (energy peaks) with an accent, then silence
+    fps, n = 30.0, 120
+    energy = np.full(n, 30.0)
+    f0 = np.full(n, np.nan)
+    for k in range(30, 66):
+        energy[k] = 70 + 8 * np.cos(2 * np.pi * (k - 30) / 9)  # a syllable every 0.3 s
+        f0[k] = 130.0
+    f0[45:50] = 200.0  # the accent
+    features = make_features(np.nan_to_num(f0, nan=0.0), energy, fps=fps)
+    voiced = ~np.isnan(f0)
+    features = type(features)(f0=type(features.f0)(np.where(voiced, f0, np.nan), fps, "Hz", "f0", voiced),
+                              f0_conditioned=features.f0_conditioned, energy=features.energy,
+                              duration_s=features.duration_s, source="<synthetic>")
+    words = prosodic_words(features)
+    assert words and all(30 <= w.start and w.end <= 66 for w in words)
+    accented = [w for w in words if w.start <= 47 < w.end]
+    assert accented and abs(accented[0].peak - 48) <= 3 and accented[0].arousal == 1.0
+    head = PadHeadModel().generate(features, seed=0)
+    pitch = head[48] / AU_PER_DEGREE
+    assert np.all(pitch[:24] == 0) and np.all(pitch[75:] == 0)  # silence: still
+    assert pitch[30:66].max() > 3  # a nod of Table 3's size on the accent
+
+
+@pytest.mark.shared_data
+def test_on_real_speech_amplitude_rises_with_arousal_and_is_of_table3_size(shared_data):
+    from audio_features import extract_features
+
+    features = extract_features(shared_data / "talking-heads" / "Obama_clip1.wav")
+    words = prosodic_words(features)
+    assert len(words) > 10 and {w.arousal for w in words} == {0.0, 0.5, 1.0}
+    head = PadHeadModel().generate(features, seed=3)
+    pitch = head[48] / AU_PER_DEGREE
+    by_arousal = {a: np.mean([np.ptp(pitch[w.start + 3:w.end - 3]) for w in words if w.arousal == a
+                              and w.end - w.start > 12]) for a in (0.0, 0.5, 1.0)}
+    assert by_arousal[0.0] < by_arousal[0.5] < by_arousal[1.0]
+    assert by_arousal[0.5] == pytest.approx(TABLE3_AMPLITUDE_DEG[0], rel=0.25)
+    again = PadHeadModel().generate(features, seed=3)
+    np.testing.assert_array_equal(head[48], again[48])  # seeded
+    assert not np.array_equal(head[48], PadHeadModel(randomized=True).generate(features, seed=3)[48])
+
+
+def test_pad_is_a_named_head_model():
+    assert load_head_model("pad").kind == "pad" and load_head_model("pad-random").randomized
+    with pytest.raises(ConfigError):
+        PadHeadModel(pleasure=2)
