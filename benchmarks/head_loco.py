@@ -36,7 +36,7 @@ from prosody.motion.training import (
 )
 
 sys.path.insert(0, str(Path(__file__).parent))
-from shared import data_folder  # noqa: E402
+from shared import talking_heads as default_data  # noqa: E402
 
 
 def _shipped_arx_orders() -> dict:
@@ -50,10 +50,6 @@ def _shipped_arx_orders() -> dict:
 
 #: The orders and ridge of the shipped ARX model (chosen by `prosody train --kind arx --cv`).
 SHIPPED_ARX = _shipped_arx_orders()
-
-
-def default_data() -> Path:
-    return data_folder("talking-heads", needs="the talking-heads clips (speech with tracked head motion)")
 
 
 def _array(curves: dict) -> np.ndarray:

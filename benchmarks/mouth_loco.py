@@ -47,11 +47,8 @@ from prosody.motion.lips import (
 from prosody.motion.mouth_model import AcousticMouthModel, mouth_training_clip
 
 sys.path.insert(0, str(Path(__file__).parent))
-from shared import data_folder  # noqa: E402
+from shared import talking_heads as default_data  # noqa: E402
 
-
-def default_data() -> Path:
-    return data_folder("talking-heads", needs="the talking-heads clips (speech with tracked mouths)")
 FPS = 30.0
 
 

@@ -13,6 +13,11 @@ def shared_data() -> Path:
     return Path(os.environ.get("PROSODY_SHARED_DATA", REPO.parent / "shared" / "data"))
 
 
+def talking_heads() -> Path:
+    """The talking-heads clips (speech with tracked head, brows and mouths), or exit saying they are missing."""
+    return data_folder("talking-heads", needs="the talking-heads clips (speech with tracked head, brows and mouths)")
+
+
 def data_folder(name: str, *, needs: str) -> Path:
     """``<shared data>/<name>``, or exit with one line saying what is missing and how to point at it."""
     folder = shared_data() / name
