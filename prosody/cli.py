@@ -255,8 +255,8 @@ def _cmd_features(args: argparse.Namespace) -> int:
 
     features = extract_features(args.input, **_analysis_kwargs(args))
     features.write_csv(args.output)
-    print(f"{args.output}: {features.n_frames} frames at {features.fps:g} fps "
-          f"({features.duration_s:.2f} s, {int(features.f0.voiced.sum())} voiced)", file=sys.stderr)
+    _say(f"{args.output}: {features.n_frames} frames at {features.fps:g} fps "
+          f"({features.duration_s:.2f} s, {int(features.f0.voiced.sum())} voiced)")
     return EXIT_OK
 
 
@@ -338,8 +338,30 @@ def _cmd_convert(args: argparse.Namespace) -> int:
     written = args.format or ""
     if written == "bvh" or (not written and args.output.lower().endswith(".bvh")):
         faps = "48 49 50 (BVH holds the head only)"
-    print(f"{args.output}: {stream.n_frames} frames at {stream.fps:g} fps, FAPs {faps}", file=sys.stderr)
+    _say(f"{args.output}: {stream.n_frames} frames at {stream.fps:g} fps, FAPs {faps}")
     return EXIT_OK
+
+
+class _Messages:
+    """Where the command's own lines go: ``text`` (lines on stderr), ``quiet`` (errors only) or ``json`` (one
+    JSON object per line on stderr: ``{"event": "info"|"warning"|"error"|"progress", ...}``, for programs
+    that drive the command, as Rhubarb Lip Sync's --machineReadable)."""
+
+    mode = "text"
+
+    def emit(self, event: str, line: str, **fields: object) -> None:
+        if self.mode == "json":
+            print(json.dumps({"event": event, "message": line, **fields}), file=sys.stderr, flush=True)
+        elif self.mode == "text" or event == "error":
+            print(line, file=sys.stderr, flush=True)
+
+
+_MESSAGES = _Messages()
+
+
+def _say(line: str) -> None:
+    """An informative line (a result, a server event): not shown with --quiet."""
+    _MESSAGES.emit("info", line)
 
 
 class _ProgressBar:
@@ -349,10 +371,18 @@ class _ProgressBar:
     def __init__(self, description: str, unit: str) -> None:
         self.description, self.unit = description, unit
         self.bar: Any = None  # a tqdm bar once the first report arrives
-        self.enabled = sys.stderr.isatty() and not os.environ.get("CI")
+        self.json = _MESSAGES.mode == "json"
+        self.enabled = self.json or (_MESSAGES.mode == "text" and sys.stderr.isatty() and not os.environ.get("CI"))
+        self._last_percent = -1
 
     def __call__(self, done: int, total: int) -> None:
         if not self.enabled:
+            return
+        if self.json:
+            percent = int(100 * done / total) if total else 100
+            if percent != self._last_percent:  # at most a hundred lines, whatever the length
+                self._last_percent = percent
+                _MESSAGES.emit("progress", f"{self.description}: {done}/{total} {self.unit}", done=done, total=total)
             return
         if self.bar is None:
             from tqdm import tqdm
@@ -366,7 +396,7 @@ class _ProgressBar:
         if self.bar is not None and not self.bar.disable:
             self.bar.write(line, file=sys.stderr)
         else:
-            print(line, file=sys.stderr)
+            _say(line)
 
 
 def _frame_progress(output: str, verb: str = "drawn") -> Callable[[int, int], None] | None:
@@ -412,7 +442,7 @@ def _cmd_preview(args: argparse.Namespace) -> int:
                   brow_scale=args.brow_scale, start_s=args.start, duration_s=args.duration,
                   progress=_frame_progress(args.output), scales=scales)
     sound = " with sound" if audio is not None and Path(args.output).suffix.lower() == ".mp4" else ""
-    print(f"{args.output}: preview of {stream.name} ({stream.duration_s:.2f} s){sound}", file=sys.stderr)
+    _say(f"{args.output}: preview of {stream.name} ({stream.duration_s:.2f} s){sound}")
     return EXIT_OK
 
 
@@ -471,10 +501,9 @@ def _cmd_stream(args: argparse.Namespace) -> int:
 
         host, port = parse_address(args.listen)
         server = FrameServer(host, port, make_converter=make_converter, allow_origins=args.allow_origin,
-                             report=lambda line: print(f"prosody stream: {line}", file=sys.stderr, flush=True))
+                             report=lambda line: _say(f"prosody stream: {line}"))
         server.start()
-        print(f"prosody stream: serving the face at {server.url} (frames over a WebSocket on the same address)",
-              file=sys.stderr, flush=True)
+        _say(f"prosody stream: serving the face at {server.url} (frames over a WebSocket on the same address)")
 
     if not reading:
         try:
@@ -485,7 +514,7 @@ def _cmd_stream(args: argparse.Namespace) -> int:
         finally:
             assert server is not None
             server.close()
-        print(f"prosody stream: stopped after serving {server.clients_served} client(s)", file=sys.stderr)
+        _say(f"prosody stream: stopped after serving {server.clients_served} client(s)")
         return EXIT_OK
 
     to_stdout = args.output == "-"
@@ -525,8 +554,8 @@ def _cmd_stream(args: argparse.Namespace) -> int:
             write_stream(recorder.stream(fps=converter.fps, name=name), args.output, args.format)
     where = "standard output" if to_stdout else (args.output or "the clients")
     ended = "stopped by Ctrl-C or SIGTERM, the last frames flushed" if interrupted else "end of input"
-    print(f"prosody stream: {where}: {count} frames at {converter.fps:g} fps ({ended}; look-ahead "
-          f"{converter.lookahead_frames / converter.fps * 1000:.0f} ms)", file=sys.stderr)
+    _say(f"prosody stream: {where}: {count} frames at {converter.fps:g} fps ({ended}; look-ahead "
+          f"{converter.lookahead_frames / converter.fps * 1000:.0f} ms)")
     return EXIT_OK
 
 
@@ -601,7 +630,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         if given:
             raise ConfigError(f"{', '.join(given)} do(es) not apply to the mouth model (its held-out figures come "
                               "from benchmarks/mouth_loco.py)")
-        train_mouth(args.data, args.output, fps=args.fps, report=lambda line: print(line, file=sys.stderr))
+        train_mouth(args.data, args.output, fps=args.fps, report=_say)
         return EXIT_OK
     if args.kind == "live":
         from .motion.live_training import train_live
@@ -610,7 +639,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         if given:
             raise ConfigError(f"{', '.join(given)} set(s) the ARX model's orders: add --kind arx")
         train_live(args.data, args.output, lookahead_ms=100.0 if args.lookahead_ms is None else args.lookahead_ms,
-                   cv=args.cv, fps=args.fps, report=lambda line: print(line, file=sys.stderr))
+                   cv=args.cv, fps=args.fps, report=_say)
         return EXIT_OK
     if args.kind != "arx":
         given = [f"--{name}" for name, value in orders.items() if value is not None]
@@ -620,7 +649,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
     orders = {name: ARX_DEFAULTS[name] if value is None else value for name, value in orders.items()}
     train(args.data, args.output, kind=args.kind, cv=args.cv, fps=args.fps,
-          report=lambda line: print(line, file=sys.stderr), **orders)
+          report=_say, **orders)
     return EXIT_OK
 
 
@@ -647,7 +676,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         line += (f"; SPEECH_DRIVEN speed-envelope r {head['speed_envelope_r']:+.2f} "
                  f"(mismatched audio {control['speed_envelope_r'] or 0:+.2f}), pitch r {head['pitch_r'] or 0:+.2f} "
                  f"(mismatched audio {control['pitch_r'] or 0:+.2f})")
-    print(line, file=sys.stderr)
+    _say(line)
     return EXIT_OK
 
 
@@ -676,8 +705,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     summary = run_batch(args.input, args.output, ground_truth_dir=args.ground_truth_dir, options=options,
                         jobs=args.jobs, scheduler=args.scheduler, force=args.force, on_outcome=on_outcome)
     counts = summary["counts"]
-    print(f"{args.output}: {counts['files']} file(s), {counts['done']} processed, {counts['skipped']} already "
-          f"complete, {counts['failed']} failed; summary in summary.md and summary.json", file=sys.stderr)
+    _say(f"{args.output}: {counts['files']} file(s), {counts['done']} processed, {counts['skipped']} already "
+          f"complete, {counts['failed']} failed; summary in summary.md and summary.json")
     return EXIT_FAILURE if counts["failed"] else EXIT_OK
 
 
@@ -686,7 +715,7 @@ def _cmd_study_plan(args: argparse.Namespace) -> int:
 
     rows = plan_study(args.stimuli.split(","), seed=args.seed)
     write_plan(rows, args.output)
-    print(f"{args.output}: {len(rows)} presentations", file=sys.stderr)
+    _say(f"{args.output}: {len(rows)} presentations")
     return EXIT_OK
 
 
@@ -698,7 +727,7 @@ def _cmd_study_analyze(args: argparse.Namespace) -> int:
     ballots = read_ballots(args.input)
     notes = missing_pairs(ballots)
     for note in notes:
-        print(f"prosody study analyze: warning: {args.input}: {note}", file=sys.stderr)
+        _MESSAGES.emit("warning", f"prosody study analyze: warning: {args.input}: {note}")
     results = analyze_ballots(ballots)
     with atomic_write(args.output, newline="\n") as handle:
         json.dump(results, handle, indent=1, allow_nan=False)
@@ -706,7 +735,7 @@ def _cmd_study_analyze(args: argparse.Namespace) -> int:
     if args.report:
         with atomic_write(args.report, newline="\n") as handle:
             handle.write(study_markdown(ballots, results, notes=notes))
-    print(f"{args.output}: {len(ballots)} ballots, {len(results['scores'])} stimulus/stimuli", file=sys.stderr)
+    _say(f"{args.output}: {len(ballots)} ballots, {len(results['scores'])} stimulus/stimuli")
     return EXIT_OK
 
 
@@ -1005,7 +1034,24 @@ def build_parser() -> argparse.ArgumentParser:
     inspect.add_argument("--json", action="store_true",
                          help='print {"version", "name", "fps", "frames", "faps": {"<n>": [value or null, ...]}}')
     inspect.set_defaults(handler=_cmd_inspect)
+    _add_message_options(parser)
     return parser
+
+
+def _add_message_options(parser: argparse.ArgumentParser) -> None:
+    """--quiet and --messages json on every command (after its name, as its other options)."""
+    subparsers = [action for action in parser._actions if isinstance(action, argparse._SubParsersAction)]
+    if not subparsers:
+        group = parser.add_argument_group("messages")
+        group.add_argument("-q", "--quiet", action="store_true",
+                           help="say nothing but errors on stderr (no progress, no warnings, no result lines)")
+        group.add_argument("--messages", choices=["text", "json"], default="text",
+                           help="json: one JSON object per line on stderr ({\"event\": \"progress\"|\"info\"|"
+                                "\"warning\"|\"error\", \"message\", ...}), for programs that drive the command")
+        return
+    for action in subparsers:
+        for sub in action.choices.values():
+            _add_message_options(sub)
 
 
 #: How the library's messages name Python arguments, and the options that set them on the command line.
@@ -1083,16 +1129,17 @@ def _run(handler: Callable[[argparse.Namespace], int], args: argparse.Namespace)
         _check_paths(args)
         return handler(args)
     except ParameterError as error:  # prosody's ConfigError too
-        print(f"prosody {args.command}: error: {_as_flags(str(error))}", file=sys.stderr)
+        _MESSAGES.emit("error", f"prosody {args.command}: error: {_as_flags(str(error))}", exit=EXIT_USAGE)
         return EXIT_USAGE
     except VisualProsodyError as error:
-        print(f"prosody {args.command}: error: {_as_flags(str(error))}", file=sys.stderr)
+        _MESSAGES.emit("error", f"prosody {args.command}: error: {_as_flags(str(error))}", exit=EXIT_FAILURE)
         return EXIT_FAILURE
     except BrokenPipeError:
         raise  # the reader of our output went away: main() ends quietly
     except OSError as error:
         where = f"{error.filename}: " if error.filename else ""
-        print(f"prosody {args.command}: error: {where}{error.strerror or error}", file=sys.stderr)
+        _MESSAGES.emit("error", f"prosody {args.command}: error: {where}{error.strerror or error}",
+                       exit=EXIT_FAILURE)
         return EXIT_FAILURE
 
 
@@ -1103,10 +1150,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - for the life of the process
     parser = build_parser()
     args = parser.parse_args(argv)
+    _MESSAGES.mode = "json" if getattr(args, "messages", None) == "json" else (
+        "quiet" if getattr(args, "quiet", False) else "text")
 
     def show(message, category, filename, lineno, file=None, line=None):
         # a warning is a note to the user, one line, not a source listing
-        print(f"prosody {args.command}: warning: {_as_flags(str(message))}", file=sys.stderr)
+        _MESSAGES.emit("warning", f"prosody {args.command}: warning: {_as_flags(str(message))}")
 
     import signal
 
@@ -1122,7 +1171,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             warnings.showwarning = show
             return _run(args.handler, args)
     except KeyboardInterrupt:
-        print(f"prosody {args.command}: interrupted", file=sys.stderr)
+        _MESSAGES.emit("error", f"prosody {args.command}: interrupted", exit=130)
         return 130
     except BrokenPipeError:
         # the reader went away (`prosody inspect F.fap | head -1`): not an error of ours

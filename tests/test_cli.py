@@ -130,3 +130,21 @@ def test_an_output_that_is_an_input_or_no_file_is_refused(tmp_path, speech, caps
     assert speech.read_bytes() == before
     assert (tmp_path / "ballots.csv").read_text() == "stimulus,subject,left,right,choice\n"
     assert not (tmp_path / "r.json").exists()
+
+
+def test_quiet_says_only_errors_and_json_messages_are_one_object_a_line(tmp_path, speech) -> None:
+    import json
+
+    out = tmp_path / "x.fap"
+    quiet = _run("convert", str(speech), "-o", str(out), "--lips", "none", "--quiet", text=True)
+    assert quiet.returncode == 0 and quiet.stderr == "" and out.exists()
+    failing = _run("convert", str(speech), "-o", str(out), "--quiet", "--f0-floor", "5", text=True)
+    assert failing.returncode == 2 and failing.stderr.count("\n") == 1 and "error" in failing.stderr
+    machine = _run("convert", str(speech), "-o", str(out), "--lips", "none", "--messages", "json", text=True)
+    events = [json.loads(line) for line in machine.stderr.splitlines()]
+    assert {event["event"] for event in events} <= {"progress", "warning", "info"}
+    progress = [e for e in events if e["event"] == "progress"]
+    assert progress[-1]["done"] == progress[-1]["total"] == 51
+    assert events[-1]["event"] == "info" and str(out) in events[-1]["message"]
+    broken = _run("convert", str(speech), "-o", str(out), "--messages", "json", "--f0-floor", "5", text=True)
+    assert [json.loads(line) for line in broken.stderr.splitlines()][-1]["exit"] == 2
