@@ -54,8 +54,8 @@ def load_head_model(source: str | os.PathLike[str]) -> HeadModel:
         return ArxHeadModel.from_dict(payload, source=name)
     if kind == PAD_FORMAT:
         return PadHeadModel.from_dict(payload, source=name)
-    raise ModelError(f"{name}: not a head model file (its \"format\" must be {PROSODIC_FORMAT!r} or "
-                     f"{ARX_FORMAT!r})")
+    raise ModelError(f"{name}: not a head model file (its \"format\" must be {PROSODIC_FORMAT!r}, "
+                     f"{ARX_FORMAT!r} or {PAD_FORMAT!r})")
 
 
 def default_head_model() -> ProsodicHeadModel:

@@ -258,11 +258,11 @@ class PadHeadModel:
         boundaries: list[int] = []
         cursor = 0
         pieces: list[tuple[int, int, ProsodicWord | None]] = []
-        for word in words:
-            if word.start > cursor:
-                pieces.append((cursor, word.start, None))
-            pieces.append((word.start, word.end, word))
-            cursor = word.end
+        for found in words:
+            if found.start > cursor:
+                pieces.append((cursor, found.start, None))
+            pieces.append((found.start, found.end, found))
+            cursor = found.end
         if cursor < n:
             pieces.append((cursor, n, None))
         for lo, hi, word in pieces:
@@ -291,10 +291,12 @@ class PadHeadModel:
                 "randomized": self.randomized, "coefficients": [list(axis) for axis in self.coefficients_]}
 
     @classmethod
-    def from_dict(cls, payload: Mapping, *, source: str = "<dict>") -> PadHeadModel:
+    def from_dict(cls, payload: object, *, source: str = "<dict>") -> PadHeadModel:
         from ..errors import ModelError
 
         try:
+            if not isinstance(payload, Mapping):
+                raise ValueError("not a JSON object")
             if payload.get("version") != 1:
                 raise ValueError(f"version {payload.get('version')!r}; this release reads version 1")
             return cls(float(payload.get("pleasure", 0.0)), payload.get("coefficients"),
