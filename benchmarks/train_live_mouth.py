@@ -17,8 +17,8 @@ from prosody.motion.lips import inner_opening, shape_faps
 from prosody.motion.mouth_model import (
     SHIPPED_LIVE_MOUTH_MS,
     LiveMouthModel,
+    live_mouth_clips,
     live_mouth_path,
-    train_live_mouth,
 )
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -28,7 +28,7 @@ from mouth_loco import default_data, speaker_of  # noqa: E402
 def main(folder: Path, write: bool) -> None:
     from audio_features import load_audio
 
-    pairs = train_live_mouth(folder, lookahead_ms=0)
+    pairs = live_mouth_clips(folder)
     print("| mouth model | opening r | closure F1 | rounding r |\n|---|---|---|---|")
     for ms in SHIPPED_LIVE_MOUTH_MS:
         results = []
