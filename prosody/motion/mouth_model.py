@@ -368,7 +368,8 @@ class LiveMouth:
         return MouthShape(np.array([opening]), np.array([rounding]), np.array([spread]))
 
 
-def live_mouth_clips(folder: str | os.PathLike[str], *, fps: float = 30.0) -> list[tuple[np.ndarray, MouthTrainingClip]]:
+def live_mouth_clips(folder: str | os.PathLike[str], *,
+                     fps: float = 30.0) -> list[tuple[np.ndarray, MouthTrainingClip]]:
     """The clips of ``folder`` (``<name>.wav`` + ``<name>.mouth.csv``) as (cepstra, training clip) pairs."""
     from pathlib import Path
 
