@@ -442,7 +442,11 @@ def _cmd_preview(args: argparse.Namespace) -> int:
                   brow_scale=args.brow_scale, start_s=args.start, duration_s=args.duration,
                   progress=_frame_progress(args.output), scales=scales)
     sound = " with sound" if audio is not None and Path(args.output).suffix.lower() == ".mp4" else ""
-    _say(f"{args.output}: preview of {stream.name} ({stream.duration_s:.2f} s){sound}")
+    shown = stream.duration_s - min(args.start, stream.duration_s)
+    if args.duration is not None:
+        shown = min(shown, args.duration)
+    excerpt = f"{shown:.2f} s from {args.start:g} s" if args.start or args.duration is not None else f"{shown:.2f} s"
+    _say(f"{args.output}: preview of {stream.name} ({excerpt}){sound}")
     return EXIT_OK
 
 
@@ -554,8 +558,11 @@ def _cmd_stream(args: argparse.Namespace) -> int:
             write_stream(recorder.stream(fps=converter.fps, name=name), args.output, args.format)
     where = "standard output" if to_stdout else (args.output or "the clients")
     ended = "stopped by Ctrl-C or SIGTERM, the last frames flushed" if interrupted else "end of input"
+    # said once: a first sentence without a raise would otherwise look like a fault
+    learning = ("; the brows rise only after the first half second of voice, which teaches them the speaker's "
+                "pitch" if args.condition == "speech" and 31 in converter.faps else "")
     _say(f"prosody stream: {where}: {count} frames at {converter.fps:g} fps ({ended}; look-ahead "
-          f"{converter.lookahead_frames / converter.fps * 1000:.0f} ms)")
+         f"{converter.lookahead_frames / converter.fps * 1000:.0f} ms{learning})")
     return EXIT_OK
 
 
