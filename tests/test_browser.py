@@ -105,6 +105,8 @@ def test_page_reconnects_when_the_server_comes_back(browser):
     _wait_for(browser, "return window.prosodyStats.connected")
     first.close(drain_s=0.1)
     _wait_for(browser, "return !window.prosodyStats.connected")
+    assert browser.execute_script("return window.prosodyStats.ended")
+    assert "stream ended" in browser.find_element("id", "status").text
     second = FrameServer("127.0.0.1", port, make_converter=lambda rate: LiveConverter(rate),
                          report=lines.append).start()
     try:

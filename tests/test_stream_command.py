@@ -275,8 +275,9 @@ def test_stream_command_serves_a_file_to_a_client(tmp_path):
             messages = _receive_all(client, 5.0)
         process.communicate(timeout=30)
     assert process.returncode == 0
-    frames = [m["frame"] for m in messages]
+    frames = [m["frame"] for m in messages if m["type"] == "frame"]
     assert frames == list(range(frames[0], frames[0] + len(frames))) and len(frames) > 60
+    assert messages[-1] == {"type": "end"}  # the page is told the stream ended
     written = [json.loads(x) for x in Path(tmp_path / "out.jsonl").read_text().splitlines()]
     assert len(written) == 93
 

@@ -176,6 +176,10 @@ class FrameServer:
         if self._loop is None or self._stop is None or self._thread is None or not self._thread.is_alive():
             return
 
+        # every page is told the stream has ended, before its connection closes
+        with contextlib.suppress(RuntimeError):  # the loop has already ended
+            self._loop.call_soon_threadsafe(self._enqueue_all, [json.dumps({"type": "end"})])
+
         async def drained() -> None:
             deadline = asyncio.get_running_loop().time() + drain_s
             while any(not c.queue.empty() for c in self._clients) and asyncio.get_running_loop().time() < deadline:
