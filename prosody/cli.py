@@ -673,7 +673,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                          lips=None if args.lips == "none" else args.lips, transcript=args.transcript,
                          expression=args.expression, mouth=args.mouth, mouth_model=args.mouth_model,
                          **_analysis_kwargs(args))
-    written = write_comparison(comparison, args.output, plots=not args.no_plots, video=args.video,
+    written = write_comparison(comparison, args.output, plots=args.plots, video=args.video,
                                exaggerate=args.exaggerate,
                                progress=_frame_progress(f"{args.output}/conditions.mp4") if args.video else None)
     line = f"{args.output}: {len(written)} files"
@@ -692,7 +692,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
 
     conditions = [name for value in args.condition for name in value.split(",") if name.strip()] or None
     options = BatchOptions(model=args.model, seed=args.seed, seeds=args.seeds, normalize=args.normalize,
-                           plots=args.plots, brows=args.brows, lips=None if args.lips == "none" else args.lips,
+                           plots=args.plots, video=args.video, brows=args.brows,
+                           lips=None if args.lips == "none" else args.lips,
                            **_analysis_kwargs(args))
     if conditions:
         options = dataclasses.replace(options, conditions=tuple(conditions))
@@ -951,7 +952,8 @@ def build_parser() -> argparse.ArgumentParser:
                          help="scale and offset RANDOM, SPEECH_DRIVEN and GROUND_TRUTH to the same mean and "
                               "standard deviation per FAP (the ground truth's where it has the FAP), as the "
                               "thesis's second experiment did")
-    compare.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    compare.add_argument("--plots", action=argparse.BooleanOptionalAction, default=True,
+                         help="write the PNG figures (default; --no-plots skips them), as batch --plots")
     compare.add_argument("--video", action="store_true",
                          help="also write OUTDIR/conditions.mp4: the conditions' faces side by side, labelled, "
                               "with the recording's audio (needs ffmpeg or the imageio-ffmpeg package)")
@@ -992,7 +994,11 @@ def build_parser() -> argparse.ArgumentParser:
                        help="eyebrow rule of the speech-driven condition, with its default settings (default "
                             "accent; thesis: the thesis's 207 Hz / 45 dB rule)")
     batch.add_argument("--normalize", action="store_true", help="normalise as 'prosody compare --normalize'")
-    batch.add_argument("--plots", action="store_true", help="also write figures and a report per file")
+    batch.add_argument("--plots", action=argparse.BooleanOptionalAction, default=False,
+                       help="also write figures and a report per file (default --no-plots, for speed)")
+    batch.add_argument("--video", action="store_true",
+                       help="also write each file's conditions.mp4, as compare --video (needs ffmpeg or the "
+                            "imageio-ffmpeg package)")
     batch.add_argument("--force", action="store_true", help="redo files whose outputs are already complete")
     _add_analysis_options(batch)
     batch.set_defaults(handler=_cmd_batch)

@@ -55,6 +55,7 @@ class BatchOptions:
     f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ
     f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ
     plots: bool = False
+    video: bool = False
     seeds: int = 10
     brows: str = "accent"
     lips: str | None = "visemes"
@@ -208,7 +209,8 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
         # the features let the summary drive the generator with this recording's audio against other ones
         comparison.features.write_csv(folder / FEATURES_FILE)
         # write_comparison removes what an earlier run with other settings wrote there and this one does not
-        write_comparison(comparison, folder, plots=options.plots, report=options.plots, extra={"settings": settings})
+        write_comparison(comparison, folder, plots=options.plots, report=options.plots, video=options.video,
+                         extra={"settings": settings})
         outcome.metrics = comparison.metrics
     except (VisualProsodyError, OSError, ValueError) as error:
         outcome.status, outcome.error = "failed", _one_line(error)
