@@ -60,9 +60,9 @@ def gated(shape: MouthShape, gate: np.ndarray) -> MouthShape:
     return MouthShape(shape.opening * gate, shape.rounding * gate, shape.spread * gate)
 
 
-def context_features(audio: Audio, n_frames: int, *, fps: float) -> np.ndarray:
-    """Spectral features at :data:`CONTEXT_S` around each frame, standardised over the recording."""
-    frames = cepstra(audio)
+def context_features(frames: np.ndarray, n_frames: int, *, fps: float) -> np.ndarray:
+    """A recording's cepstra (:func:`audio_features.spectral.cepstra`) at :data:`CONTEXT_S` around each grid
+    frame, standardised over the recording."""
     spread = frames.std(axis=0)
     frames = (frames - frames.mean(axis=0)) / np.where(spread > 1e-9, spread, 1.0)
     return np.hstack([on_grid(frames, n_frames, fps=fps, offset_s=offset) for offset in CONTEXT_S])
@@ -73,8 +73,8 @@ def mouth_training_clip(audio: Audio, mouth, *, fps: float, name: str = "") -> M
     opening = (mouth.lip_opening - np.nanquantile(mouth.lip_opening, 0.05)) / MNS_PER_EYE_WIDTH * 1024
     rounding = mouth.rounding - np.nanquantile(mouth.rounding, 0.05)
     spread = mouth.mouth_width / np.nanmedian(mouth.mouth_width) - 1
-    return MouthTrainingClip(name or audio.source, context_features(audio, mouth.n_frames, fps=fps), opening,
-                             rounding, spread)
+    return MouthTrainingClip(name or audio.source, context_features(cepstra(audio), mouth.n_frames, fps=fps),
+                             opening, rounding, spread)
 
 
 class AcousticMouthModel:
@@ -109,18 +109,13 @@ class AcousticMouthModel:
         shape = np.hstack([features, np.ones((features.shape[0], 1))]) @ self.weights_
         return MouthShape(np.clip(shape[:, 0], 0.0, None), shape[:, 1], shape[:, 2])
 
-    def predict_clip(self, clip: MouthTrainingClip) -> MouthShape:
-        return self.predict_features(clip.features)
-
     def predict(self, audio: Audio | str | os.PathLike[str], n_frames: int, *, fps: float) -> MouthShape:
         """The mouth's shape at every frame of a grid, closed where there is no sound (see :func:`voice_gate`);
         ``audio`` in memory or a file (read block by block)."""
         from audio_features.spectral import file_cepstra
 
         frames = file_cepstra(audio)
-        spread = frames.std(axis=0)
-        standardized = (frames - frames.mean(axis=0)) / np.where(spread > 1e-9, spread, 1.0)
-        features = np.hstack([on_grid(standardized, n_frames, fps=fps, offset_s=o) for o in CONTEXT_S])
+        features = context_features(frames, n_frames, fps=fps)
         db = frame_db(frames)
         gate = voice_gate(db, float(np.quantile(db, 0.95)))
         # the gate at each grid frame: its 10 ms frames over +-50 ms, averaged
