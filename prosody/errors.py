@@ -13,8 +13,8 @@ from __future__ import annotations
 from audio_features.errors import ParameterError, VisualProsodyError
 
 __all__ = ["BallotError", "ConfigError", "FapFormatError", "FapIrregularityWarning", "FapWriteError",
-           "GroundTruthError", "ModelError", "ParameterError", "PreviewError", "ProsodyError", "UnknownFapError",
-           "VisualProsodyError"]
+           "GroundTruthError", "ModelError", "ParameterError", "PreviewError", "ProsodyError", "TrackingError",
+           "UnknownFapError", "VisualProsodyError"]
 
 
 class ProsodyError(VisualProsodyError):
@@ -65,3 +65,8 @@ class ModelError(ProsodyError, ValueError):
 
 class BallotError(ProsodyError, ValueError):
     """A perceptual-study ballot file is malformed; the message lists the offending rows."""
+
+
+class TrackingError(ProsodyError, ValueError):
+    """A video cannot be tracked: unreadable, without the picture or sound asked for, or the tracker's
+    packages are missing (the message says how to install them)."""
