@@ -146,9 +146,21 @@ def normalize_stream(stream: FapStream, targets: Mapping[int, tuple[float, float
     return FapStream(values, stream.mask, stream.fps, stream.name)
 
 
+def head_measured(stream: FapStream) -> np.ndarray:
+    """Frames whose head rotation (FAP 48-50) is all there, shape (n_frames,): False in stretches a face
+    tracker lost (see :func:`prosody.motion.ground_truth.read_head_csv`)."""
+    return stream.mask[:, [fap - 1 for fap in HEAD_FAPS]].all(axis=1)
+
+
 def head_matrix(stream: FapStream) -> np.ndarray:
-    """Head pitch, yaw, roll (AU) as columns, shape (n_frames, 3)."""
-    return stream.curves(HEAD_FAPS)
+    """Head pitch, yaw, roll (AU) as columns, shape (n_frames, 3); frames without them (masked off) are
+    bridged by linear interpolation between the frames that have them."""
+    angles = stream.curves(HEAD_FAPS)
+    known = head_measured(stream)
+    if known.any() and not known.all():
+        frames = np.arange(angles.shape[0])
+        angles = np.column_stack([np.interp(frames, frames[known], angles[known, axis]) for axis in range(3)])
+    return angles
 
 
 # Head-motion measures that discriminate at our data sizes (SPEC section 6) -----------------------------
@@ -241,9 +253,14 @@ def velocity_spectrum_distance_db(generated_rad: np.ndarray, recorded_rad: np.nd
     return float(np.mean(distances))
 
 
-def head_metrics(generated_au: np.ndarray, recorded_au: np.ndarray, *, fps: float) -> dict:
+def head_metrics(generated_au: np.ndarray, recorded_au: np.ndarray, *, fps: float,
+                 measured: np.ndarray | None = None) -> dict:
     """The head measures of one generated motion against the recording, both (n_frames, 3) in AU
     (FAP 48, 49, 50).
+
+    ``measured`` (bool, (n_frames,)) leaves the other frames out of the correlations and spreads: stretches
+    where the recording lost the face. Speeds are taken on the whole (bridged) curves and then compared on
+    the measured frames only; the velocity spectrum uses the whole curves.
 
     Returns
     -------
@@ -256,16 +273,20 @@ def head_metrics(generated_au: np.ndarray, recorded_au: np.ndarray, *, fps: floa
     if generated.shape != recorded.shape or generated.ndim != 2 or generated.shape[1] != len(HEAD_FAPS):
         raise ConfigError(f"head motion must be (n_frames, 3) on one grid, got {generated.shape} and "
                           f"{recorded.shape}")
-    recorded_std = recorded.std(axis=0)
-    ratios = {str(fap): (float(generated[:, axis].std() / recorded_std[axis]) if recorded_std[axis] > 0 else None)
+    keep = np.ones(generated.shape[0], bool) if measured is None else np.asarray(measured, bool)
+    if keep.shape != (generated.shape[0],):
+        raise ConfigError(f"measured must be (n_frames,) = ({generated.shape[0]},), got {keep.shape}")
+    recorded_std = recorded[keep].std(axis=0)
+    ratios = {str(fap): (float(generated[keep, axis].std() / recorded_std[axis]) if recorded_std[axis] > 0
+                         else None)
               for axis, fap in enumerate(HEAD_FAPS)}
     return {
-        "speed_envelope_r": pearson(speed_envelope(generated, fps=fps), speed_envelope(recorded, fps=fps)),
-        "pitch_r": pearson(generated[:, 0], recorded[:, 0]),
+        "speed_envelope_r": pearson(speed_envelope(generated, fps=fps)[keep], speed_envelope(recorded, fps=fps)[keep]),
+        "pitch_r": pearson(generated[keep, 0], recorded[keep, 0]),
         "std_ratio": ratios,
         "velocity_spectrum_distance_db": velocity_spectrum_distance_db(generated, recorded, fps=fps),
-        "yaw_r": pearson(generated[:, 1], recorded[:, 1]),
-        "roll_r": pearson(generated[:, 2], recorded[:, 2]),
+        "yaw_r": pearson(generated[keep, 1], recorded[keep, 1]),
+        "roll_r": pearson(generated[keep, 2], recorded[keep, 2]),
     }
 
 

@@ -33,6 +33,7 @@ from ..measures import (
     fap_statistics,
     first_canonical_correlation,
     head_matrix,
+    head_measured,
     head_metrics,
     mouth_metrics,
     normalization_targets,
@@ -97,9 +98,11 @@ def brow_curve(stream: FapStream) -> np.ndarray | None:
 
 
 def _measure(runs: list[FapStream], truth_head: np.ndarray | None, truth_brow: np.ndarray | None, *,
-             fps: float) -> tuple[dict, dict]:
-    """Head and brow measures of several runs of one condition against the recording, averaged."""
-    head = (average_head_metrics([head_metrics(head_matrix(run), truth_head, fps=fps) for run in runs])
+             fps: float, measured: np.ndarray | None = None) -> tuple[dict, dict]:
+    """Head and brow measures of several runs of one condition against the recording, averaged (head
+    measures on the ``measured`` frames only)."""
+    head = (average_head_metrics([head_metrics(head_matrix(run), truth_head, fps=fps, measured=measured)
+                                  for run in runs])
             if truth_head is not None else empty_head_metrics())
     brows = [brow_curve(run) for run in runs]
     brow = (average_brow_metrics([brow_metrics(curve, truth_brow, fps=fps) for curve in brows if curve is not None])
@@ -292,8 +295,9 @@ def compare(
 
     # head and brow measures against the recording (stochastic conditions over several seeds), and the
     # same generator driven by this recording's audio shifted in time (the mismatched-audio control)
-    truth_head = (head_matrix(truth) if truth is not None and all(truth.mask[:, fap - 1].all() for fap in HEAD_FAPS)
-                  else None)
+    # frames a tracker lost are bridged in truth_head and left out of the head measures
+    truth_measured = head_measured(truth) if truth is not None else None
+    truth_head = head_matrix(truth) if truth_measured is not None and truth_measured.any() else None
     truth_brow = brow_curve(truth) if truth is not None else None
     stochastic = {Condition.RANDOM} | ({Condition.SPEECH_DRIVEN} if head_model is not None
                                        and is_stochastic(head_model) else set())
@@ -304,14 +308,15 @@ def compare(
         for condition, stream in streams.items():
             runs = [stream] + ([finished(condition, make(condition, seed + k)) for k in range(1, seeds)]
                                if condition in stochastic else [])
-            head_blocks[condition.value], brow_blocks[condition.value] = _measure(runs, truth_head, truth_brow,
-                                                                                  fps=features.fps)
+            head_blocks[condition.value], brow_blocks[condition.value] = _measure(
+                runs, truth_head, truth_brow, fps=features.fps, measured=truth_measured)
         if Condition.SPEECH_DRIVEN in streams:
             run_seeds = range(seed, seed + seeds) if Condition.SPEECH_DRIVEN in stochastic else [seed]
             runs = [finished(Condition.SPEECH_DRIVEN,
                              make(Condition.SPEECH_DRIVEN, run_seed, shifted_features(features, offset)))
                     for run_seed in run_seeds for offset in shift_offsets(features.n_frames, fps=features.fps)]
-            control, brow_control = _measure(runs, truth_head, truth_brow, fps=features.fps)
+            control, brow_control = _measure(runs, truth_head, truth_brow, fps=features.fps,
+                                            measured=truth_measured)
     metrics = {
         "version": METRICS_VERSION,
         "source": str(audio),
@@ -355,10 +360,12 @@ def compare(
         entry: dict = {"kind": other_model.kind, "head": empty_head_metrics(),
                        "mismatched_audio": empty_head_metrics()}
         if truth_head is not None:
-            entry["head"] = average_head_metrics([head_metrics(head_of(features, s), truth_head, fps=features.fps)
+            entry["head"] = average_head_metrics([head_metrics(head_of(features, s), truth_head, fps=features.fps,
+                             measured=truth_measured)
                                            for s in run_seeds])
             entry["mismatched_audio"] = average_head_metrics([
-                head_metrics(head_of(shifted_features(features, offset), s), truth_head, fps=features.fps)
+                head_metrics(head_of(shifted_features(features, offset), s), truth_head, fps=features.fps,
+                             measured=truth_measured)
                 for s in run_seeds for offset in shift_offsets(features.n_frames, fps=features.fps)])
         others[str(label)] = entry
     if others:

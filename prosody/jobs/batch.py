@@ -487,7 +487,7 @@ def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions,
     ``options.seeds`` seeds. Keyed by file."""
     from audio_features import read_features_csv
 
-    from ..measures import average_head_metrics, empty_head_metrics, head_matrix, head_metrics
+    from ..measures import average_head_metrics, empty_head_metrics, head_matrix, head_measured, head_metrics
     from ..motion.conditions import head_motion
     from ..motion.controls import fitted_features
     from ..motion.ground_truth import fit_to_grid, read_motion
@@ -515,7 +515,8 @@ def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions,
                                 source=outcome.ground_truth)
         except (ProsodyError, OSError, ValueError):
             continue
-        if not all(truth.mask[:, fap - 1].all() for fap in (48, 49, 50)):
+        measured = head_measured(truth)
+        if not measured.any():
             continue
         recorded = head_matrix(truth)
         chosen = [names[(names.index(outcome.file) + k) % len(names)] for k in range(1, len(names))][:others]
@@ -525,7 +526,7 @@ def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions,
             for seed in seeds:
                 curves = head_motion(model, driven, seed=seed)
                 rows.append(head_metrics(np.column_stack([curves[fap] for fap in (48, 49, 50)]), recorded,
-                                         fps=own.fps))
+                                         fps=own.fps, measured=measured))
         result[outcome.file] = average_head_metrics(rows) if rows else empty_head_metrics()
     return result
 

@@ -30,11 +30,25 @@ import numpy as np
 from audio_features.atomic import atomic_path, atomic_write
 
 from ..errors import ConfigError, TrackingError, VisualProsodyError
-from ..tracking.curves import (ALL_COLUMNS, MAX_GAP_S, EnvelopeAccumulator, SyncEstimate, estimate_sync, tracked_curves,
-                               write_curves)
+from ..tracking.curves import (
+    ALL_COLUMNS,
+    MAX_GAP_S,
+    EnvelopeAccumulator,
+    SyncEstimate,
+    estimate_sync,
+    tracked_curves,
+    write_curves,
+)
 from ..tracking.face import MODEL_SHA256, FaceTracker, face_measures, head_angles
-from ..tracking.video import (DEFAULT_MAX_SIDE_PX, TRACK_AUDIO_RATE_HZ, VIDEO_EXTENSIONS, VideoInfo, iter_frames,
-                              probe_video, read_video_audio)
+from ..tracking.video import (
+    DEFAULT_MAX_SIDE_PX,
+    TRACK_AUDIO_RATE_HZ,
+    VIDEO_EXTENSIONS,
+    VideoInfo,
+    iter_frames,
+    probe_video,
+    read_video_audio,
+)
 from .batch import _completed, _one_line, file_digest, make_executor, natural_key
 
 #: Version of the tracking method, stored in each track.json (a change redoes complete outputs).
@@ -88,7 +102,13 @@ class TrackOutcome:
 
 
 def find_videos(paths: Iterable[str | os.PathLike[str]]) -> list[Path]:
-    """The videos named, folders searched recursively (hidden ones skipped), in natural order per folder."""
+    """The videos named, folders searched recursively (hidden ones skipped), in natural order per folder.
+
+    Raises
+    ------
+    ConfigError
+        A path that does not exist.
+    """
     found: list[Path] = []
     for entry in paths:
         path = Path(entry)
@@ -99,8 +119,10 @@ def find_videos(paths: Iterable[str | os.PathLike[str]]) -> list[Path]:
                 inside += [Path(dirpath, name) for name in filenames
                            if not name.startswith(".") and Path(name).suffix.lower() in VIDEO_EXTENSIONS]
             found += sorted(inside, key=natural_key)
-        else:
+        elif path.exists():
             found.append(path)
+        else:
+            raise ConfigError(f"{path}: no such file or folder")
     return found
 
 
@@ -243,7 +265,7 @@ def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options:
                 with_face += 1
                 faces_seen = max(faces_seen, observation.faces)
                 measures = face_measures(observation)
-                angles = dict(zip(("rx_rad", "ry_rad", "rz_rad"), head_angles(observation.rotation)))
+                angles = dict(zip(("rx_rad", "ry_rad", "rz_rad"), head_angles(observation.rotation), strict=True))
                 rows.append(np.array([{**angles, **measures}.get(name, np.nan) for name in ALL_COLUMNS]))
             if progress is not None:
                 progress(index + 1, max(estimate, index + 1))

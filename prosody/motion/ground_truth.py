@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,13 +54,53 @@ def _csv_rows(path: str | os.PathLike[str], name: str) -> list[list[str]]:
         raise GroundTruthError(f"{name}: cannot be read as CSV ({error})") from None
 
 
+#: Longest stretch of empty head cells (a tracker's frames without a face) bridged by interpolation and
+#: measured, in s; longer stretches are bridged too (so the stream stays continuous) but left out of the
+#: measures (their frames are masked).
+MAX_MEASURED_GAP_S = 0.5
+
+
+class RecordedGapWarning(UserWarning):
+    """Recorded motion has long stretches without a face; they are left out of the measures."""
+
+
+def _bridge_gaps(angles: np.ndarray, *, fps: float, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Empty (NaN) rows filled by linear interpolation (the edges held); returns the filled angles and the
+    rows that count in the measures (False inside gaps longer than :data:`MAX_MEASURED_GAP_S`)."""
+    known = np.all(np.isfinite(angles), axis=1)
+    measured = np.ones(angles.shape[0], bool)
+    if known.all():
+        return angles, measured
+    frames = np.arange(angles.shape[0])
+    filled = np.column_stack([np.interp(frames, frames[known], angles[known, axis]) for axis in range(3)])
+    longest = int(round(MAX_MEASURED_GAP_S * fps))
+    padded = np.concatenate([[False], ~known, [False]])
+    starts = np.flatnonzero(padded[1:] & ~padded[:-1])
+    ends = np.flatnonzero(~padded[1:] & padded[:-1])
+    long_gaps = [(a, b) for a, b in zip(starts, ends, strict=True) if b - a > longest]
+    for a, b in long_gaps:
+        measured[a:b] = False
+    if long_gaps:
+        left_out = sum(b - a for a, b in long_gaps)
+        warnings.warn(RecordedGapWarning(
+            f"{name}: {len(long_gaps)} stretch(es) without a face longer than {MAX_MEASURED_GAP_S:g} s "
+            f"({left_out / fps:.2f} s in all, from {starts[0] / fps:.2f} s) are bridged but left out of the "
+            "measures"), stacklevel=3)
+    return filled, measured
+
+
 def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -> FapStream:
     """Read a ``<clip>.head.csv`` into a stream with FAP 48-50 in AU.
+
+    Empty cells (a face tracker's frames without a face) are bridged by linear interpolation; stretches
+    longer than :data:`MAX_MEASURED_GAP_S` are bridged too but masked (``stream.mask`` False for FAP 48-50),
+    which the measures leave out, with a :class:`RecordedGapWarning`.
 
     Raises
     ------
     GroundTruthError
-        Missing file, wrong columns, non-numeric or non-finite values, or frames that are not 0, 1, 2, ...
+        Missing file, wrong columns, non-numeric or non-finite values, no frame with a face, or frames that
+        are not 0, 1, 2, ...
     """
     name = str(path)
     rows = _csv_rows(path, name)
@@ -71,15 +112,25 @@ def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -
         try:
             if len(row) != 5:
                 raise ValueError(f"{len(row)} columns")
-            data[index] = [float(cell) for cell in row]
+            cells = [cell.strip() for cell in row]
+            if not cells[0] or not cells[1]:
+                raise ValueError("frame and time_s must be given")
+            if any(not cell for cell in cells[2:]) and any(cells[2:]):
+                raise ValueError("the three angles are given together or left empty together")
+            data[index] = [float(cell) if cell else math.nan for cell in cells]
         except ValueError as error:
-            raise GroundTruthError(f"{name}, line {index + 2}: expected 5 numbers, found {row!r} ({error})") from None
+            raise GroundTruthError(f"{name}, line {index + 2}: expected 5 numbers (or frame, time_s and three "
+                                   f"empty cells), found {row!r} ({error})") from None
     if data.shape[0] == 0:
         raise GroundTruthError(f"{name}: no frames")
-    if not np.all(np.isfinite(data)):
-        line = int(np.argmin(np.all(np.isfinite(data), axis=1))) + 2
+    empty = np.isnan(data[:, 2:]).all(axis=1)
+    if empty.all():
+        raise GroundTruthError(f"{name}: no frame with a face (every angle cell is empty)")
+    finite = np.isfinite(data) | np.column_stack([np.zeros((data.shape[0], 2), bool), np.repeat(empty[:, None], 3, 1)])
+    if not finite.all():
+        line = int(np.argmin(finite.all(axis=1))) + 2
         raise GroundTruthError(f"{name}, line {line}: values must be finite")
-    beyond = np.abs(data[:, 2:]) > math.pi
+    beyond = np.abs(np.nan_to_num(data[:, 2:])) > math.pi
     if beyond.any():
         line = int(np.argmax(beyond.any(axis=1))) + 2
         raise GroundTruthError(f"{name}, line {line}: a head angle beyond pi rad (180 degrees) is not a head's "
@@ -94,11 +145,17 @@ def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -
             f"{name}, line {line}: time_s {float(data[line - 2, 1])!r} is not frame {int(data[line - 2, 0])} at "
             f"{HEAD_CSV_FPS:g} fps ({data[line - 2, 0] / HEAD_CSV_FPS:.4f} s): a head.csv is 30 fps, frame k at k/30 s"
         )
-    angles = data[:, 2:5]
+    angles, measured = _bridge_gaps(data[:, 2:5], fps=HEAD_CSV_FPS, name=name)
     if remove_median:
-        angles = angles - np.median(angles, axis=0)  # resting pose out: SPEC section 9
+        angles = angles - np.median(angles[measured], axis=0)  # resting pose out: SPEC section 9
     curves = {fap: angles[:, axis] / RADIANS_PER_AU for axis, fap in enumerate(HEAD_FAPS)}
-    return FapStream.from_curves(curves, fps=HEAD_CSV_FPS, name=Path(name).name.removesuffix(".head.csv"))
+    stream = FapStream.from_curves(curves, fps=HEAD_CSV_FPS, name=Path(name).name.removesuffix(".head.csv"))
+    if not measured.all():
+        mask = stream.mask.copy()
+        for fap in HEAD_FAPS:
+            mask[:, fap - 1] = measured
+        stream = FapStream(stream.values, mask, stream.fps, stream.name)
+    return stream
 
 
 #: Columns of the ``<clip>.brows.csv`` convention used as recorded brows.

@@ -19,7 +19,7 @@ from audio_features.streaming import stream_file
 
 from ..errors import ConfigError, GroundTruthError, ProsodyError
 from ..fap.table import HEAD_FAPS
-from ..measures import average_head_metrics, head_metrics
+from ..measures import average_head_metrics, head_matrix, head_metrics
 from .controls import shift_offsets
 from .ground_truth import fit_to_grid, read_motion
 from .live import LiveHeadModel
@@ -54,7 +54,7 @@ def load_streamed(pairs: Iterable[tuple[Path, Path]], *, fps: float = DEFAULT_FP
         except (ProsodyError, ValueError) as error:  # audio errors derive from ValueError
             report(f"[{index}/{len(pairs)}] skipped {audio.stem}: {error}")
             continue
-        recordings.append(StreamedRecording(audio.stem, f0, energy, motion.curves(HEAD_FAPS)))
+        recordings.append(StreamedRecording(audio.stem, f0, energy, head_matrix(motion)))
         report(f"[{index}/{len(pairs)}] {audio.stem}: {f0.size} frames")
     return recordings
 

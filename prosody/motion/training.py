@@ -22,7 +22,7 @@ from audio_features import AUDIO_EXTENSIONS, DEFAULT_FPS, Features, extract_feat
 
 from ..errors import ConfigError, GroundTruthError, ProsodyError
 from ..fap.table import HEAD_FAPS
-from ..measures import average_head_metrics, head_metrics, mean_of, pearson
+from ..measures import average_head_metrics, head_matrix, head_metrics, mean_of, pearson
 from .controls import shift_offsets, shifted_features
 from .ground_truth import fit_to_grid, read_motion
 from .head import DEFAULT_NA, DEFAULT_NB, DEFAULT_NK, DEFAULT_RIDGE, ArxHeadModel, arx_inputs
@@ -92,7 +92,7 @@ def load_training_set(pairs: Iterable[tuple[Path, Path]], *, fps: float = DEFAUL
         data.names.append(audio.stem)
         data.inputs.append(arx_inputs(features))
         data.features.append(features)
-        data.motion_au.append(motion.curves(HEAD_FAPS))
+        data.motion_au.append(head_matrix(motion))  # stretches without a face bridged
         report(f"[{index}/{len(pairs)}] {audio.stem}: {features.n_frames} frames")
     return data
 

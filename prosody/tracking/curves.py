@@ -248,7 +248,8 @@ def estimate_sync(lip_opening: np.ndarray, envelope: np.ndarray, *, fps: float =
     """Estimate the lead of the mouth's motion over the sound.
 
     The mouth's motion is the frame-to-frame change of the lip opening, averaged over 0.2 s; the sound's
-    is its RMS envelope (:class:`EnvelopeAccumulator`, on the same grid). Their cross-correlation peaks at the lead, searched within +-0.5 s; 4 s blocks
+    is its RMS envelope (:class:`EnvelopeAccumulator`, on the same grid). Their cross-correlation peaks
+    at the lead, searched within +-0.5 s; 4 s blocks
     resampled with replacement say how much the peak moves.
     """
     opening = np.asarray(lip_opening, float)
