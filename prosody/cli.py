@@ -628,6 +628,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from .motion.training import train
 
     orders = {"na": args.na, "nb": args.nb, "nk": args.nk, "ridge": args.ridge}
+    if args.kind in ("mouth", "live") and len(args.data) > 1:
+        raise ConfigError(f"--kind {args.kind} trains on one folder; give --data once")
     if args.lookahead_ms is not None and args.kind != "live":
         raise ConfigError("--lookahead-ms sets the live head model's look-ahead: add --kind live")
     if args.kind == "mouth":
@@ -637,7 +639,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         if given:
             raise ConfigError(f"{', '.join(given)} do(es) not apply to the mouth model (its held-out figures come "
                               "from benchmarks/mouth_loco.py)")
-        train_mouth(args.data, args.output, fps=args.fps, report=_say)
+        train_mouth(args.data[0], args.output, fps=args.fps, report=_say)
         return EXIT_OK
     if args.kind == "live":
         from .motion.live_training import train_live
@@ -645,7 +647,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         given = [f"--{name}" for name, value in orders.items() if value is not None]
         if given:
             raise ConfigError(f"{', '.join(given)} set(s) the ARX model's orders: add --kind arx")
-        train_live(args.data, args.output, lookahead_ms=100.0 if args.lookahead_ms is None else args.lookahead_ms,
+        train_live(args.data[0], args.output, lookahead_ms=100.0 if args.lookahead_ms is None else args.lookahead_ms,
                    cv=args.cv, fps=args.fps, report=_say)
         return EXIT_OK
     if args.kind != "arx":
@@ -935,7 +937,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "the causal form of the prosodic model for 'prosody stream'. Use the file with --model in "
                     "convert, compare, batch and preview (live models: in stream).",
     )
-    train.add_argument("--data", required=True, metavar="DIR", help="folder of paired recordings")
+    train.add_argument("--data", required=True, action="append", metavar="DIR",
+                       help="folder of paired recordings (<name>.wav with <name>.head.csv or .fap, as 'prosody "
+                            "track' writes them); repeat it to train on several. A speakers.csv (columns "
+                            "recording,speaker) in a folder makes --cv hold out a speaker's recordings together")
     train.add_argument("-o", "--output", required=True, help="model file to write (.json)")
     train.add_argument("--kind", default="prosodic", choices=["prosodic", "arx", "live", "mouth"],
                        help="which model to fit (default prosodic; live: the causal form of the prosodic model "

@@ -253,6 +253,34 @@ def velocity_spectrum_distance_db(generated_rad: np.ndarray, recorded_rad: np.nd
     return float(np.mean(distances))
 
 
+#: Percentiles of the angular speed compared, and the speed below which the head counts as nearly still.
+SPEED_PERCENTILES = (10, 50, 90)
+STILL_DEG_S = 2.0
+
+
+def speed_distribution(angles_rad: np.ndarray, *, fps: float, measured: np.ndarray | None = None) -> dict:
+    """How the head moves in bursts and holds: the 10th, 50th and 90th percentiles of its angular speed
+    (deg/s, of the 4 Hz low-passed angles) and the fraction of time it is nearly still (under 2 deg/s).
+
+    Examples
+    --------
+    >>> fps = 30.0
+    >>> t = np.arange(300) / fps
+    >>> still_then_turning = np.column_stack([np.where(t < 5, 0.0, np.radians(10) * (t - 5)), 0 * t, 0 * t])
+    >>> d = speed_distribution(still_then_turning, fps=fps)
+    >>> round(d["still_fraction"], 1), round(d["p90_deg_s"], 1)
+    (0.5, 10.0)
+    """
+    speed = np.degrees(head_speed(np.asarray(angles_rad, float), fps=fps))
+    if measured is not None:
+        speed = speed[np.asarray(measured, bool)]
+    if speed.size == 0:
+        return {**{f"p{p}_deg_s": None for p in SPEED_PERCENTILES}, "still_fraction": None}
+    values = np.percentile(speed, SPEED_PERCENTILES)
+    return {**{f"p{p}_deg_s": float(v) for p, v in zip(SPEED_PERCENTILES, values, strict=True)},
+            "still_fraction": float(np.mean(speed < STILL_DEG_S))}
+
+
 def head_metrics(generated_au: np.ndarray, recorded_au: np.ndarray, *, fps: float,
                  measured: np.ndarray | None = None) -> dict:
     """The head measures of one generated motion against the recording, both (n_frames, 3) in AU
@@ -266,7 +294,10 @@ def head_metrics(generated_au: np.ndarray, recorded_au: np.ndarray, *, fps: floa
     -------
     dict
         ``{"speed_envelope_r", "pitch_r", "std_ratio": {"48", "49", "50"}, "velocity_spectrum_distance_db",
-        "yaw_r", "roll_r"}``; None where undefined (a still head has no correlation).
+        "yaw_r", "roll_r", "speed_p10_ratio", "speed_p50_ratio", "speed_p90_ratio", "still_fraction",
+        "recorded_still_fraction"}``: the ratios are generated / recorded percentiles of the angular speed,
+        the fractions the time each is nearly still (:func:`speed_distribution`); None where undefined (a
+        still head has no correlation).
     """
     generated = np.asarray(generated_au, float) * 1e-5
     recorded = np.asarray(recorded_au, float) * 1e-5
@@ -280,6 +311,13 @@ def head_metrics(generated_au: np.ndarray, recorded_au: np.ndarray, *, fps: floa
     ratios = {str(fap): (float(generated[keep, axis].std() / recorded_std[axis]) if recorded_std[axis] > 0
                          else None)
               for axis, fap in enumerate(HEAD_FAPS)}
+    own = speed_distribution(generated, fps=fps, measured=keep)
+    theirs = speed_distribution(recorded, fps=fps, measured=keep)
+
+    def ratio(key: str) -> float | None:
+        mine, reference = own[key], theirs[key]
+        return float(mine / reference) if mine is not None and reference else None
+
     return {
         "speed_envelope_r": pearson(speed_envelope(generated, fps=fps)[keep], speed_envelope(recorded, fps=fps)[keep]),
         "pitch_r": pearson(generated[keep, 0], recorded[keep, 0]),
@@ -287,6 +325,9 @@ def head_metrics(generated_au: np.ndarray, recorded_au: np.ndarray, *, fps: floa
         "velocity_spectrum_distance_db": velocity_spectrum_distance_db(generated, recorded, fps=fps),
         "yaw_r": pearson(generated[keep, 1], recorded[keep, 1]),
         "roll_r": pearson(generated[keep, 2], recorded[keep, 2]),
+        **{f"speed_p{p}_ratio": ratio(f"p{p}_deg_s") for p in SPEED_PERCENTILES},
+        "still_fraction": own["still_fraction"],
+        "recorded_still_fraction": theirs["still_fraction"],
     }
 
 
@@ -382,7 +423,8 @@ def brow_metrics(generated_ens: np.ndarray, recorded_ens: np.ndarray, *, fps: fl
 
 
 # averaging measures over runs (seeds, control offsets, recordings) ------------------------------------------
-HEAD_MEASURES = ("speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db", "yaw_r", "roll_r")
+HEAD_MEASURES = ("speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db", "yaw_r", "roll_r",
+                 "speed_p10_ratio", "speed_p50_ratio", "speed_p90_ratio", "still_fraction", "recorded_still_fraction")
 BROW_MEASURES = ("raise_r", "raises", "recorded_raises", "median_raise_s", "recorded_median_raise_s")
 
 

@@ -97,6 +97,20 @@ def brow_curve(stream: FapStream) -> np.ndarray | None:
     return stream.values[:, 30].copy()
 
 
+def _trained_on(head_model, audio, stem: str) -> bool:
+    """Whether ``head_model`` was trained on this recording: the same audio (by SHA-256), or, for model
+    files that do not record it, the same name."""
+    if head_model is None:
+        return False
+    from ..motion.model_files import audio_digest
+
+    clips = head_model.training_
+    digests = {clip.audio_sha256 for clip in clips if clip.audio_sha256}
+    if digests:
+        return audio_digest(audio if isinstance(audio, (str, os.PathLike)) else None) in digests
+    return stem in {clip.name for clip in clips}
+
+
 def _measure(runs: list[FapStream], truth_head: np.ndarray | None, truth_brow: np.ndarray | None, *,
              fps: float, measured: np.ndarray | None = None) -> tuple[dict, dict]:
     """Head and brow measures of several runs of one condition against the recording, averaged (head
@@ -334,8 +348,7 @@ def compare(
         "seeds": seeds,
         "head_model": None if head_model is None else head_model.kind,
         # agreement on a recording the model was trained on is not a held-out figure
-        "model_trained_on_this_recording": (head_model is not None and
-                                            stem in {clip.name for clip in head_model.training_}),
+        "model_trained_on_this_recording": _trained_on(head_model, audio, stem),
         **comparison_metrics(streams, features),
     }
     mouth_blocks, mouth_control = _mouth_measures(streams, mouth, ground_truth, audio, features)

@@ -165,8 +165,9 @@ class ArxHeadModel:
 
     # fitting --------------------------------------------------------------------------------------------
     def fit_arrays(self, inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], *, fps: float = DEFAULT_FPS,
-                   names: Sequence[str] | None = None) -> ArxHeadModel:
-        """Fit on raw input arrays (n_t, n_inputs) and outputs (n_t, n_outputs), one pair per recording."""
+                   names: Sequence[str] | None = None, sources: Sequence[str | None] | None = None) -> ArxHeadModel:
+        """Fit on raw input arrays (n_t, n_inputs) and outputs (n_t, n_outputs), one pair per recording
+        (``sources``: their audio files, whose SHA-256 the model records)."""
         self._check_orders()
         if len(inputs) != len(outputs) or not inputs:
             raise ConfigError("need the same, non-zero number of input and output recordings")
@@ -216,8 +217,9 @@ class ArxHeadModel:
         self.ridge_ = ridge
         self.fps_ = float(fps)
         names = list(names) if names is not None else [f"recording {i}" for i in range(len(inputs))]
-        self.training_ = [TrainingClip(name, int(u.shape[0]), u.shape[0] / fps)
-                          for name, u in zip(names, inputs, strict=False)]
+        sources = list(sources) if sources is not None else [None] * len(inputs)
+        self.training_ = [TrainingClip.of(name, int(u.shape[0]), fps, source)
+                          for name, u, source in zip(names, inputs, sources, strict=False)]
         return self
 
     def fit(self, features: Sequence[Features], motion_au: Sequence[np.ndarray],
@@ -227,7 +229,8 @@ class ArxHeadModel:
         if len(rates) != 1:
             raise ConfigError(f"training recordings have different frame rates {sorted(rates)!r}")
         inputs = [arx_inputs(f, smoothing_s=self.smoothing_s) for f in features]
-        return self.fit_arrays(inputs, [np.asarray(m, float) for m in motion_au], fps=rates.pop(), names=names)
+        return self.fit_arrays(inputs, [np.asarray(m, float) for m in motion_au], fps=rates.pop(), names=names,
+                               sources=[f.source for f in features])
 
     def coefficients_in_units(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(A, B, c)`` of ``y[t] = sum A_i y[t-i] + sum B_j u[t-nk-j] + c`` in the data's own units

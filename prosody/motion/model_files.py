@@ -27,12 +27,43 @@ class TrainingClip:
     name: str
     frames: int
     duration_s: float
+    #: SHA-256 of the audio file (None for audio that came from memory, or model files written before it).
+    audio_sha256: str | None = None
 
     @classmethod
     def from_dict(cls, entry: dict) -> TrainingClip:
         """From a model file's ``training`` entry; KeyError, TypeError, ValueError or OverflowError if it is
         malformed (the model's reader turns them into a ModelError naming the file)."""
-        return cls(str(entry["name"]), int(entry["frames"]), float(entry["duration_s"]))
+        if not isinstance(entry, dict):
+            raise TypeError(f"a training entry must be an object, got {type(entry).__name__}")
+        digest = entry.get("audio_sha256")
+        if digest is not None and not isinstance(digest, str):
+            raise TypeError("audio_sha256 must be a string")
+        return cls(str(entry["name"]), int(entry["frames"]), float(entry["duration_s"]),
+                   None if digest is None else str(digest))
+
+    @classmethod
+    def of(cls, name: str, frames: int, fps: float, source: str | None) -> TrainingClip:
+        """A clip of ``frames`` at ``fps``, with the SHA-256 of its audio file ``source`` if it is one."""
+        return cls(name, int(frames), frames / fps, audio_digest(source))
+
+
+def audio_digest(path: str | os.PathLike[str] | None) -> str | None:
+    """SHA-256 of a file (read in blocks), or None when ``path`` is not a readable regular file."""
+    import hashlib
+
+    if path is None:
+        return None
+    try:
+        digest = hashlib.sha256()
+        with open(path, "rb") as handle:
+            if not os.path.isfile(path):
+                return None
+            for block in iter(lambda: handle.read(1 << 20), b""):
+                digest.update(block)
+        return digest.hexdigest()
+    except OSError:
+        return None
 
 
 def write_model_json(payload: dict, path: str | os.PathLike[str], *, extra: dict | None = None) -> None:

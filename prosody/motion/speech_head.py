@@ -414,7 +414,7 @@ class ProsodicHeadModel:
                           for f, spread in zip(features, spreads, strict=True) for seed in seeds], axis=0)
         self.output_scale_ = np.where(ratios > 0, 1.0 / np.where(ratios > 0, ratios, 1.0), 1.0)
         names = list(names) if names is not None else [f"recording {i}" for i in range(len(features))]
-        self.training_ = [TrainingClip(name, f.n_frames, f.n_frames / fps)
+        self.training_ = [TrainingClip.of(name, f.n_frames, fps, f.source)
                           for name, f in zip(names, features, strict=False)]
         return self
 

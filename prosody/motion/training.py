@@ -51,6 +51,50 @@ class TrainingSet:
     features: list[Features] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
     fps: float = DEFAULT_FPS
+    #: The speaker of each recording (cross-validation holds out a speaker's recordings together); empty:
+    #: every recording its own speaker.
+    speakers: list[str] = field(default_factory=list)
+
+    def folds(self) -> list[list[int]]:
+        """Recording indices grouped by speaker, in order of first appearance: the held-out folds."""
+        speakers = self.speakers if len(self.speakers) == len(self.names) else self.names
+        groups: dict[str, list[int]] = {}
+        for index, speaker in enumerate(speakers):
+            groups.setdefault(speaker, []).append(index)
+        return list(groups.values())
+
+    def subset(self, indices: Sequence[int]) -> TrainingSet:
+        """The recordings at ``indices``."""
+        pick = list(indices)
+        speakers = [self.speakers[i] for i in pick] if len(self.speakers) == len(self.names) else []
+        return TrainingSet([self.names[i] for i in pick], [self.inputs[i] for i in pick],
+                           [self.motion_au[i] for i in pick], [self.features[i] for i in pick], fps=self.fps,
+                           speakers=speakers)
+
+
+#: The optional file of a training folder that names each recording's speaker (columns recording, speaker).
+SPEAKERS_FILE = "speakers.csv"
+
+
+def read_speakers(directory: str | os.PathLike[str]) -> dict[str, str]:
+    """``{recording stem: speaker}`` from the folder's :data:`SPEAKERS_FILE`, or {} without one.
+
+    Raises
+    ------
+    GroundTruthError
+        The file exists but lacks the columns recording and speaker.
+    """
+    import csv
+
+    path = Path(directory) / SPEAKERS_FILE
+    if not path.is_file():
+        return {}
+    with open(path, newline="", encoding="utf-8-sig") as handle:
+        reader = csv.DictReader(handle)
+        if not reader.fieldnames or not {"recording", "speaker"} <= {name.strip() for name in reader.fieldnames}:
+            raise GroundTruthError(f"{path}: expected the columns recording,speaker")
+        return {row["recording"].strip(): row["speaker"].strip() for row in reader
+                if row.get("recording") and row.get("speaker")}
 
 
 def find_pairs(directory: str | os.PathLike[str]) -> list[tuple[Path, Path]]:
@@ -68,12 +112,16 @@ def find_pairs(directory: str | os.PathLike[str]) -> list[tuple[Path, Path]]:
 
 
 def load_training_set(pairs: Iterable[tuple[Path, Path]], *, fps: float = DEFAULT_FPS,
-                      report: Callable[[str], None] | None = None, **analysis: Any) -> TrainingSet:
+                      report: Callable[[str], None] | None = None, speakers: dict[str, str] | None = None,
+                      **analysis: Any) -> TrainingSet:
     """Extract features and read motion for each pair; a pair that fails or whose durations disagree by
-    more than two frames is reported by name and skipped, never silently trimmed."""
+    more than two frames is reported by name and skipped, never silently trimmed. ``speakers`` names the
+    speaker of each recording stem (default: the :data:`SPEAKERS_FILE` of each pair's folder; a recording
+    not named there is its own speaker)."""
     report = report or _LOG.info
     pairs = list(pairs)
     data = TrainingSet(fps=fps)
+    folder_speakers: dict[Path, dict[str, str]] = {}
     for index, (audio, motion_path) in enumerate(pairs, start=1):
         try:
             features = extract_features(audio, fps=fps, **analysis)
@@ -90,6 +138,9 @@ def load_training_set(pairs: Iterable[tuple[Path, Path]], *, fps: float = DEFAUL
             report(f"[{index}/{len(pairs)}] skipped {audio.stem}: {error}")
             continue
         data.names.append(audio.stem)
+        known = speakers if speakers is not None else folder_speakers.setdefault(
+            audio.parent, read_speakers(audio.parent))
+        data.speakers.append(known.get(audio.stem, audio.stem))
         data.inputs.append(arx_inputs(features))
         data.features.append(features)
         data.motion_au.append(head_matrix(motion))  # stretches without a face bridged
@@ -113,19 +164,21 @@ class CrossValidation:
 
 def leave_one_out(data: TrainingSet, *, na: int, nb: int, nk: int,
                   ridge: float = DEFAULT_RIDGE) -> CrossValidation:
-    """Fit on all recordings but one, run free on the one left out; average over recordings."""
-    if len(data.names) < 2:
-        raise ConfigError("cross-validation needs at least two recordings")
+    """Fit on every speaker but one, run free on that speaker's recordings; average over recordings."""
+    folds = data.folds()
+    if len(folds) < 2:
+        raise ConfigError("cross-validation needs recordings of at least two speakers")
     errors, correlations, measures = [], [], []
-    for held in range(len(data.names)):
-        keep = [i for i in range(len(data.names)) if i != held]
+    for fold in folds:
+        keep = [i for i in range(len(data.names)) if i not in fold]
         model = ArxHeadModel(na, nb, nk, ridge=ridge).fit_arrays(
             [data.inputs[i] for i in keep], [data.motion_au[i] for i in keep], fps=data.fps)
-        predicted = model.simulate_arrays(data.inputs[held])
-        recorded = data.motion_au[held]
-        errors.append(np.sqrt(np.mean((predicted - recorded) ** 2)))
-        correlations.append([pearson(predicted[:, axis], recorded[:, axis]) or 0.0 for axis in range(3)])
-        measures.append(head_metrics(predicted, recorded, fps=data.fps))
+        for held in fold:
+            predicted = model.simulate_arrays(data.inputs[held])
+            recorded = data.motion_au[held]
+            errors.append(np.sqrt(np.mean((predicted - recorded) ** 2)))
+            correlations.append([pearson(predicted[:, axis], recorded[:, axis]) or 0.0 for axis in range(3)])
+            measures.append(head_metrics(predicted, recorded, fps=data.fps))
     mean_r = np.mean(correlations, axis=0)
     return CrossValidation(na, nb, nk, ridge, float(np.mean(errors)), (float(mean_r[0]), float(mean_r[1]),
                                                                   float(mean_r[2])),
@@ -182,17 +235,22 @@ class HeldOut:
 
 def held_out_prosodic(data: TrainingSet, settings: dict | None = None, *, seeds: int = CV_SEEDS,
                       controls: bool = True) -> HeldOut:
-    """Fit the prosodic generator on all recordings but one and measure it on the one left out, for each
-    recording, averaging over ``seeds`` seeds; with ``controls``, also driven by the held-out recording's own
+    """Fit the prosodic generator on every speaker but one and measure it on that speaker's recordings,
+    each averaged over ``seeds`` seeds; with ``controls``, also driven by the held-out recording's own
     features circularly shifted (:func:`prosody.motion.controls.shift_offsets`)."""
-    if len(data.names) < 2:
-        raise ConfigError("cross-validation needs at least two recordings")
+    folds = data.folds()
+    if len(folds) < 2:
+        raise ConfigError("cross-validation needs recordings of at least two speakers")
     settings = dict(settings or {})
     per_recording, control_rows = {}, {}
+    models = {}
+    for fold in folds:
+        keep = [i for i in range(len(data.names)) if i not in fold]
+        fitted = ProsodicHeadModel(**settings).fit([data.features[i] for i in keep],
+                                                   [data.motion_au[i] for i in keep])
+        models.update({held: fitted for held in fold})
     for held, name in enumerate(data.names):
-        keep = [i for i in range(len(data.names)) if i != held]
-        model = ProsodicHeadModel(**settings).fit([data.features[i] for i in keep],
-                                                  [data.motion_au[i] for i in keep])
+        model = models[held]
         features, recorded = data.features[held], data.motion_au[held]
         own, mismatched = [], []
         for seed in range(seeds):
@@ -277,11 +335,14 @@ def held_out_summary(result: HeldOut) -> dict:
     }
 
 
-def train(directory: str | os.PathLike[str], output: str | os.PathLike[str], *, kind: str = "prosodic",
+def train(directory: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], output: str | os.PathLike[str], *,
+          kind: str = "prosodic",
           cv: bool = False, na: int = DEFAULT_NA, nb: int = DEFAULT_NB, nk: int = DEFAULT_NK,
           ridge: float = DEFAULT_RIDGE, fps: float = DEFAULT_FPS,
           report: Callable[[str], None] | None = None) -> ArxHeadModel | ProsodicHeadModel:
-    """Train a head model on every pair in ``directory`` and save it to ``output`` (JSON).
+    """Train a head model on every pair in ``directory`` (a folder, or several) and save it to ``output``
+    (JSON). Cross-validation holds out one speaker at a time: each folder's :data:`SPEAKERS_FILE`, if any,
+    says which recordings share a speaker (otherwise every recording is its own).
 
     Parameters
     ----------
@@ -296,9 +357,17 @@ def train(directory: str | os.PathLike[str], output: str | os.PathLike[str], *, 
     if kind not in MODEL_KINDS:
         raise ConfigError(f"kind must be one of {', '.join(MODEL_KINDS)}, got {kind!r}")
     report = report or _LOG.info
-    pairs = find_pairs(directory)
+    folders = [directory] if isinstance(directory, (str, os.PathLike)) else list(directory)
+    pairs = [pair for folder in folders for pair in find_pairs(folder)]
     if not pairs:
-        raise ConfigError(f"{directory}: no <name>.wav with <name>.head.csv or <name>.fap found")
+        raise ConfigError(f"{', '.join(map(str, folders))}: no <name>.wav with <name>.head.csv or <name>.fap found")
+    stems: dict[str, Path] = {}
+    for audio, _ in pairs:
+        if audio.stem in stems:
+            raise ConfigError(f"{stems[audio.stem]} and {audio} have the same name; recordings must be told apart "
+                              "by name")
+        stems[audio.stem] = audio
+    directory = ", ".join(map(str, folders))
     data = load_training_set(pairs, fps=fps, report=report)
     if not data.names:
         raise GroundTruthError(f"{directory}: every pair was skipped; nothing to train on")
@@ -341,7 +410,8 @@ def _train_loaded(data: TrainingSet, directory: str | os.PathLike[str], output: 
                                      for result in ranking_arx]
         report(f"chosen orders na={na} nb={nb} nk={nk}, ridge {ridge:g} (free-run RMSE {best.rmse_au:.0f} AU)")
     model = ArxHeadModel(na, nb, nk, ridge=ridge).fit_arrays(data.inputs, data.motion_au, fps=fps,
-                                                             names=data.names)
+                                                             names=data.names,
+                                                             sources=[f.source for f in data.features])
     extra["diagnostics"] = diagnostics(model, data)
     model.save(output, extra=extra)
     report(f"{output}: trained on {len(data.names)} recordings "

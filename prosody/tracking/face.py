@@ -206,7 +206,7 @@ def head_angles(rotation: np.ndarray) -> tuple[float, float, float]:
     >>> import numpy as np
     >>> a = 0.2
     >>> rz = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
-    >>> [round(v, 6) for v in head_angles(rz)]
+    >>> [round(v, 6) + 0.0 for v in head_angles(rz)]
     [0.0, 0.0, 0.2]
     """
     r = np.asarray(rotation, dtype=float)
