@@ -32,9 +32,11 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench.py
 	$(BIN)/python benchmarks/live_bench.py
+	$(BIN)/python benchmarks/track_bench.py
 
 evaluate: $(STAMP)
 	$(BIN)/python benchmarks/head_loco.py
+	$(BIN)/python benchmarks/head_loso.py
 	$(BIN)/python benchmarks/live_loco.py
 	$(BIN)/python benchmarks/mouth_loco.py
 	$(BIN)/python benchmarks/train_live_mouth.py
