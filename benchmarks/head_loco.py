@@ -1,6 +1,7 @@
-"""Leave-one-recording-out table of the head measures on paired recordings (``make evaluate``).
+"""Leave-one-speaker-out table of the head measures on paired recordings (``make evaluate``).
 
-For each recording, models are fitted on the others and measured on it; every row is the mean over
+For each speaker (``benchmarks/speakers.csv``; a recording not named there is its own speaker), models are
+fitted on the other speakers' recordings and measured on this speaker's; every row is the mean over
 recordings, stochastic rows over several seeds, with the chance spread (the standard deviation over
 recordings of the control's figure) and each speech-driven row's control beside it:
 
@@ -28,7 +29,6 @@ from prosody.motion.pad_head import PadHeadModel
 from prosody.motion.perlin import perlin_curves
 from prosody.motion.speech_head import ProsodicHeadModel
 from prosody.motion.training import (
-    TrainingSet,
     find_pairs,
     held_out_prosodic,
     load_training_set,
@@ -81,9 +81,14 @@ def _row(label: str, per_recording: list[dict], control: list[dict] | None = Non
 def main(argv: list[str]) -> int:
     directory = Path(argv[0]) if argv else default_data()
     warnings.simplefilter("ignore")
-    data = load_training_set(find_pairs(directory), report=lambda message: None)
+    from head_loso import speakers
+
+    data = load_training_set(find_pairs(directory), speakers=speakers(), report=lambda message: None)
     names, fps = data.names, data.fps
-    print(f"{len(names)} recordings, {sum(f.n_frames for f in data.features) / fps:.0f} s, leave-one-recording-out")
+    held_with = {held: fold for fold in data.folds() for held in fold}
+    seconds = sum(f.n_frames for f in data.features) / fps
+    print(f"{len(names)} recordings, {len(data.folds())} speakers, {seconds:.0f} s, "
+          "leave-one-speaker-out")
     print()
     print("| head | speed-envelope r | pitch r | std ratio pitch / yaw / roll | velocity-spectrum distance (dB) "
           "| control: speed-envelope r (chance spread) | control: pitch r (chance spread) |")
@@ -94,9 +99,8 @@ def main(argv: list[str]) -> int:
     # nested: the settings for each held-out recording are chosen by cross-validation on the others only
     nested, nested_control = [], []
     for held in range(len(names)):
-        keep = [i for i in range(len(names)) if i != held]
-        inner = TrainingSet([names[i] for i in keep], [data.inputs[i] for i in keep],
-                            [data.motion_au[i] for i in keep], [data.features[i] for i in keep], fps=fps)
+        keep = [i for i in range(len(names)) if i not in held_with[held]]
+        inner = data.subset(keep)
         settings = select_prosodic(inner)[0].settings
         model = ProsodicHeadModel(**settings).fit(inner.features, inner.motion_au)
         features, recorded = data.features[held], data.motion_au[held]
@@ -108,7 +112,7 @@ def main(argv: list[str]) -> int:
     print(_row("prosodic, settings chosen per fold (nested), 10 seeds", nested, nested_control))
     arx_rows, arx_control = [], []
     for held in range(len(names)):
-        keep = [i for i in range(len(names)) if i != held]
+        keep = [i for i in range(len(names)) if i not in held_with[held]]
         model = ArxHeadModel(**SHIPPED_ARX).fit([data.features[i] for i in keep], [data.motion_au[i] for i in keep])
         recorded = data.motion_au[held]
         arx_rows.append(head_metrics(model.simulate_arrays(data.inputs[held]), recorded, fps=fps))

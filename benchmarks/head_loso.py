@@ -31,8 +31,7 @@ import numpy as np
 from prosody.measures import average_head_metrics, head_metrics
 from prosody.motion.controls import shift_offsets, shifted_features
 from prosody.motion.perlin import perlin_curves
-from prosody.motion.speech_head import ProsodicHeadModel
-from prosody.motion.training import TrainingSet, find_pairs, held_out_prosodic, load_training_set
+from prosody.motion.training import find_pairs, held_out_prosodic, load_training_set
 
 sys.path.insert(0, str(Path(__file__).parent))
 from shared import REPO, data_folder, talking_heads  # noqa: E402
@@ -106,7 +105,8 @@ def main(argv: list[str]) -> int:
     print(f"{len(data.names)} clips, {len(data.folds())} speakers, "
           f"{sum(f.n_frames for f in data.features) / fps:.0f} s; leave-one-speaker-out")
     print()
-    print("| head | clips | speed-envelope r | pitch r | std ratio pitch / yaw / roll | velocity-spectrum distance (dB) "
+    print("| head | clips | speed-envelope r | pitch r | std ratio pitch / yaw / roll "
+          "| velocity-spectrum distance (dB) "
           "| speed p10 / p50 / p90 ratio | still: generated vs recorded | control: speed-envelope r (chance spread) "
           "| control: pitch r (chance spread) |")
     print("|---|---|---|---|---|---|---|---|---|---|")
@@ -118,8 +118,8 @@ def main(argv: list[str]) -> int:
     print(row("shipped default (trained on talking-heads), on the tracked clips", [p[0] for p in pairs_unseen],
               [p[1] for p in pairs_unseen]))
     everyone = held_out_prosodic(data, seeds=SEEDS)
-    for label, chosen in (("all", data.names), ("talking-heads", [n for n in data.names if source[n] == "talking-heads"]),
-                          ("talking-videos", [n for n in data.names if source[n] == "talking-videos"])):
+    by_source = {kind: [n for n in data.names if source[n] == kind] for kind in ("talking-heads", "talking-videos")}
+    for label, chosen in (("all", data.names), *by_source.items()):
         print(row(f"prosodic fitted on every other speaker: {label} clips",
                   [everyone.per_recording[n] for n in chosen], [everyone.controls[n] for n in chosen]))
     heads_only = [i for i, name in enumerate(data.names) if source[name] == "talking-heads"]

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from prosody.errors import ConfigError, ModelError
+from prosody.errors import ConfigError, GroundTruthError, ModelError
 from prosody.motion.head import DEFAULT_MODEL_PATH, ArxHeadModel, default_model, spectral_radius, trailing_mean
 
 TRUE_A = np.array([
@@ -218,3 +218,46 @@ def test_train_reproduces_the_shipped_model(shared_data, tmp_path, kind, shipped
         else:
             assert made[key] == value, key
     assert len(made["training"]) == len(ship["training"]) == 7
+
+
+def test_folds_hold_out_a_speaker_s_recordings_together(tmp_path) -> None:
+    from prosody.motion.training import TrainingSet, read_speakers
+
+    (tmp_path / "speakers.csv").write_text("recording,speaker\nobama_1,Obama\nobama_2,Obama\n")
+    table = read_speakers(tmp_path)
+    names = ["obama_1", "noem", "obama_2", "reagan"]
+    arrays = [np.full((3, 3), index, float) for index in range(4)]
+    data = TrainingSet(names=names, inputs=arrays, motion_au=arrays, features=[], speakers=[
+        table.get(name, name) for name in names])
+    assert data.folds() == [[0, 2], [1], [3]]
+    assert TrainingSet(names=names).folds() == [[0], [1], [2], [3]]  # no speakers: one recording each
+    data.features = list(arrays)  # stand-ins: subset only picks
+    part = data.subset([1, 2])
+    assert part.speakers == ["noem", "Obama"] and part.names == ["noem", "obama_2"] and part.motion_au[1][0, 0] == 2
+    (tmp_path / "speakers.csv").write_text("name,who\nx,y\n")
+    with pytest.raises(GroundTruthError, match="expected the columns recording,speaker"):
+        read_speakers(tmp_path)
+
+
+@pytest.mark.shared_data
+def test_model_files_record_their_training_audio_and_compare_uses_it(shared_data, tmp_path) -> None:
+    import shutil
+
+    from prosody.evaluation.compare import compare
+    from prosody.motion.model_files import audio_digest
+    from prosody.motion.speech_head import ProsodicHeadModel
+    from prosody.motion.training import find_pairs, load_training_set
+
+    pairs = find_pairs(shared_data / "talking-heads")[:2]
+    data = load_training_set(pairs, report=lambda message: None)
+    model = ProsodicHeadModel().fit(data.features, data.motion_au, names=data.names)
+    assert [clip.audio_sha256 for clip in model.training_] == [audio_digest(audio) for audio, _ in pairs]
+    model.save(tmp_path / "model.json")
+    # the same audio under another name is still in-sample; other audio is not
+    renamed = tmp_path / "renamed.wav"
+    shutil.copyfile(pairs[0][0], renamed)
+    seen = compare(renamed, model=str(tmp_path / "model.json"), seeds=1)
+    assert seen.metrics["model_trained_on_this_recording"] is True
+    other = find_pairs(shared_data / "talking-heads")[3][0]
+    assert compare(other, model=str(tmp_path / "model.json"), seeds=1).metrics[
+        "model_trained_on_this_recording"] is False

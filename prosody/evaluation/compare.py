@@ -311,7 +311,8 @@ def compare(
     # same generator driven by this recording's audio shifted in time (the mismatched-audio control)
     # frames a tracker lost are bridged in truth_head and left out of the head measures
     truth_measured = head_measured(truth) if truth is not None else None
-    truth_head = head_matrix(truth) if truth_measured is not None and truth_measured.any() else None
+    truth_head = head_matrix(truth) if truth is not None and truth_measured is not None and truth_measured.any() \
+        else None
     truth_brow = brow_curve(truth) if truth is not None else None
     stochastic = {Condition.RANDOM} | ({Condition.SPEECH_DRIVEN} if head_model is not None
                                        and is_stochastic(head_model) else set())

@@ -123,7 +123,7 @@ def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -
                                    f"empty cells), found {row!r} ({error})") from None
     if data.shape[0] == 0:
         raise GroundTruthError(f"{name}: no frames")
-    empty = np.isnan(data[:, 2:]).all(axis=1)
+    empty = np.asarray(np.isnan(data[:, 2:]).all(axis=1), dtype=bool)
     if empty.all():
         raise GroundTruthError(f"{name}: no frame with a face (every angle cell is empty)")
     finite = np.isfinite(data) | np.column_stack([np.zeros((data.shape[0], 2), bool), np.repeat(empty[:, None], 3, 1)])
