@@ -689,6 +689,26 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _outcome_reporter(command: str, output: str, unit: str, total: int, name: Callable[[Any], str],
+                      result: Callable[[Any], str | None] | None = None) -> Callable[[Any], None]:
+    """The per-input callback of a folder command (batch, track): one bar over the inputs, and each input's
+    warnings and failure (always) and result line (unless quiet) said above it."""
+    progress = _ProgressBar(output, unit)
+    finished = [0]
+
+    def on_outcome(outcome) -> None:
+        for note in outcome.warnings:
+            progress.say(f"prosody {command}: warning: {name(outcome)}: {note}")
+        if outcome.status == "failed":
+            progress.say(f"prosody {command}: error: {name(outcome)}: {outcome.error}")
+        elif result is not None and (line := result(outcome)):
+            progress.say(line)
+        finished[0] += 1
+        progress(finished[0], total)
+
+    return on_outcome
+
+
 def _cmd_batch(args: argparse.Namespace) -> int:
     from .jobs.batch import BatchOptions, find_audio_files, run_batch
 
@@ -699,18 +719,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
                            **_analysis_kwargs(args))
     if conditions:
         options = dataclasses.replace(options, conditions=tuple(conditions))
-    total = len(find_audio_files(args.input))
-    progress = _ProgressBar(f"{args.output}", "file")
-    finished = [0]
-
-    def on_outcome(outcome) -> None:
-        # warnings and failures are always said, on their own lines, above the bar
-        for note in outcome.warnings:
-            progress.say(f"prosody batch: warning: {outcome.file}: {note}")
-        if outcome.status == "failed":
-            progress.say(f"prosody batch: error: {outcome.file}: {outcome.error}")
-        finished[0] += 1
-        progress(finished[0], total)
+    on_outcome = _outcome_reporter("batch", args.output, "file", len(find_audio_files(args.input)),
+                                   lambda outcome: outcome.file)
 
     summary = run_batch(args.input, args.output, ground_truth_dir=args.ground_truth_dir, options=options,
                         jobs=args.jobs, scheduler=args.scheduler, force=args.force, on_outcome=on_outcome)
@@ -725,23 +735,17 @@ def _cmd_track(args: argparse.Namespace) -> int:
 
     options = TrackOptions(av_offset_ms=args.av_offset_ms, max_gap_s=args.max_gap,
                            max_side_px=None if args.max_side == 0 else args.max_side)
-    total = len(find_videos(args.input))
-    progress = _ProgressBar(f"{args.output}", "video")
-    finished = [0]
+    from .tracking.curves import SyncEstimate
 
-    def on_outcome(outcome) -> None:
-        for note in outcome.warnings:
-            progress.say(f"prosody track: warning: {outcome.video}: {note}")
-        if outcome.status == "failed":
-            progress.say(f"prosody track: error: {outcome.video}: {outcome.error}")
-        elif outcome.sync is not None:
-            from .tracking.curves import SyncEstimate
+    def result(outcome) -> str | None:
+        if outcome.sync is None:
+            return None
+        sync = SyncEstimate(**{key: outcome.sync.get(key) for key in ("lead_ms", "r", "spread_ms", "reason")})
+        state = "already complete" if outcome.status == "skipped" else f"{outcome.seconds:.1f} s"
+        return f"{outcome.stem}: {outcome.frames} frames at 30 fps ({state}); {sync.describe()}"
 
-            sync = SyncEstimate(**{key: outcome.sync.get(key) for key in ("lead_ms", "r", "spread_ms", "reason")})
-            state = "already complete" if outcome.status == "skipped" else f"{outcome.seconds:.1f} s"
-            progress.say(f"{outcome.stem}: {outcome.frames} frames at 30 fps ({state}); {sync.describe()}")
-        finished[0] += 1
-        progress(finished[0], total)
+    on_outcome = _outcome_reporter("track", args.output, "video", len(find_videos(args.input)),
+                                   lambda outcome: outcome.video, result)
 
     outcomes = track_videos(args.input, args.output, options=options, audio=args.audio, jobs=args.jobs,
                             scheduler=args.scheduler, force=args.force, on_outcome=on_outcome)
