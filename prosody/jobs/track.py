@@ -279,7 +279,8 @@ def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options:
     curves = tracked_curves(np.array(times), np.vstack(rows), duration_s=duration_s,
                             offset_s=options.av_offset_ms / 1000.0, max_gap_s=options.max_gap_s)
     if curves.missing_frames:
-        note(f"{curves.missing_frames} of {curves.n_frames} frames without the face (empty cells)")
+        note(f"{curves.missing_frames} of {curves.n_frames} frames have no face (empty cells): it was not found "
+             "there, or the sound outlasts the picture")
     sync = (estimate_sync(curves.columns["lip_opening"], envelope.envelope(curves.n_frames))
             if has_sound else SyncEstimate(None, None, None, "no sound"))
     written = write_curves(curves, stem, pending=pending)
@@ -314,7 +315,8 @@ def _track_one(video: str, outdir: str, options: TrackOptions, audio: str | None
         try:
             return track_video(video, outdir, options=options, audio=audio, force=force)
         except (VisualProsodyError, OSError, ValueError) as error:
-            return TrackOutcome(video, "failed", str(Path(outdir) / Path(video).stem), error=_one_line(error),
+            line = _one_line(error).removeprefix(f"{video}: ")  # the report names the video already
+            return TrackOutcome(video, "failed", str(Path(outdir) / Path(video).stem), error=line,
                                 seconds=time.monotonic() - started)
 
 

@@ -89,6 +89,10 @@ def _open(path: str | os.PathLike[str]):
 
 
 def _reason(error: BaseException) -> str:
+    """FFmpeg's own words for an error (PyAV's message adds an errno and the file name)."""
+    words = getattr(error, "strerror", None)
+    if isinstance(words, str) and words:
+        return words
     text = " ".join(str(error).split())
     return text.split(": '", 1)[0] if text else type(error).__name__
 
