@@ -106,7 +106,8 @@ def test_compare_cli_writes_everything_with_the_documented_shape(tmp_path, rng) 
                      "head.png", "report.md", "metrics.json"}
     metrics = json.loads((out / "metrics.json").read_text())
     assert list(metrics["conditions"]) == ["NO_PROSODY", "RANDOM", "SPEECH_DRIVEN", "GROUND_TRUTH"]
-    head_keys = {"speed_envelope_r", "pitch_r", "std_ratio", "velocity_spectrum_distance_db", "yaw_r", "roll_r"}
+    head_keys = {"speed_envelope_r", "pitch_r", "std_ratio", "velocity_spectrum_distance_db", "yaw_r", "roll_r",
+                 "speed_p10_ratio", "speed_p50_ratio", "speed_p90_ratio", "still_fraction", "recorded_still_fraction"}
     for _condition, per_fap in metrics["conditions"].items():
         assert list(per_fap) == ["31", "32", "33", "34", "48", "49", "50", "head", "brows", "mouth"]
         for fap, entry in per_fap.items():
@@ -411,3 +412,21 @@ def test_a_second_comparison_leaves_no_file_of_the_first_behind(tmp_path, speech
     assert main(["compare", str(speech), "-o", str(out), "--seeds", "1", "--no-plots", "--lips", "none"]) == 0
     assert not (out / "features.png").exists() and not (out / "conditions.mp4").exists()
     assert (out / "notes.txt").read_text() == "the user's own file" and (out / "metrics.json").exists()
+
+
+def test_head_measures_leave_out_frames_the_recording_lost(rng) -> None:
+    from prosody.measures import head_metrics
+
+    fps = 30.0
+    t = np.arange(600) / fps
+    motion = np.column_stack([np.sin(2 * np.pi * 0.3 * t), np.cos(2 * np.pi * 0.2 * t), np.sin(2 * np.pi * 0.1 * t)])
+    recorded = motion * 3000.0
+    lost = recorded.copy()
+    lost[200:300] = rng.normal(0, 20000, (100, 3))  # what a lost face would put there, were it kept
+    measured = np.ones(600, bool)
+    measured[200:300] = False
+    whole = head_metrics(recorded * 0.5, lost, fps=fps)
+    kept = head_metrics(recorded * 0.5, lost, fps=fps, measured=measured)
+    assert kept["pitch_r"] == pytest.approx(1.0) and kept["std_ratio"]["49"] == pytest.approx(0.5)
+    assert whole["pitch_r"] < 0.9
+    assert kept["speed_p50_ratio"] == pytest.approx(0.5, rel=0.05)
