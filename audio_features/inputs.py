@@ -92,3 +92,20 @@ def _size(n_bytes: int) -> str:
         if n_bytes >= 1 << shift and n_bytes % (1 << shift) == 0:
             return f"{n_bytes >> shift} {unit}"
     return f"{n_bytes} bytes"
+
+
+def file_sha256(path: str | os.PathLike[str]) -> str:
+    """SHA-256 of a regular file's content, read in 1 MiB blocks.
+
+    Raises
+    ------
+    OSError
+        As :func:`open_input`: a missing file, a folder, a pipe or a device.
+    """
+    import hashlib
+
+    digest = hashlib.sha256()
+    with open_input(path) as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()

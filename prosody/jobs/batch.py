@@ -10,7 +10,6 @@ is skipped on a re-run (``force`` redoes it). A broken file is reported and skip
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import os
 import re
@@ -27,7 +26,7 @@ import numpy as np
 
 from audio_features import AUDIO_EXTENSIONS, DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS, AudioFeaturesError
 from audio_features.atomic import atomic_write
-from audio_features.inputs import open_input
+from audio_features.inputs import file_sha256
 
 from ..errors import ConfigError, ProsodyError, VisualProsodyError
 from ..fap.table import PROSODY_FAPS
@@ -137,13 +136,7 @@ def natural_key(path: Path) -> list:
 
 def file_digest(path: str | os.PathLike[str] | None) -> str | None:
     """SHA-256 of a file's content (None for None): resume notices an input that changed under its name."""
-    if path is None:
-        return None
-    digest = hashlib.sha256()
-    with open_input(path) as handle:
-        for block in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
+    return None if path is None else file_sha256(path)
 
 
 def _settings(options: BatchOptions, ground_truth: Path | None, audio: str) -> dict:

@@ -214,7 +214,7 @@ def track_video(video: str | os.PathLike[str], outdir: str | os.PathLike[str], *
     # every file goes to a temporary name, renamed only once all of them are complete
     with contextlib.ExitStack() as pending:
         outcome, summary = _track(path, stem, info, sound, options, pending, note, progress)
-        summary["notes"] = notes
+        summary = {"settings": settings, **summary, "notes": notes}
         outcome.warnings = notes
     # written last: its presence says the folder is complete for this video and these settings
     with atomic_write(record, newline="\n") as handle:
@@ -227,8 +227,6 @@ def track_video(video: str | os.PathLike[str], outdir: str | os.PathLike[str], *
 def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options: TrackOptions,
            pending: contextlib.ExitStack, note: Callable[[str], None],
            progress: Callable[[int, int], None] | None) -> tuple[TrackOutcome, dict]:
-    settings = _settings(path, options, sound)
-
     # the sound first: it sets the time base and the length of the grid
     envelope = EnvelopeAccumulator(sample_rate_hz=TRACK_AUDIO_RATE_HZ)
     if info.has_audio:
@@ -285,7 +283,6 @@ def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options:
             if has_sound else SyncEstimate(None, None, None, "no sound"))
     written = write_curves(curves, stem, pending=pending)
     summary = {
-        "settings": settings,
         "video": {key: value for key, value in asdict(info).items() if key != "path"} | {"file": path.name},
         "frames": curves.n_frames, "fps": curves.fps, "video_frames": len(times),
         "video_frames_with_face": with_face, "faces_seen": faces_seen,

@@ -49,19 +49,13 @@ class TrainingClip:
 
 
 def audio_digest(path: str | os.PathLike[str] | None) -> str | None:
-    """SHA-256 of a file (read in blocks), or None when ``path`` is not a readable regular file."""
-    import hashlib
+    """SHA-256 of an audio file, or None when ``path`` is None or not a readable regular file."""
+    from audio_features.inputs import file_sha256
 
     if path is None:
         return None
     try:
-        digest = hashlib.sha256()
-        with open(path, "rb") as handle:
-            if not os.path.isfile(path):
-                return None
-            for block in iter(lambda: handle.read(1 << 20), b""):
-                digest.update(block)
-        return digest.hexdigest()
+        return file_sha256(path)
     except OSError:
         return None
 
