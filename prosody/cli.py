@@ -140,12 +140,53 @@ def _add_motion_options(parser: argparse.ArgumentParser, *, live: bool = False) 
                               help="scale the lips' motion (FAP 3-11, 16-17, 51-58) by G (default 1)")
     controls.add_argument("--off", action="append", default=[], metavar="CHANNEL[,CHANNEL]",
                           help="leave channels out of the output: pitch, yaw, roll, brows, lips (repeatable)")
+    _add_expressivity_options(parser)
     if live:
         parser.add_argument("--lips", dest="live_lips", default="acoustic", choices=["acoustic", "none"],
                             help="lips from the live acoustic mouth model (default; the same in every condition), "
                                  "or none; the visemes of convert need whole phones and are not offered live")
     else:
         _add_face_options(parser)
+
+
+def _add_expressivity_options(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group(
+        "expressivity", "Greta's six expressivity parameters, on every head and brow generator alike (the "
+        "speech-driven head of any --model, the brows of either rule, the random condition, and live). The "
+        "defaults leave the motion as generated.")
+    group.add_argument("--activation", type=_number_in(0, 1), default=1.0, metavar="OAC",
+                       help="how often gestures happen, 0..1 (default 1): below 1 the head holds still during "
+                            "its weakest moments (about 1 - OAC of the time) and only that share of the brow "
+                            "raises is kept")
+    group.add_argument("--spatial", type=_number_in(-1, 1), default=0.0, metavar="SPC",
+                       help="amplitude about rest, -1..1 (default 0): the motion times 2^SPC")
+    group.add_argument("--temporal", type=_number_in(-1, 1), default=0.0, metavar="TMP",
+                       help="duration of movements, -1..1 (default 0): above 0 longer and slower, below 0 "
+                            "shorter and quicker; brow raises held longer or cut shorter")
+    group.add_argument("--fluidity", type=_number_in(-1, 1), default=0.0, metavar="FLD",
+                       help="smoothness, -1..1 (default 0): above 0 the quick jerks are smoothed away, below 0 "
+                            "they are boosted")
+    group.add_argument("--power", type=_number_in(-1, 1), default=0.0, metavar="PWR",
+                       help="sharpness of accents, -1..1 (default 0): above 0 strong moments grow and weak ones "
+                            "shrink (bursts and holds) and brow raises flick up, below 0 the motion evens out")
+    group.add_argument("--repetition", type=_number_in(0, 1), default=0.0, metavar="REP",
+                       help="repeated nods (and a second brow raise) on strong accents, 0..1 (default 0)")
+    group.add_argument("--still", action="store_true",
+                       help="a head that keeps still but for an idle sway, and brows at rest (--activation 0)")
+
+
+def _expressivity(args: argparse.Namespace):
+    """The Expressivity of the command line's controls, or None where they keep the motion as generated."""
+    from .errors import ConfigError
+    from .motion.expressivity import Expressivity
+
+    controls = Expressivity(activation=args.activation, spatial=args.spatial, temporal=args.temporal,
+                            fluidity=args.fluidity, power=args.power, repetition=args.repetition)
+    if args.still:
+        if args.activation != 1.0:
+            raise ConfigError("--still is --activation 0: give one of them")
+        controls = controls.with_changes(activation=0.0)
+    return None if controls.is_neutral else controls
 
 
 def _add_face_options(parser: argparse.ArgumentParser) -> None:
@@ -273,6 +314,7 @@ def _motion_kwargs(args: argparse.Namespace) -> dict:
                 "expression": args.expression, "mouth_model": args.mouth_model}
     return {"condition": args.condition, "ground_truth": getattr(args, "ground_truth", None), "model": args.model,
             "seed": args.seed, "eyebrow_rule": _eyebrow_rule(args), "gains": gains, "disabled": disabled, **face,
+            "expressivity": _expressivity(args),
             **_analysis_kwargs(args)}
 
 
@@ -310,6 +352,9 @@ def _check_motion_options(args: argparse.Namespace) -> None:
     if getattr(args, "transcript", None) is not None and getattr(args, "lips", None) != "visemes":
         raise ConfigError("--transcript is read by the visemes; it is not used by --lips "
                           f"{getattr(args, 'lips', 'none')}")
+    if args.condition in ("none", "truth") and _expressivity(args) is not None:
+        raise ConfigError(f"the expressivity controls shape generated motion; --condition {args.condition} has none "
+                          "(choose speech or random)")
 
 
 def _cmd_convert(args: argparse.Namespace) -> int:
@@ -674,7 +719,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                          other_head_models={name: name for name in args.also_model},
                          lips=None if args.lips == "none" else args.lips, transcript=args.transcript,
                          expression=args.expression, mouth=args.mouth, mouth_model=args.mouth_model,
-                         **_analysis_kwargs(args))
+                         expressivity=_expressivity(args), **_analysis_kwargs(args))
     written = write_comparison(comparison, args.output, plots=args.plots, video=args.video,
                                exaggerate=args.exaggerate,
                                progress=_frame_progress(f"{args.output}/conditions.mp4") if args.video else None)
@@ -711,12 +756,13 @@ def _outcome_reporter(command: str, output: str, unit: str, total: int, name: Ca
 
 def _cmd_batch(args: argparse.Namespace) -> int:
     from .jobs.batch import BatchOptions, find_audio_files, run_batch
+    from .motion.expressivity import Expressivity
 
     conditions = [name for value in args.condition for name in value.split(",") if name.strip()] or None
     options = BatchOptions(model=args.model, seed=args.seed, seeds=args.seeds, normalize=args.normalize,
                            plots=args.plots, video=args.video, brows=args.brows,
                            lips=None if args.lips == "none" else args.lips,
-                           **_analysis_kwargs(args))
+                           expressivity=(_expressivity(args) or Expressivity()).as_dict(), **_analysis_kwargs(args))
     if conditions:
         options = dataclasses.replace(options, conditions=tuple(conditions))
     on_outcome = _outcome_reporter("batch", args.output, "file", len(find_audio_files(args.input)),
@@ -1002,6 +1048,7 @@ def build_parser() -> argparse.ArgumentParser:
                          help="a video-tracked mouth for the lip measures (default: the <clip>.mouth.csv beside "
                               "the ground truth or the audio, if any)")
     _add_face_options(compare)
+    _add_expressivity_options(compare)
     compare.add_argument("--exaggerate", type=_exaggeration, default=1.0, metavar="X",
                          help="with --video: draw head angles and brow raises X times larger (default 1)")
     _add_analysis_options(compare)
@@ -1041,6 +1088,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="also write each file's conditions.mp4, as compare --video (needs ffmpeg or the "
                             "imageio-ffmpeg package)")
     batch.add_argument("--force", action="store_true", help="redo files whose outputs are already complete")
+    _add_expressivity_options(batch)
     _add_analysis_options(batch)
     batch.set_defaults(handler=_cmd_batch)
 

@@ -39,13 +39,21 @@ from ..measures import (
     normalization_targets,
     normalize_stream,
 )
-from ..motion.conditions import CONDITION_ORDER, Condition, MissingMotionWarning, condition_stream, head_motion
+from ..motion.conditions import (
+    CONDITION_ORDER,
+    Condition,
+    MissingMotionWarning,
+    condition_stream,
+    expressive,
+    head_motion,
+)
 from ..motion.controls import shift_offsets, shifted_features
 from ..motion.expressions import ExpressionSegment
+from ..motion.expressivity import Expressivity
 from ..motion.eyebrows import BrowRule, EyebrowRaises, NoRaiseWarning, brow_raises, warn_if_no_raise
 from ..motion.face import make_face, stream_mouth
 from ..motion.ground_truth import RecordedMouth, fit_to_grid, mouth_beside, read_motion, read_mouth_csv
-from ..motion.head_models import HeadModel, is_stochastic, resolve_head_model
+from ..motion.head_models import HeadModel, is_stochastic, resolve_head_model, rest_pose
 
 #: Version of the metrics.json layout (2: head measures per condition, controls, seeds).
 METRICS_VERSION = 2
@@ -213,6 +221,7 @@ def compare(
     expression: str | Sequence[ExpressionSegment] | None = None,
     mouth: str | os.PathLike[str] | RecordedMouth | None = None,
     mouth_model: str | os.PathLike[str] | None = None,
+    expressivity: Expressivity | None = None,
 ) -> Comparison:
     """Compute every condition for a recording and compare them.
 
@@ -249,6 +258,9 @@ def compare(
         Already extracted features of ``audio``.
     lips, transcript, expression, mouth_model
         The lips and expression given to every condition alike (see :func:`prosody.jobs.pipeline.convert`).
+    expressivity : Expressivity, optional
+        Greta's expressivity controls on the generated conditions (and their controls, and the other head
+        models) alike; recorded motion is left as it is.
     mouth : path or RecordedMouth, optional
         A video-tracked mouth (``<clip>.mouth.csv``) for the mouth measures; by default the one beside
         ``ground_truth`` or ``audio``, if any.
@@ -290,7 +302,7 @@ def compare(
             warnings.simplefilter("ignore", NoRaiseWarning)  # said once above, not per control run
             stream = condition_stream(condition, source, seed=run_seed, model=head_model, ground_truth=truth,
                                       eyebrows=eyebrows if source is features else None, eyebrow_rule=rule,
-                                      name=f"{stem}_{condition.value.lower()}")
+                                      name=f"{stem}_{condition.value.lower()}", expressivity=expressivity)
         return face.over(stream) if face is not None else stream
 
     for condition in CONDITION_ORDER:
@@ -368,7 +380,9 @@ def compare(
         run_seeds = list(range(seed, seed + seeds)) if is_stochastic(other_model) else [seed]
 
         def head_of(source: Features, run_seed: int, chosen: HeadModel = other_model) -> np.ndarray:
-            stream = FapStream.from_curves(head_motion(chosen, source, seed=run_seed), fps=source.fps)
+            curves = expressive(head_motion(chosen, source, seed=run_seed), fps=source.fps,
+                                expressivity=expressivity, rest=rest_pose(chosen))
+            stream = FapStream.from_curves(curves, fps=source.fps)
             return head_matrix(finished(Condition.SPEECH_DRIVEN, stream))
 
         entry: dict = {"kind": other_model.kind, "head": empty_head_metrics(),

@@ -15,7 +15,7 @@ import os
 import re
 import time
 import warnings
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures import CancelledError, Executor, Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
@@ -31,6 +31,7 @@ from audio_features.inputs import file_sha256
 from ..errors import ConfigError, ProsodyError, VisualProsodyError
 from ..fap.table import PROSODY_FAPS
 from ..motion.conditions import CONDITION_ORDER, Condition
+from ..motion.expressivity import NEUTRAL, Expressivity
 
 #: Ground-truth file endings looked up beside an audio file's stem, in order of preference.
 GROUND_TRUTH_SUFFIXES = (".head.csv", ".fap")
@@ -58,8 +59,11 @@ class BatchOptions:
     seeds: int = 10
     brows: str = "accent"
     lips: str | None = "visemes"
+    #: Greta's expressivity controls by name (see :class:`prosody.motion.expressivity.Expressivity`).
+    expressivity: Mapping[str, float] = field(default_factory=lambda: dict(NEUTRAL))
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "expressivity", Expressivity().with_changes(**self.expressivity).as_dict())
         parsed = tuple(Condition.parse(name).value for name in self.conditions)
         if not parsed:
             raise ConfigError("choose at least one condition")
@@ -196,7 +200,8 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
             comparison = compare(audio, ground_truth=truth, model=options.model, seed=options.seed,
                                  seeds=options.seeds, eyebrow_rule=rule, normalize=options.normalize,
                                  conditions=conditions, fps=options.fps, f0_floor_hz=options.f0_floor_hz,
-                                 f0_ceiling_hz=options.f0_ceiling_hz, lips=options.lips)
+                                 f0_ceiling_hz=options.f0_ceiling_hz, lips=options.lips,
+                                 expressivity=Expressivity(**options.expressivity))
         outcome.warnings = list(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
         folder.mkdir(parents=True, exist_ok=True)
         # the features let the summary drive the generator with this recording's audio against other ones

@@ -15,6 +15,7 @@ from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS
 from ..motion.conditions import Condition, condition_stream
 from ..motion.expressions import ExpressionSegment
+from ..motion.expressivity import Expressivity
 from ..motion.eyebrows import BrowRule
 from ..motion.face import FaceLayer, make_face
 from ..motion.ground_truth import fit_to_grid, read_motion
@@ -74,6 +75,7 @@ def convert(
     transcript: str | None = None,
     expression: str | Sequence[ExpressionSegment] | None = None,
     mouth_model: str | os.PathLike[str] | None = None,
+    expressivity: Expressivity | None = None,
 ) -> FapStream:
     """Convert a speech recording into the FAP stream of one condition, and write it if ``output`` is given.
 
@@ -116,6 +118,9 @@ def convert(
         ``NAME:INTENSITY`` for the whole recording (``joy:0.6``), a CSV file of timed expressions, or segments.
     mouth_model : path, optional
         A mouth model from ``prosody train --kind mouth`` for ``lips="acoustic"`` (default: the shipped one).
+    expressivity : Expressivity, optional
+        Greta's six expressivity controls on the generated head and brows (see
+        :mod:`prosody.motion.expressivity`); ``Expressivity.still()`` keeps only an idle sway.
 
     Returns
     -------
@@ -131,7 +136,7 @@ def convert(
     truth = load_ground_truth(ground_truth, features) if ground_truth is not None else None
     name = Path(output).stem if output is not None else Path(str(audio)).stem
     stream = condition_stream(chosen, features, seed=seed, model=head_model, ground_truth=truth,
-                              eyebrow_rule=eyebrow_rule, perlin=perlin, name=name)
+                              eyebrow_rule=eyebrow_rule, perlin=perlin, name=name, expressivity=expressivity)
     face = make_face(audio, features, lips=lips, transcript=transcript, expression=expression, gains=gains,
                      disabled=disabled, mouth_model=mouth_model)
     recorded = None

@@ -27,6 +27,7 @@ from ..errors import ConfigError
 from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
 from ..motion.conditions import Condition
+from ..motion.expressivity import BrowShaper, Expressivity, HeadShaper
 from ..motion.eyebrows import BrowRule
 from ..motion.lips import LIP_FAPS, shape_faps
 from ..motion.live import LiveHeadModel, LivePerlin, live_brows
@@ -99,6 +100,9 @@ class LiveConverter:
         Lips from the live acoustic mouth model (the same in every condition; the shipped model with the most
         look-ahead within ``lookahead_ms``: 0 or 100 ms). The visemes need whole phones and their neighbours,
         so they are not offered live.
+    expressivity : Expressivity, optional
+        Greta's expressivity controls on the head and brows, exactly as offline (they look at no future frame);
+        :meth:`set_expressivity` changes them while streaming.
 
     Examples
     --------
@@ -114,7 +118,8 @@ class LiveConverter:
                  lookahead_ms: float = DEFAULT_LOOKAHEAD_MS, seed: int = 0, fps: float = DEFAULT_FPS,
                  f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ, f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ,
                  eyebrow_rule: BrowRule | None = None, gains: Mapping[str, float] | None = None,
-                 disabled: Iterable[str] = (), live_lips: bool = True) -> None:
+                 disabled: Iterable[str] = (), live_lips: bool = True,
+                 expressivity: Expressivity | None = None) -> None:
         chosen = condition if isinstance(condition, Condition) else Condition.parse(condition)
         if chosen is Condition.GROUND_TRUTH:
             raise ConfigError("recorded motion (condition truth) has no live form; choose speech, random or none")
@@ -156,8 +161,25 @@ class LiveConverter:
             self._brows = live_brows(eyebrow_rule, fps=self.fps, lookahead=self.lookahead_frames)
         elif chosen is Condition.RANDOM:
             self._perlin = LivePerlin(fps=self.fps, seed=seed)
+        self._shapers: tuple[HeadShaper, BrowShaper] | None = None
+        if chosen is not Condition.NO_PROSODY:
+            controls = expressivity or Expressivity()
+            self._shapers = (HeadShaper(controls, fps=self.fps), BrowShaper(controls, fps=self.fps))
         self._next = 0
         self.finished = False
+
+    @property
+    def expressivity(self) -> Expressivity:
+        """The expressivity controls in use (neutral for the still condition)."""
+        return self._shapers[0].expressivity if self._shapers is not None else Expressivity()
+
+    def set_expressivity(self, expressivity: Expressivity) -> None:
+        """Change the expressivity controls from the next frame given out on (while streaming)."""
+        if not isinstance(expressivity, Expressivity):
+            raise ConfigError(f"expected an Expressivity, got {expressivity!r}")
+        if self._shapers is not None:
+            for shaper in self._shapers:
+                shaper.set(expressivity)
 
     @property
     def latency_s(self) -> float:
@@ -185,6 +207,12 @@ class LiveConverter:
             for k in range(self._next, self._next + f0.size):
                 values.append(self._perlin.frame(k) if self._perlin is not None
                               else dict.fromkeys(PROSODY_FAPS, 0.0))
+        if self._shapers is not None:
+            head_shaper, brow_shaper = self._shapers
+            for value in values:
+                pose = head_shaper.step(np.array([value[fap] for fap in HEAD_FAPS]))
+                value.update({fap: float(pose[axis]) for axis, fap in enumerate(HEAD_FAPS)})
+                value.update(dict.fromkeys(EYEBROW_FAPS, brow_shaper.step(value[EYEBROW_FAPS[0]])))
         frames = []
         for value in values:
             k = self._next

@@ -12,8 +12,9 @@ from audio_features import Features
 from ..errors import ConfigError, GroundTruthError
 from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
+from .expressivity import Expressivity, shape_brows, shape_head
 from .eyebrows import BrowRule, EyebrowRaises, brow_raises, warn_if_no_raise
-from .head_models import HeadModel, resolve_head_model
+from .head_models import HeadModel, resolve_head_model, rest_pose
 from .perlin import PerlinSettings, perlin_curves
 
 
@@ -57,6 +58,24 @@ def head_motion(model: HeadModel, features: Features, *, seed: int = 0) -> dict[
             for fap, curve in curves.items()}
 
 
+def expressive(curves: dict[int, np.ndarray], *, fps: float, expressivity: Expressivity | None,
+               rest: dict[int, float] | None = None) -> dict[int, np.ndarray]:
+    """Generated prosody curves (brows 31-34 in ENS, head 48-50 in AU) shaped by the expressivity controls:
+    the head about its rest pose (``rest``, FAP -> AU; 0 when not given), the brows from 31's curve."""
+    if expressivity is None or expressivity.is_neutral:
+        return curves
+    out = dict(curves)
+    if all(fap in curves for fap in HEAD_FAPS):
+        pose = np.array([(rest or {}).get(fap, 0.0) for fap in HEAD_FAPS])
+        motion = np.column_stack([curves[fap] for fap in HEAD_FAPS]) - pose
+        shaped = shape_head(motion, fps=fps, expressivity=expressivity) + pose
+        out.update({fap: shaped[:, axis] for axis, fap in enumerate(HEAD_FAPS)})
+    if all(fap in curves for fap in EYEBROW_FAPS):
+        brows = shape_brows(curves[EYEBROW_FAPS[0]], fps=fps, expressivity=expressivity)
+        out.update({fap: brows.copy() for fap in EYEBROW_FAPS})
+    return out
+
+
 class MissingMotionWarning(UserWarning):
     """Recorded motion lacks some prosody FAPs (often the eyebrows): GROUND_TRUTH leaves them masked off."""
 
@@ -72,6 +91,7 @@ def condition_stream(
     eyebrows: EyebrowRaises | None = None,
     perlin: PerlinSettings | None = None,
     name: str = "prosody",
+    expressivity: Expressivity | None = None,
 ) -> FapStream:
     """The prosody FAPs (31-34, 48-50) of one condition for a recording.
 
@@ -94,13 +114,17 @@ def condition_stream(
         Parameters of the noise.
     eyebrows : EyebrowRaises, optional
         The rule's result when the caller already has it (SPEECH_DRIVEN; ``eyebrow_rule`` is then unused).
+    expressivity : Expressivity, optional
+        Greta's expressivity controls on the generated head and brows (RANDOM and SPEECH_DRIVEN; recorded
+        motion and the still condition are left as they are).
     """
     n, fps = features.n_frames, features.fps
     if condition is Condition.NO_PROSODY:
         return FapStream.from_curves({fap: np.zeros(n) for fap in PROSODY_FAPS}, fps=fps, name=name, n_frames=n)
     if condition is Condition.RANDOM:
-        return FapStream.from_curves(perlin_curves(n, fps=fps, seed=seed, settings=perlin), fps=fps, name=name,
-                                     n_frames=n)
+        curves = expressive(perlin_curves(n, fps=fps, seed=seed, settings=perlin), fps=fps,
+                            expressivity=expressivity)
+        return FapStream.from_curves(curves, fps=fps, name=name, n_frames=n)
     if condition is Condition.SPEECH_DRIVEN:
         model = resolve_head_model(model)
         if eyebrows is None:
@@ -108,6 +132,7 @@ def condition_stream(
             warn_if_no_raise(eyebrows)
         curves = eyebrows.curves()
         curves.update(head_motion(model, features, seed=seed))
+        curves = expressive(curves, fps=fps, expressivity=expressivity, rest=rest_pose(model))
         return FapStream.from_curves(curves, fps=fps, name=name, n_frames=n)
     if ground_truth is None:
         raise ConfigError("the GROUND_TRUTH condition needs recorded motion (ground_truth=FILE)")

@@ -1,0 +1,411 @@
+"""Greta's six expressivity controls, applied to the motion of any head or brow generator.
+
+The controls reshape a generator's output frame by frame and look at no future frame, so the offline
+commands and the live stream apply the very same operation, and every generator (the prosodic head, seed 000's
+PAD gestures, the thesis's ARX model, Perlin noise, both brow rules, the live head and brows) gets the same
+meaning for each control. Every control at its neutral value (activation 1, the others 0) leaves the motion
+exactly as the generator made it.
+
+Head (pitch, yaw and roll, about the rest pose). The head's own angular speed, smoothed over 0.25 s and divided
+by its running average (20 s), says how strongly it moves at each moment (``r``, 1 on average). The
+generator's frame-to-frame motion (its velocity) is then scaled, filtered and integrated again, with a pull of
+4 s back towards the generator's own pose so that the two never drift apart:
+
+- activation (OAC, 0..1): how often gestures happen. Moments whose ``r`` is below ``-ln(activation)`` are held:
+  their velocity falls to 15 % (the idle sway); a soft gate (``r^4 / (r^4 + threshold^4)``, smoothed over
+  0.1 s) lets the others through. 1 holds nothing, 0.5 holds the moments slower than 0.69 times the average,
+  0 holds everything: only the idle sway is left (``--still``).
+- spatial (SPC, -1..1): amplitude about the rest pose, times ``2^spatial`` (half at -1, double at +1).
+- temporal (TMP, -1..1): the time a movement takes. Above 0 the velocity is smoothed by a one-pole filter of
+  ``0.3 s * temporal``: each movement lasts longer and is slower, and still covers the same angle. Below 0 its
+  quick part (above a 0.15 s one-pole) is boosted ``2 * |temporal|`` times: shorter, faster movements.
+- fluidity (FLD, -1..1): smoothness. Above 0 the velocity goes through two one-pole filters of
+  ``0.06 s * fluidity`` each (the jerk above about 2.5 Hz goes); below 0 its part above about 5 Hz (two
+  one-poles of 0.03 s) is boosted ``2 * |fluidity|`` times: a jerkier head.
+- power (PWR, -1..1): sharpness of accents. The velocity is multiplied by ``r^power``, divided by the running
+  average of ``r^(1 + power)`` so that the average speed stays: at +1 the strong moments grow and the weak ones
+  shrink (bursts and holds), at -1 the motion evens out.
+- repetition (REP, 0..1): on a strong accent (``r`` rising through 1.8, at most one every 1.5 s) the head nods
+  again: two cycles of a 2.5 Hz nod on the pitch axis, their height ``repetition`` times the pitch's running
+  spread. It only adds, as Greta's repetition adds strokes, so it has no negative side.
+
+Brows (the inner and middle brows, FAP 31-34, ENS, 0 at rest). A raise is a stretch of frames above 0:
+
+- activation: a share of the raises is kept, evenly spread (raise ``i`` is kept when
+  ``floor((i + 1) * activation) > floor(i * activation)``): 1 keeps all, 0.5 every other one, 0 none.
+- spatial: heights times ``2^spatial``.
+- temporal: above 0 each raise holds its highest point ``0.5 s * temporal`` longer before it falls (over 0.1 s);
+  below 0 a raise lasts at most ``1.2 s * 4^temporal`` (0.3 s at -1), then falls over 0.1 s.
+- fluidity: above 0 the curve follows through two one-pole filters of ``0.08 s * fluidity`` (soft onsets and
+  releases); below 0 it jumps towards the raise's highest point so far, by ``|fluidity|`` of the way (abrupt).
+- power: the onset of each raise overshoots by ``power / 2`` of its height, decaying over 0.15 s (a flick
+  at +1); below 0 the onset is held back by as much (a slow raise).
+- repetition: 0.15 s after a raise at least as high as the average kept raise ends, a second, shorter raise
+  (0.1 s up, 0.15 s held, 0.1 s down) of ``repetition * 0.7`` times its height.
+
+Greta defines these six parameters for gestures (Hartmann, Mancini and Pelachaud, 2005); the numbers above
+are this project's and are not Greta's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from ..errors import ConfigError
+
+#: Ranges of the six controls and their neutral values.
+RANGES = {"activation": (0.0, 1.0), "spatial": (-1.0, 1.0), "temporal": (-1.0, 1.0), "fluidity": (-1.0, 1.0),
+          "power": (-1.0, 1.0), "repetition": (0.0, 1.0)}
+NEUTRAL = {"activation": 1.0, "spatial": 0.0, "temporal": 0.0, "fluidity": 0.0, "power": 0.0, "repetition": 0.0}
+
+# head
+SPEED_SMOOTHING_S = 0.25
+REFERENCE_S = 20.0
+IDLE_SHARE = 0.1
+QUANTILE_STEP = 0.02
+GATE_SHARPNESS = 8
+GATE_SMOOTHING_S = 0.1
+PULL_S = 4.0
+SLOW_S = 0.3
+QUICK_S = 0.15
+QUICK_BOOST = 2.0
+FLUID_S = 0.06
+JITTER_S = 0.03
+JITTER_BOOST = 2.0
+POWER_GAIN_RANGE = (0.25, 4.0)
+ACCENT_RATIO = 1.8
+ACCENT_REFRACTORY_S = 1.5
+NOD_HZ = 2.5
+NOD_CYCLES = 2
+# brows
+BROW_HOLD_S = 0.5
+BROW_LONGEST_S = 1.2
+BROW_FALL_S = 0.1
+BROW_FLUID_S = 0.08
+BROW_FLICK_S = 0.15
+ECHO_DELAY_S, ECHO_RISE_S, ECHO_HOLD_S, ECHO_SHARE = 0.15, 0.1, 0.15, 0.7
+#: Below this a brow value counts as rest (ENS).
+BROW_REST_ENS = 1e-6
+
+
+@dataclass(frozen=True)
+class Expressivity:
+    """Greta's six expressivity parameters (see the module for what each one does).
+
+    Parameters
+    ----------
+    activation : float in [0, 1]
+        OAC, how often gestures happen (1, the default, as generated; 0 only an idle sway).
+    spatial : float in [-1, 1]
+        SPC, amplitude about rest (x ``2^spatial``).
+    temporal : float in [-1, 1]
+        TMP, duration and speed of movements (above 0 longer and slower).
+    fluidity : float in [-1, 1]
+        FLD, smoothness (above 0 smoother, below 0 jerkier).
+    power : float in [-1, 1]
+        PWR, sharpness of accents.
+    repetition : float in [0, 1]
+        REP, repeated nods (and brow raises) on strong accents.
+
+    Examples
+    --------
+    >>> Expressivity().is_neutral
+    True
+    >>> Expressivity.still().activation
+    0.0
+    >>> Expressivity(spatial=2)
+    Traceback (most recent call last):
+    ...
+    prosody.errors.ConfigError: spatial must be a number in [-1, 1], got 2
+    """
+
+    activation: float = 1.0
+    spatial: float = 0.0
+    temporal: float = 0.0
+    fluidity: float = 0.0
+    power: float = 0.0
+    repetition: float = 0.0
+
+    def __post_init__(self) -> None:
+        for item in fields(self):
+            value = getattr(self, item.name)
+            low, high = RANGES[item.name]
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)
+                                                and low <= value <= high):
+                raise ConfigError(f"{item.name} must be a number in [{low:g}, {high:g}], got {value!r}")
+            object.__setattr__(self, item.name, float(value))
+
+    @classmethod
+    def still(cls) -> Expressivity:
+        """Activation 0: the head keeps only an idle sway and the brows stay at rest."""
+        return cls(activation=0.0)
+
+    @property
+    def is_neutral(self) -> bool:
+        return all(getattr(self, name) == value for name, value in NEUTRAL.items())
+
+    def with_changes(self, **changes: float) -> Expressivity:
+        """A copy with some controls changed (checked like the constructor)."""
+        unknown = sorted(set(changes) - set(RANGES))
+        if unknown:
+            raise ConfigError(f"unknown expressivity control(s) {', '.join(unknown)}; choose from {', '.join(RANGES)}")
+        return replace(self, **changes)
+
+    def as_dict(self) -> dict[str, float]:
+        return {name: getattr(self, name) for name in RANGES}
+
+
+def _pole(time_constant_s: float, fps: float) -> float:
+    """The feedback coefficient of a one-pole low-pass with this time constant (0: no smoothing)."""
+    return math.exp(-1.0 / (time_constant_s * fps)) if time_constant_s > 0 else 0.0
+
+
+class HeadShaper:
+    """The expressivity controls on head motion, one frame at a time (AU, 3 axes, about the rest pose).
+
+    ``step(frame)`` takes the generator's next frame and returns the shaped one; :func:`shape_head` runs it over
+    a whole recording. The state is a few numbers per axis: a stream of any length runs in constant memory.
+    """
+
+    def __init__(self, expressivity: Expressivity, *, fps: float) -> None:
+        if not (math.isfinite(fps) and fps > 0):
+            raise ConfigError(f"fps must be a positive number, got {fps!r}")
+        self.expressivity = expressivity
+        self.fps = float(fps)
+        self._previous: np.ndarray | None = None
+        self._output = np.zeros(3)
+        self._speed = 0.0
+        self._reference = 0.0
+        self._power_reference = 0.0
+        self._frames = 0
+        self._gate = 1.0
+        self._slow = np.zeros(3)
+        self._fluid = np.zeros((2, 3))
+        self._pitch_mean = 0.0
+        self._pitch_power = 0.0
+        self._last_accent = -math.inf
+        self._nod_start: float | None = None
+        self._nod_height = 0.0
+        self._ratio = 0.0
+        self.set(expressivity)
+
+    def set(self, expressivity: Expressivity) -> None:
+        """Change the controls from the next frame on (a live stream's controls can move while it runs)."""
+        fps = self.fps
+        self.expressivity = expressivity
+        if not hasattr(self, "_threshold"):
+            self._threshold = 1.0
+        self._smooth_speed = _pole(SPEED_SMOOTHING_S, fps)
+        self._smooth_gate = _pole(GATE_SMOOTHING_S, fps)
+        self._pull = 1.0 - _pole(PULL_S, fps)
+        tempo = expressivity.temporal
+        self._tempo_pole = _pole(SLOW_S * tempo if tempo > 0 else QUICK_S, fps)
+        fluid = expressivity.fluidity
+        self._fluid_pole = _pole(FLUID_S * fluid if fluid > 0 else JITTER_S, fps)
+        self._scale = 2.0 ** expressivity.spatial
+        self._reshaping = bool(expressivity.activation < 1 or expressivity.power or expressivity.temporal
+                               or expressivity.fluidity)
+
+    def step(self, frame: np.ndarray) -> np.ndarray:
+        """The shaped head pose (3 axes, AU) for the generator's pose ``frame``."""
+        x = np.asarray(frame, float)
+        e = self.expressivity
+        fps = self.fps
+        if self._previous is None:
+            self._previous = x.copy()
+            self._output = x.copy()
+            self._slow[:] = 0.0
+        velocity = x - self._previous
+        self._previous = x.copy()
+        self._frames += 1
+        # how strongly the head moves now against its running average
+        instant = float(np.sqrt(velocity @ velocity)) * fps
+        self._speed = self._smooth_speed * self._speed + (1 - self._smooth_speed) * instant
+        weight = max(1.0 / self._frames, 1.0 / (REFERENCE_S * fps))
+        self._reference += weight * (self._speed - self._reference)
+        ratio = self._speed / self._reference if self._reference > 0 else 1.0
+        gain = 1.0
+        if e.activation < 1.0:
+            # the threshold follows the running (1 - activation) quantile of the ratio: the share of time held
+            # is about 1 - activation whatever the generator's own statistics
+            below = 1.0 if ratio < self._threshold else 0.0
+            self._threshold = max(0.0, self._threshold + QUANTILE_STEP * ((1.0 - e.activation) - below))
+            open_ = 0.0 if e.activation <= 0 else ratio**GATE_SHARPNESS / (
+                ratio**GATE_SHARPNESS + self._threshold**GATE_SHARPNESS + 1e-300)
+            self._gate = self._smooth_gate * self._gate + (1 - self._smooth_gate) * open_
+            gain *= IDLE_SHARE + (1 - IDLE_SHARE) * self._gate
+        if e.power != 0.0:
+            self._power_reference += weight * (ratio ** (1 + e.power) - self._power_reference)
+            norm = self._power_reference if self._power_reference > 0 else 1.0
+            gain *= min(max(ratio**e.power / norm, POWER_GAIN_RANGE[0]), POWER_GAIN_RANGE[1]) if ratio > 0 else 0.0
+        velocity = velocity * gain
+        if e.temporal != 0.0:
+            self._slow = self._tempo_pole * self._slow + (1 - self._tempo_pole) * velocity
+            velocity = (self._slow.copy() if e.temporal > 0
+                        else velocity + QUICK_BOOST * -e.temporal * (velocity - self._slow))
+        if e.fluidity != 0.0:
+            pole = self._fluid_pole
+            self._fluid[0] = pole * self._fluid[0] + (1 - pole) * velocity
+            self._fluid[1] = pole * self._fluid[1] + (1 - pole) * self._fluid[0]
+            velocity = (self._fluid[1].copy() if e.fluidity > 0
+                        else velocity + JITTER_BOOST * -e.fluidity * (velocity - self._fluid[1]))
+        if self._reshaping:
+            self._output = self._output + velocity
+            self._output += self._pull * (x - self._output)
+        else:
+            self._output = x.copy()
+        shaped = self._output.copy()
+        if e.repetition > 0:
+            shaped[0] += self._nod(x[0], ratio)
+        self._ratio = ratio
+        return shaped * self._scale
+
+    def _nod(self, pitch: float, ratio: float) -> float:
+        """The repeated nod's part of the pitch axis at this frame (AU)."""
+        fps = self.fps
+        weight = max(1.0 / self._frames, 1.0 / (REFERENCE_S * fps))
+        self._pitch_mean += weight * (pitch - self._pitch_mean)
+        self._pitch_power += weight * ((pitch - self._pitch_mean) ** 2 - self._pitch_power)
+        now = self._frames / fps
+        if (self._ratio < ACCENT_RATIO <= ratio and now - self._last_accent >= ACCENT_REFRACTORY_S
+                and self._frames > 1):
+            self._last_accent = now
+            self._nod_start = now
+            self._nod_height = self.expressivity.repetition * math.sqrt(max(self._pitch_power, 0.0))
+        if self._nod_start is None:
+            return 0.0
+        elapsed = now - self._nod_start
+        length = NOD_CYCLES / NOD_HZ
+        if elapsed > length:
+            self._nod_start = None
+            return 0.0
+        # a downward nod first, in and out smoothly
+        return -self._nod_height * math.sin(2 * math.pi * NOD_HZ * elapsed) * math.sin(math.pi * elapsed / length) ** 2
+
+
+class BrowShaper:
+    """The expressivity controls on the brows' raise curve (ENS, 0 at rest), one frame at a time."""
+
+    def __init__(self, expressivity: Expressivity, *, fps: float) -> None:
+        if not (math.isfinite(fps) and fps > 0):
+            raise ConfigError(f"fps must be a positive number, got {fps!r}")
+        self.fps = float(fps)
+        self._frame = 0
+        self._raising = False
+        self._raises = 0
+        self._kept = True
+        self._onset = 0
+        self._highest = 0.0  # the current raise's highest input so far
+        self._held = 0.0  # the temporal hold: highest output of the raise, and frames since it was reached
+        self._since_highest = 0
+        self._smooth = [0.0, 0.0]
+        self._kept_heights = 0.0
+        self._kept_count = 0
+        self._echo_at: int | None = None
+        self._echo_height = 0.0
+        self.set(expressivity)
+
+    def set(self, expressivity: Expressivity) -> None:
+        """Change the controls from the next frame on."""
+        self.expressivity = expressivity
+        self._fluid_pole = _pole(BROW_FLUID_S * max(expressivity.fluidity, 0.0), self.fps)
+
+    def _frames_of(self, seconds: float) -> int:
+        return max(1, int(round(seconds * self.fps)))
+
+    def step(self, value: float) -> float:
+        """The shaped brow height (ENS) for the generator's height ``value``."""
+        e = self.expressivity
+        if e.is_neutral:
+            self._frame += 1
+            return float(value)
+        k = self._frame
+        self._frame += 1
+        value = float(value)
+        if value > BROW_REST_ENS and not self._raising:
+            self._raising, self._onset, self._highest = True, k, 0.0
+            i = self._raises
+            self._raises += 1
+            self._kept = math.floor((i + 1) * e.activation + 1e-9) > math.floor(i * e.activation + 1e-9)
+        elif value <= BROW_REST_ENS and self._raising:
+            self._raising = False
+            if self._kept:
+                self._kept_heights += self._highest
+                self._kept_count += 1
+                if e.repetition > 0 and self._highest >= self._kept_heights / self._kept_count - 1e-9:
+                    self._echo_at, self._echo_height = k + self._frames_of(ECHO_DELAY_S), self._highest
+        if self._raising:
+            self._highest = max(self._highest, value)
+        out = value if (self._raising and self._kept) else 0.0
+        fall = self._frames_of(BROW_FALL_S)
+        if e.temporal > 0:
+            if out >= self._held:
+                self._held, self._since_highest = out, 0
+            else:
+                self._since_highest += 1
+                late = self._since_highest - self._frames_of(BROW_HOLD_S * e.temporal)
+                held = self._held if late <= 0 else self._held * max(0.0, 1 - late / fall)
+                if held <= 0:
+                    self._held = 0.0
+                out = max(out, held)
+        elif e.temporal < 0 and self._raising:
+            late = (k - self._onset) - self._frames_of(BROW_LONGEST_S * 4.0**e.temporal)
+            if late > 0:
+                out *= max(0.0, 1 - late / fall)
+        if e.power != 0 and self._raising and self._kept:
+            out *= 1 + e.power / 2 * math.exp(-(k - self._onset) / (BROW_FLICK_S * self.fps))
+        if e.fluidity > 0:
+            pole = self._fluid_pole
+            self._smooth[0] = pole * self._smooth[0] + (1 - pole) * out
+            self._smooth[1] = pole * self._smooth[1] + (1 - pole) * self._smooth[0]
+            out = self._smooth[1]
+        elif e.fluidity < 0 and self._raising and self._kept and out > 0:
+            out += -e.fluidity * (max(self._highest, out) - out)
+        if self._echo_at is not None:
+            elapsed = k - self._echo_at
+            rise, hold = self._frames_of(ECHO_RISE_S), self._frames_of(ECHO_HOLD_S)
+            if elapsed >= 2 * rise + hold:
+                self._echo_at = None
+            elif elapsed >= 0:
+                shape = min(1.0, (elapsed + 1) / rise, (2 * rise + hold - elapsed) / rise)
+                out = max(out, e.repetition * ECHO_SHARE * self._echo_height * shape)
+        return max(0.0, out) * 2.0**e.spatial
+
+
+def shape_head(motion_au: np.ndarray, *, fps: float, expressivity: Expressivity) -> np.ndarray:
+    """Head motion (n_frames, 3) in AU about the rest pose, shaped by the controls (the same numbers a live
+    stream gets frame by frame). Neutral controls return the motion unchanged.
+
+    Examples
+    --------
+    >>> t = np.arange(300) / 30
+    >>> nod = np.column_stack([1000 * np.sin(2 * np.pi * t), 0 * t, 0 * t])
+    >>> bigger = shape_head(nod, fps=30, expressivity=Expressivity(spatial=1))
+    >>> round(float(bigger[:, 0].std() / nod[:, 0].std()), 3)
+    2.0
+    """
+    motion = np.asarray(motion_au, float)
+    if expressivity.is_neutral:
+        return motion.copy()
+    shaper = HeadShaper(expressivity, fps=fps)
+    return np.array([shaper.step(row) for row in motion]).reshape(motion.shape)
+
+
+def shape_brows(curve_ens: np.ndarray, *, fps: float, expressivity: Expressivity) -> np.ndarray:
+    """A brow raise curve (n_frames,) in ENS shaped by the controls. Neutral controls return it unchanged.
+
+    Examples
+    --------
+    >>> raises = np.zeros(90); raises[10:20] = 8.0; raises[40:50] = 8.0; raises[70:80] = 8.0
+    >>> kept = shape_brows(raises, fps=30, expressivity=Expressivity(activation=0.5))
+    >>> [float(kept[15]), float(kept[45]), float(kept[75])]
+    [0.0, 8.0, 0.0]
+    """
+    curve = np.asarray(curve_ens, float)
+    if expressivity.is_neutral:
+        return curve.copy()
+    shaper = BrowShaper(expressivity, fps=fps)
+    return np.array([shaper.step(v) for v in curve])
