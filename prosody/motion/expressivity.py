@@ -6,15 +6,17 @@ PAD gestures, the thesis's ARX model, Perlin noise, both brow rules, the live he
 meaning for each control. Every control at its neutral value (activation 1, the others 0) leaves the motion
 exactly as the generator made it.
 
-Head (pitch, yaw and roll, about the rest pose). The head's own angular speed, smoothed over 0.25 s and divided
-by its running average (20 s), says how strongly it moves at each moment (``r``, 1 on average). The
-generator's frame-to-frame motion (its velocity) is then scaled, filtered and integrated again, with a pull of
-4 s back towards the generator's own pose so that the two never drift apart:
+Head (pitch, yaw and roll, about the rest pose). The head's own visible angular speed (its velocity through
+two one-pole filters of 0.04 s, about 4 Hz), smoothed over 0.25 s and divided by its running average (20 s),
+says how strongly it moves at each moment (``r``, 1 on average). The generator's frame-to-frame motion (its
+velocity) is then scaled, filtered and integrated again, with a pull of 4 s back towards the generator's own
+pose so that the two never drift apart:
 
-- activation (OAC, 0..1): how often gestures happen. Moments whose ``r`` is below ``-ln(activation)`` are held:
-  their velocity falls to 15 % (the idle sway); a soft gate (``r^4 / (r^4 + threshold^4)``, smoothed over
-  0.1 s) lets the others through. 1 holds nothing, 0.5 holds the moments slower than 0.69 times the average,
-  0 holds everything: only the idle sway is left (``--still``).
+- activation (OAC, 0..1): how often gestures happen. The head holds during its weakest moments, about
+  ``1 - activation`` of the time: a threshold follows the running ``1 - activation`` quantile of ``r``, and a
+  soft gate (``r^8 / (r^8 + threshold^8)``, smoothed over 0.1 s) lowers the velocity of the moments below it
+  to a tenth (the idle sway). 1 holds nothing, 0.5 the weaker half, 0 everything: only the idle sway is left
+  (``--still``).
 - spatial (SPC, -1..1): amplitude about the rest pose, times ``2^spatial`` (half at -1, double at +1).
 - temporal (TMP, -1..1): the time a movement takes. Above 0 the velocity is smoothed by a one-pole filter of
   ``0.3 s * temporal``: each movement lasts longer and is slower, and still covers the same angle. Below 0 its
@@ -22,11 +24,12 @@ generator's frame-to-frame motion (its velocity) is then scaled, filtered and in
 - fluidity (FLD, -1..1): smoothness. Above 0 the velocity goes through two one-pole filters of
   ``0.06 s * fluidity`` each (the jerk above about 2.5 Hz goes); below 0 its part above about 5 Hz (two
   one-poles of 0.03 s) is boosted ``2 * |fluidity|`` times: a jerkier head.
-- power (PWR, -1..1): sharpness of accents. The velocity is multiplied by ``r^power``, divided by the running
-  average of ``r^(1 + power)`` so that the average speed stays: at +1 the strong moments grow and the weak ones
-  shrink (bursts and holds), at -1 the motion evens out.
-- repetition (REP, 0..1): on a strong accent (``r`` rising through 1.8, at most one every 1.5 s) the head nods
-  again: two cycles of a 2.5 Hz nod on the pitch axis, their height ``repetition`` times the pitch's running
+- power (PWR, -1..1): sharpness of accents. The velocity is multiplied by ``r^power`` below 0 and by
+  ``r^(2 * power)`` above, divided by that gain's running average over the speed it scales (so the average speed
+  stays), within 0.25..4: at +1 a moment twice as strong as average moves four times faster, so the strong
+  moments grow and the weak ones shrink (bursts and holds); at -1 the speed is even, whatever the moment.
+- repetition (REP, 0..1): on a strong accent (``r`` rising through 1.8, at most one every 1.5 s, none in the
+  first second) the head nods again: two cycles of a 2.5 Hz nod on the pitch axis, their height ``repetition`` times the pitch's running
   spread. It only adds, as Greta's repetition adds strokes, so it has no negative side.
 
 Brows (the inner and middle brows, FAP 31-34, ENS, 0 at rest). A raise is a stretch of frames above 0:
@@ -63,6 +66,8 @@ NEUTRAL = {"activation": 1.0, "spatial": 0.0, "temporal": 0.0, "fluidity": 0.0, 
 
 # head
 SPEED_SMOOTHING_S = 0.25
+#: Time constant of the two one-poles that keep the visible part of the velocity (about 4 Hz).
+VISIBLE_S = 0.04
 REFERENCE_S = 20.0
 IDLE_SHARE = 0.1
 QUANTILE_STEP = 0.02
@@ -76,8 +81,11 @@ FLUID_S = 0.06
 JITTER_S = 0.03
 JITTER_BOOST = 2.0
 POWER_GAIN_RANGE = (0.25, 4.0)
+POWER_SHARPENING = 2.0
 ACCENT_RATIO = 1.8
 ACCENT_REFRACTORY_S = 1.5
+#: Accents count once the running average has this much motion behind it (s).
+ACCENT_WARMUP_S = 1.0
 NOD_HZ = 2.5
 NOD_CYCLES = 2
 # brows
@@ -180,10 +188,12 @@ class HeadShaper:
         self._speed = 0.0
         self._reference = 0.0
         self._power_reference = 0.0
+        self._instant_reference = 0.0
         self._frames = 0
         self._gate = 1.0
         self._slow = np.zeros(3)
         self._fluid = np.zeros((2, 3))
+        self._visible = np.zeros((2, 3))
         self._pitch_mean = 0.0
         self._pitch_power = 0.0
         self._last_accent = -math.inf
@@ -199,6 +209,7 @@ class HeadShaper:
         if not hasattr(self, "_threshold"):
             self._threshold = 1.0
         self._smooth_speed = _pole(SPEED_SMOOTHING_S, fps)
+        self._visible_pole = _pole(VISIBLE_S, fps)
         self._smooth_gate = _pole(GATE_SMOOTHING_S, fps)
         self._pull = 1.0 - _pole(PULL_S, fps)
         tempo = expressivity.temporal
@@ -222,7 +233,10 @@ class HeadShaper:
         self._previous = x.copy()
         self._frames += 1
         # how strongly the head moves now against its running average
-        instant = float(np.sqrt(velocity @ velocity)) * fps
+        # the speed a viewer sees: the velocity below about 4 Hz (two one-poles), as the measures low-pass it
+        self._visible[0] = self._visible_pole * self._visible[0] + (1 - self._visible_pole) * velocity
+        self._visible[1] = self._visible_pole * self._visible[1] + (1 - self._visible_pole) * self._visible[0]
+        instant = float(np.sqrt(self._visible[1] @ self._visible[1])) * fps
         self._speed = self._smooth_speed * self._speed + (1 - self._smooth_speed) * instant
         weight = max(1.0 / self._frames, 1.0 / (REFERENCE_S * fps))
         self._reference += weight * (self._speed - self._reference)
@@ -238,9 +252,13 @@ class HeadShaper:
             self._gate = self._smooth_gate * self._gate + (1 - self._smooth_gate) * open_
             gain *= IDLE_SHARE + (1 - IDLE_SHARE) * self._gate
         if e.power != 0.0:
-            self._power_reference += weight * (ratio ** (1 + e.power) - self._power_reference)
-            norm = self._power_reference if self._power_reference > 0 else 1.0
-            gain *= min(max(ratio**e.power / norm, POWER_GAIN_RANGE[0]), POWER_GAIN_RANGE[1]) if ratio > 0 else 0.0
+            # the gain's average over the speed it scales is kept at 1, so the average speed stays
+            exponent = e.power if e.power < 0 else POWER_SHARPENING * e.power
+            boost = ratio**exponent if ratio > 0 else 0.0
+            self._instant_reference += weight * (instant - self._instant_reference)
+            self._power_reference += weight * (boost * instant - self._power_reference)
+            norm = self._power_reference / self._instant_reference if self._power_reference > 0 else 1.0
+            gain *= min(max(boost / norm, POWER_GAIN_RANGE[0]), POWER_GAIN_RANGE[1])
         velocity = velocity * gain
         if e.temporal != 0.0:
             self._slow = self._tempo_pole * self._slow + (1 - self._tempo_pole) * velocity
@@ -271,7 +289,7 @@ class HeadShaper:
         self._pitch_power += weight * ((pitch - self._pitch_mean) ** 2 - self._pitch_power)
         now = self._frames / fps
         if (self._ratio < ACCENT_RATIO <= ratio and now - self._last_accent >= ACCENT_REFRACTORY_S
-                and self._frames > 1):
+                and self._frames > ACCENT_WARMUP_S * fps):
             self._last_accent = now
             self._nod_start = now
             self._nod_height = self.expressivity.repetition * math.sqrt(max(self._pitch_power, 0.0))
