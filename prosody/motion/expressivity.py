@@ -29,8 +29,9 @@ pose so that the two never drift apart:
   stays), within 0.25..4: at +1 a moment twice as strong as average moves four times faster, so the strong
   moments grow and the weak ones shrink (bursts and holds); at -1 the speed is even, whatever the moment.
 - repetition (REP, 0..1): on a strong accent (``r`` rising through 1.8, at most one every 1.5 s, none in the
-  first second) the head nods again: two cycles of a 2.5 Hz nod on the pitch axis, their height ``repetition`` times the pitch's running
-  spread. It only adds, as Greta's repetition adds strokes, so it has no negative side.
+  first second) the head nods again: two cycles of a 2.5 Hz nod on the pitch axis, their height
+  ``repetition`` times the pitch's running spread. It only adds, as Greta's repetition adds strokes, so it
+  has no negative side.
 
 Brows (the inner and middle brows, FAP 31-34, ENS, 0 at rest). A raise is a stretch of frames above 0:
 
