@@ -211,6 +211,16 @@ def _add_face_options(parser: argparse.ArgumentParser) -> None:
                            "0-1, default 1), or a CSV file of timed ones with the columns "
                            "start_s,end_s,expression,intensity; blended in and out over about half a second and "
                            "mixed with the lips so they still articulate")
+    face.add_argument("--pad", default=None, metavar="P,A,D|FILE.csv",
+                      help="an emotional state: pleasure, arousal and dominance, each -1..1, for the whole "
+                           "recording (e.g. 0.5,0.6,0), or a CSV file of timed ones with the columns "
+                           "start_s,end_s,pleasure,arousal,dominance. It shows on the face (brows raised or "
+                           "squeezed, eyes opened: seed 000's partial expressions) and drives --model pad's "
+                           "gestures (P, and A shifting each word's arousal); write --pad=-0.5,0.3,0 when it "
+                           "starts with a minus")
+    face.add_argument("--pad-map", default=None, metavar="FILE.json",
+                      help="with --pad: a JSON file replacing the map from PAD to the partial expressions "
+                           "(see the README)")
 
 
 def _analysis_kwargs(args: argparse.Namespace) -> dict:
@@ -311,7 +321,8 @@ def _motion_kwargs(args: argparse.Namespace) -> dict:
     if hasattr(args, "lips"):
         gains["lips"] = args.lip_gain
         face = {"lips": None if args.lips == "none" else args.lips, "transcript": args.transcript,
-                "expression": args.expression, "mouth_model": args.mouth_model}
+                "expression": args.expression, "mouth_model": args.mouth_model, "pad": args.pad,
+                "pad_map": args.pad_map}
     return {"condition": args.condition, "ground_truth": getattr(args, "ground_truth", None), "model": args.model,
             "seed": args.seed, "eyebrow_rule": _eyebrow_rule(args), "gains": gains, "disabled": disabled, **face,
             "expressivity": _expressivity(args),
@@ -352,6 +363,8 @@ def _check_motion_options(args: argparse.Namespace) -> None:
     if getattr(args, "transcript", None) is not None and getattr(args, "lips", None) != "visemes":
         raise ConfigError("--transcript is read by the visemes; it is not used by --lips "
                           f"{getattr(args, 'lips', 'none')}")
+    if getattr(args, "pad_map", None) is not None and args.pad is None:
+        raise ConfigError("--pad-map maps the state of --pad to the face; give --pad too")
     if args.condition in ("none", "truth") and _expressivity(args) is not None:
         raise ConfigError(f"the expressivity controls shape generated motion; --condition {args.condition} has none "
                           "(choose speech or random)")
@@ -708,18 +721,20 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
+    from .errors import ConfigError
     from .evaluation.compare import compare, write_comparison
 
     if args.transcript is not None and args.lips != "visemes":
-        from .errors import ConfigError
-
         raise ConfigError(f"--transcript is read by the visemes; it is not used by --lips {args.lips}")
+    if args.pad_map is not None and args.pad is None:
+        raise ConfigError("--pad-map maps the state of --pad to the face; give --pad too")
     comparison = compare(args.input, ground_truth=args.ground_truth, model=args.model, seed=args.seed,
                          seeds=args.seeds, normalize=args.normalize, eyebrow_rule=_eyebrow_rule(args),
                          other_head_models={name: name for name in args.also_model},
                          lips=None if args.lips == "none" else args.lips, transcript=args.transcript,
                          expression=args.expression, mouth=args.mouth, mouth_model=args.mouth_model,
-                         expressivity=_expressivity(args), **_analysis_kwargs(args))
+                         expressivity=_expressivity(args), pad=args.pad, pad_map=args.pad_map,
+                         **_analysis_kwargs(args))
     written = write_comparison(comparison, args.output, plots=args.plots, video=args.video,
                                exaggerate=args.exaggerate,
                                progress=_frame_progress(f"{args.output}/conditions.mp4") if args.video else None)

@@ -319,3 +319,14 @@ def _write_wav(path):
 
     audio = _tone_speech()
     soundfile.write(str(path), audio.samples, audio.sample_rate_hz)
+
+
+def test_command_line_pad(tmp_path, capsys):
+    wav = tmp_path / "speech.wav"
+    _write_wav(wav)
+    out = tmp_path / "pad.csv"
+    assert main(["convert", str(wav), "-o", str(out), "--pad=-0.6,0.8,0.6", "--model", "pad", "--lips", "none"]) == 0
+    header = out.read_text(encoding="utf-8").splitlines()[0]
+    assert "fap37" in header and "fap19" in header  # squeezed brows and opened eyes
+    assert main(["convert", str(wav), "-o", str(out), "--pad-map", "map.json"]) == 2
+    assert "give --pad too" in capsys.readouterr().err

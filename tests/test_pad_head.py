@@ -40,6 +40,22 @@ def test_the_questionnaire_is_checked():
         pad_from_questionnaire([5] * 12)
 
 
+def _accent_features():
+    """1 s of silence, 1.2 s of speech-like syllables (energy peaks) with an accent at 1.5 s, then silence."""
+    fps, n = 30.0, 120
+    energy = np.full(n, 30.0)
+    f0 = np.full(n, np.nan)
+    for k in range(30, 66):
+        energy[k] = 70 + 8 * np.cos(2 * np.pi * (k - 30) / 9)
+        f0[k] = 130.0
+    f0[45:50] = 200.0
+    features = make_features(np.nan_to_num(f0, nan=0.0), energy, fps=fps)
+    voiced = ~np.isnan(f0)
+    return type(features)(f0=type(features.f0)(np.where(voiced, f0, np.nan), fps, "Hz", "f0", voiced),
+                          f0_conditioned=features.f0_conditioned, energy=features.energy,
+                          duration_s=features.duration_s, source="<synthetic>")
+
+
 def test_prosodic_words_a_peak_on_the_accent_and_a_still_head_in_silence():
     # 1 s of silence, then 1.2 s of speech-like syllables (energy peaks) with an accent, then silence
     fps, n = 30.0, 120
@@ -86,3 +102,67 @@ def test_pad_is_a_named_head_model():
     assert load_head_model("pad").kind == "pad" and load_head_model("pad-random").randomized
     with pytest.raises(ConfigError):
         PadHeadModel(pleasure=2)
+
+
+# PAD in: the state over time, the face's partial expressions, and the gestures ------------------------------
+def test_pad_states_parse_from_text_and_files(tmp_path):
+    from prosody.motion.pad import PadSegment, pad_at, parse_pad
+
+    assert parse_pad("0.5,-0.25,1") == [PadSegment(0.5, -0.25, 1.0)]
+    for bad in ("0.5,0.2", "a,b,c", "2,0,0", "nan,0,0"):
+        with pytest.raises(ConfigError):
+            parse_pad(bad)
+    timed = tmp_path / "states.csv"
+    timed.write_text("start_s,end_s,pleasure,arousal,dominance\n0,1.5,1,0,0\n1.5,3,-1,1,0.5\n", encoding="utf-8")
+    states = parse_pad(str(timed))
+    assert pad_at(states, 1.0) == (1.0, 0.0, 0.0) and pad_at(states, 2.0) == (-1.0, 1.0, 0.5)
+    assert pad_at(states, 5.0) == (0.0, 0.0, 0.0)  # past every state: neutral
+    (tmp_path / "bad.csv").write_text("start_s,end_s,pleasure,arousal,dominance\n0,1,0,0,3\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match="line 2"):
+        parse_pad(str(tmp_path / "bad.csv"))
+
+
+def test_pad_face_map_is_linear_and_replaceable(tmp_path):
+    import json
+
+    from prosody.motion.pad import DEFAULT_FACE_MAP, face_targets, read_face_map
+
+    assert face_targets(0, 0, 0) == {fap: 0.0 for entry in DEFAULT_FACE_MAP.values() for fap in entry["faps"]}
+    one, two = face_targets(0.2, 0.4, -0.2), face_targets(0.4, 0.8, -0.4)
+    assert all(two[fap] == pytest.approx(2 * one[fap]) for fap in one)  # linear in PAD
+    fearful, angry = face_targets(-0.6, 0.8, -0.6), face_targets(-0.6, 0.8, 0.6)
+    assert fearful[35] > 0 and fearful[19] < 0  # brows up, eyes wide
+    assert angry[37] > fearful[37] > 0  # dominance squeezes the brows
+    mine = tmp_path / "map.json"
+    mine.write_text(json.dumps({"format": "visual-prosody-pad-face", "parameters": {
+        "smile": {"weights": [1, 0, 0], "faps": {"12": 100, "13": 100}}}}), encoding="utf-8")
+    assert face_targets(0.5, 0, 0, read_face_map(mine)) == {12: 50.0, 13: 50.0}
+    mine.write_text(json.dumps({"format": "visual-prosody-pad-face", "parameters": {
+        "smile": {"weights": [1, 0], "faps": {"12": 100}}}}), encoding="utf-8")
+    with pytest.raises(ConfigError, match="three numbers"):
+        read_face_map(mine)
+
+
+def test_timed_pad_shows_on_the_face_in_its_stretch_only():
+    from prosody.motion.face import face_layer
+    from prosody.motion.pad import PadSegment, face_targets
+
+    layer = face_layer(None, 150, fps=30, lips=None, pad=[PadSegment(0, 1, 0, 2.0, 3.0)])
+    raise_ = layer.curves[31]
+    assert raise_[75] == pytest.approx(face_targets(0, 1, 0)[31], rel=0.03)
+    assert raise_[:30].max() < 0.05 * raise_[75] and raise_[130:].max() < 0.05 * raise_[75]
+
+
+def test_pad_state_drives_the_gestures():
+    from prosody.motion.pad import PadSegment
+
+    features = _accent_features()
+    calm = PadHeadModel().with_states([PadSegment(0, -1, 0)]).generate(features, seed=0)[48]
+    aroused = PadHeadModel().with_states([PadSegment(0, 1, 0)]).generate(features, seed=0)[48]
+    assert np.ptp(aroused) > np.ptp(calm)
+    # pleasure reaches Eq. 2 through the coefficients: C1..C3 apply at P = 1, C4..C6 at P = 0
+    pleased = PadHeadModel(coefficients=[(0, 0, 1, 0, 0, 0)] * 3).with_states([PadSegment(1, 0, 0)])
+    neutral = PadHeadModel(coefficients=[(0, 0, 1, 0, 0, 0)] * 3).with_states([PadSegment(0, 0, 0)])
+    # the same seed draws the same poses: the difference is the accent's sinusoid, Amp(1, A) = C3 = 1 degree
+    nod = (pleased.generate(features, seed=0)[48] - neutral.generate(features, seed=0)[48]) / AU_PER_DEGREE
+    assert 0.8 < np.ptp(nod) <= 1.0 + 1e-9

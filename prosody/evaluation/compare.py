@@ -54,6 +54,7 @@ from ..motion.eyebrows import BrowRule, EyebrowRaises, NoRaiseWarning, brow_rais
 from ..motion.face import make_face, stream_mouth
 from ..motion.ground_truth import RecordedMouth, fit_to_grid, mouth_beside, read_motion, read_mouth_csv
 from ..motion.head_models import HeadModel, is_stochastic, resolve_head_model, rest_pose
+from ..motion.pad import PadSegment
 
 #: Version of the metrics.json layout (2: head measures per condition, controls, seeds).
 METRICS_VERSION = 2
@@ -222,6 +223,8 @@ def compare(
     mouth: str | os.PathLike[str] | RecordedMouth | None = None,
     mouth_model: str | os.PathLike[str] | None = None,
     expressivity: Expressivity | None = None,
+    pad: str | Sequence[PadSegment] | None = None,
+    pad_map: str | os.PathLike[str] | None = None,
 ) -> Comparison:
     """Compute every condition for a recording and compare them.
 
@@ -256,8 +259,9 @@ def compare(
         Analysis settings (see :func:`audio_features.extract_features`).
     features : Features, optional
         Already extracted features of ``audio``.
-    lips, transcript, expression, mouth_model
-        The lips and expression given to every condition alike (see :func:`prosody.jobs.pipeline.convert`).
+    lips, transcript, expression, mouth_model, pad, pad_map
+        The lips, expression and PAD state's partial expressions given to every condition alike (see
+        :func:`prosody.jobs.pipeline.convert`).
     expressivity : Expressivity, optional
         Greta's expressivity controls on the generated conditions (and their controls, and the other head
         models) alike; recorded motion is left as it is.
@@ -293,7 +297,7 @@ def compare(
     streams: dict[Condition, FapStream] = {}
     # the same lips and expression in every condition: the comparison is about prosody
     face = make_face(audio, features, lips=lips, transcript=transcript, expression=expression,
-                     mouth_model=mouth_model)
+                     mouth_model=mouth_model, pad=pad, pad_map=pad_map)
 
     def make(condition: Condition, run_seed: int, source: Features = features) -> FapStream:
         with warnings.catch_warnings():

@@ -21,6 +21,8 @@ from ..motion.face import FaceLayer, make_face
 from ..motion.ground_truth import fit_to_grid, read_motion
 from ..motion.head_models import HeadModel, resolve_head_model, rest_pose
 from ..motion.lips import LIP_FAPS
+from ..motion.pad import PadSegment, parse_pad
+from ..motion.pad_head import PadHeadModel
 from ..motion.perlin import PerlinSettings
 
 #: Channels of the intensity controls and the FAPs each one drives.
@@ -76,6 +78,8 @@ def convert(
     expression: str | Sequence[ExpressionSegment] | None = None,
     mouth_model: str | os.PathLike[str] | None = None,
     expressivity: Expressivity | None = None,
+    pad: str | Sequence[PadSegment] | None = None,
+    pad_map: str | os.PathLike[str] | None = None,
 ) -> FapStream:
     """Convert a speech recording into the FAP stream of one condition, and write it if ``output`` is given.
 
@@ -121,6 +125,10 @@ def convert(
     expressivity : Expressivity, optional
         Greta's six expressivity controls on the generated head and brows (see
         :mod:`prosody.motion.expressivity`); ``Expressivity.still()`` keeps only an idle sway.
+    pad : str or sequence of PadSegment, optional
+        An emotional state: ``P,A,D`` for the whole recording, a CSV file of timed states, or segments. It shows
+        on the face as seed 000's partial expressions (brows raised or squeezed, eyes opened; ``pad_map``: a JSON
+        file replacing the default map), and it drives ``model="pad"``'s gestures (see :mod:`prosody.motion.pad`).
 
     Returns
     -------
@@ -133,12 +141,15 @@ def convert(
         features = extract_features(audio, fps=fps, f0_floor_hz=f0_floor_hz, f0_ceiling_hz=f0_ceiling_hz,
                                     progress=progress)
     head_model = resolve_head_model(model) if chosen is Condition.SPEECH_DRIVEN else None
+    states = parse_pad(pad) if isinstance(pad, str) else list(pad or ())
+    if states and isinstance(head_model, PadHeadModel):
+        head_model = head_model.with_states(states)
     truth = load_ground_truth(ground_truth, features) if ground_truth is not None else None
     name = Path(output).stem if output is not None else Path(str(audio)).stem
     stream = condition_stream(chosen, features, seed=seed, model=head_model, ground_truth=truth,
                               eyebrow_rule=eyebrow_rule, perlin=perlin, name=name, expressivity=expressivity)
     face = make_face(audio, features, lips=lips, transcript=transcript, expression=expression, gains=gains,
-                     disabled=disabled, mouth_model=mouth_model)
+                     disabled=disabled, mouth_model=mouth_model, pad=states, pad_map=pad_map)
     recorded = None
     if base is not None:
         # the base must be of this recording: the same length within two frames, like recorded motion

@@ -15,6 +15,7 @@ import numpy as np
 from ..fap.stream import FapStream
 from .expressions import ExpressionSegment, add_brow_raises, expression_curves, mix_with_lips, parse_expressions
 from .lips import inner_opening, lip_curves
+from .pad import PadSegment, pad_face_curves, parse_pad, read_face_map
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,31 +34,42 @@ class FaceLayer:
 
 def face_layer(audio, n_frames: int, *, fps: float, lips: str | None = "visemes", transcript: str | None = None,
                lip_gain: float = 1.0, expressions: Sequence[ExpressionSegment] = (),
-               mouth_model=None) -> FaceLayer:
-    """The lips (``lips``: "visemes", "acoustic" or None) and the expressions of a recording, mixed by seed 000's
-    Eq. 14 (see :mod:`prosody.motion.expressions`)."""
+               mouth_model=None, pad: Sequence[PadSegment] = (), pad_map=None) -> FaceLayer:
+    """The lips (``lips``: "visemes", "acoustic" or None), the expressions and the partial expressions of a PAD
+    state (:mod:`prosody.motion.pad`) of a recording, mixed by seed 000's Eq. 14 (see
+    :mod:`prosody.motion.expressions`)."""
     curves: dict[int, np.ndarray] = {}
     if lips is not None:
         curves = lip_curves(audio, n_frames, fps=fps, method=lips, transcript=transcript, gain=lip_gain,
                             mouth_model=mouth_model)
-    if expressions:
-        curves = mix_with_lips(curves, expression_curves(expressions, n_frames, fps=fps))
+    shown: dict[int, np.ndarray] = expression_curves(expressions, n_frames, fps=fps) if expressions else {}
+    if pad:
+        for fap, curve in pad_face_curves(pad, n_frames, fps=fps, face_map=pad_map).items():
+            shown[fap] = shown[fap] + curve if fap in shown else curve
+    if shown:
+        curves = mix_with_lips(curves, shown)
     return FaceLayer(curves)
 
 
 def make_face(audio: str | os.PathLike[str], features, *, lips: str | None = "visemes", transcript: str | None = None,
               expression: str | Sequence[ExpressionSegment] | None = None, gains: Mapping[str, float] | None = None,
-              disabled: Iterable[str] = (), mouth_model: str | os.PathLike[str] | None = None) -> FaceLayer | None:
+              disabled: Iterable[str] = (), mouth_model: str | os.PathLike[str] | None = None,
+              pad: str | Sequence[PadSegment] | None = None,
+              pad_map: str | os.PathLike[str] | None = None) -> FaceLayer | None:
     """The lips and expression layer of a recording on its features' grid (None when there is neither).
 
     ``transcript`` is the text or the path of a text file; ``expression`` a ``NAME:INTENSITY``, the path of a
     timed CSV file, or segments; ``gains["lips"]`` scales the lips and ``"lips"`` in ``disabled`` leaves them out;
-    ``mouth_model`` is a file from ``prosody train --kind mouth`` for ``lips="acoustic"``.
+    ``mouth_model`` is a file from ``prosody train --kind mouth`` for ``lips="acoustic"``; ``pad`` a ``P,A,D``, the
+    path of a timed CSV file, or segments, whose partial expressions follow ``pad_map`` (a JSON file; default
+    :data:`prosody.motion.pad.DEFAULT_FACE_MAP`).
     """
     segments = parse_expressions(expression) if isinstance(expression, str) else list(expression or ())
+    states = parse_pad(pad) if isinstance(pad, str) else list(pad or ())
+    face_map = read_face_map(pad_map)
     if "lips" in disabled:
         lips = None
-    if lips is None and not segments:
+    if lips is None and not segments and not states:
         return None
     if transcript is not None and os.path.isfile(transcript):
         from audio_features.inputs import open_input
@@ -70,7 +82,8 @@ def make_face(audio: str | os.PathLike[str], features, *, lips: str | None = "vi
 
         model = AcousticMouthModel.load(mouth_model)
     return face_layer(audio, features.n_frames, fps=features.fps, lips=lips, transcript=transcript,
-                      lip_gain=float((gains or {}).get("lips", 1.0)), expressions=segments, mouth_model=model)
+                      lip_gain=float((gains or {}).get("lips", 1.0)), expressions=segments, mouth_model=model,
+                      pad=states, pad_map=face_map)
 
 
 def stream_mouth(stream: FapStream) -> tuple[np.ndarray, np.ndarray] | None:

@@ -231,16 +231,20 @@ class PadHeadModel:
         Eq. 2's coefficients for pitch, yaw and roll (default :data:`DEFAULT_COEFFICIENTS`).
     randomized : bool
         The paper's random baseline: amplitude, pose and peak drawn at random.
+    states : sequence of PadSegment
+        A PAD state over time (:mod:`prosody.motion.pad`): where one covers a PW's peak, its P replaces
+        ``pleasure`` and its A shifts the PW's arousal by ``A / 2`` (within 0..1; pauses stay at -0.5).
     """
 
     kind = "pad"
     fps_ = 30.0  # any rate works: the PWs are found on the features' own grid
 
     def __init__(self, pleasure: float = 0.0, coefficients: Sequence[Sequence[float]] | None = None,
-                 randomized: bool = False) -> None:
+                 randomized: bool = False, states: Sequence = ()) -> None:
         self.pleasure = pleasure
         self.coefficients = coefficients
         self.randomized = randomized
+        self.states = tuple(states)
         self.training_: list = []
         if not (isinstance(pleasure, (int, float)) and -1 <= pleasure <= 1):
             raise ConfigError(f"pleasure must be a number in [-1, 1], got {pleasure!r}")
@@ -272,10 +276,16 @@ class PadHeadModel:
             boundaries.append(lo)
             arousal = -0.5 if word is None else word.arousal
             peak = (length // 2 if word is None else word.peak - lo)
+            pleasure = self.pleasure
+            if self.states and word is not None:
+                from .pad import pad_at
+
+                pleasure, shift, _ = pad_at(self.states, word.peak / fps)
+                arousal = min(1.0, max(0.0, arousal + shift / 2))
             if self.randomized and word is not None:
                 peak = int(rng.integers(0, length))
             for axis in range(3):
-                size = amplitude(self.pleasure, arousal, self.coefficients_[axis])
+                size = amplitude(pleasure, arousal, self.coefficients_[axis])
                 if self.randomized and word is not None:
                     size = float(rng.uniform(0, 2 * TABLE3_AMPLITUDE_DEG[axis]))
                 mean, spread = TABLE3_AVERAGE_DEG[axis]
@@ -285,6 +295,10 @@ class PadHeadModel:
         window = max(1, int(round(BOUNDARY_SMOOTHING_S * fps)))
         return {fap: smooth_boundaries(curves[axis], boundaries[1:], window=window) * AU_PER_DEGREE
                 for axis, fap in enumerate(HEAD_FAPS)}
+
+    def with_states(self, states: Sequence) -> PadHeadModel:
+        """The same model driven by a PAD state over time (see ``states``)."""
+        return PadHeadModel(self.pleasure, self.coefficients_, self.randomized, states)
 
     def to_dict(self) -> dict:
         return {"format": MODEL_FORMAT, "version": 1, "kind": self.kind, "pleasure": self.pleasure,
