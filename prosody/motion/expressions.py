@@ -102,8 +102,9 @@ def parse_expressions(spec: str) -> list[ExpressionSegment]:
     return [ExpressionSegment(name.strip().lower(), intensity)]
 
 
-def read_expression_file(path: str | os.PathLike[str]) -> list[ExpressionSegment]:
-    """Timed expressions from a CSV file (columns :data:`EXPRESSION_FILE_COLUMNS`)."""
+def read_timed_rows(path: str | os.PathLike[str], columns: Sequence[str], *, what: str) -> list[tuple[int, list[str]]]:
+    """The non-empty rows (line number, stripped cells) of a CSV file whose header is ``columns``; ``what``
+    names the file in errors ("expression", "PAD"). Every failure is a one-line :class:`ConfigError`."""
     from audio_features.inputs import open_input
 
     name = str(path)
@@ -111,22 +112,27 @@ def read_expression_file(path: str | os.PathLike[str]) -> list[ExpressionSegment
         with open_input(path, text=True, encoding="utf-8-sig", newline="", max_bytes=16 << 20) as handle:
             rows = list(csv.reader(handle))
     except FileNotFoundError:
-        raise ConfigError(f"{name}: no such expression file") from None
+        raise ConfigError(f"{name}: no such {what} file") from None
     except (OSError, UnicodeDecodeError, csv.Error) as error:
         raise ConfigError(f"{name}: cannot be read as CSV ({getattr(error, 'strerror', None) or error})") from None
-    if not rows or tuple(cell.strip() for cell in rows[0]) != EXPRESSION_FILE_COLUMNS:
-        raise ConfigError(f"{name}, line 1: expected the header {','.join(EXPRESSION_FILE_COLUMNS)}")
+    if not rows or tuple(cell.strip() for cell in rows[0]) != tuple(columns):
+        raise ConfigError(f"{name}, line 1: expected the header {','.join(columns)}")
+    found = [(line, [cell.strip() for cell in row]) for line, row in enumerate(rows[1:], start=2)
+             if any(cell.strip() for cell in row)]
+    if not found:
+        raise ConfigError(f"{name}: no {what} rows")
+    return found
+
+
+def read_expression_file(path: str | os.PathLike[str]) -> list[ExpressionSegment]:
+    """Timed expressions from a CSV file (columns :data:`EXPRESSION_FILE_COLUMNS`)."""
     segments = []
-    for line, row in enumerate(rows[1:], start=2):
-        if not any(cell.strip() for cell in row):
-            continue
+    for line, row in read_timed_rows(path, EXPRESSION_FILE_COLUMNS, what="expression"):
         try:
-            start, end, expression, intensity = (cell.strip() for cell in row)
+            start, end, expression, intensity = row
             segments.append(ExpressionSegment(expression.lower(), float(intensity), float(start), float(end)))
         except ValueError as error:
-            raise ConfigError(f"{name}, line {line}: expected start_s,end_s,expression,intensity ({error})") from None
-    if not segments:
-        raise ConfigError(f"{name}: no expression rows")
+            raise ConfigError(f"{path}, line {line}: expected start_s,end_s,expression,intensity ({error})") from None
     return segments
 
 

@@ -20,7 +20,6 @@ Two things follow from it:
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
@@ -30,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
-from .expressions import blend_targets
+from .expressions import blend_targets, read_timed_rows
 
 #: Columns of a timed PAD file.
 PAD_FILE_COLUMNS = ("start_s", "end_s", "pleasure", "arousal", "dominance")
@@ -89,29 +88,13 @@ def parse_pad(spec: str) -> list[PadSegment]:
 
 def read_pad_file(path: str | os.PathLike[str]) -> list[PadSegment]:
     """Timed PAD states from a CSV file (columns :data:`PAD_FILE_COLUMNS`)."""
-    from audio_features.inputs import open_input
-
-    name = str(path)
-    try:
-        with open_input(path, text=True, encoding="utf-8-sig", newline="", max_bytes=16 << 20) as handle:
-            rows = list(csv.reader(handle))
-    except FileNotFoundError:
-        raise ConfigError(f"{name}: no such PAD file") from None
-    except (OSError, UnicodeDecodeError, csv.Error) as error:
-        raise ConfigError(f"{name}: cannot be read as CSV ({getattr(error, 'strerror', None) or error})") from None
-    if not rows or tuple(cell.strip() for cell in rows[0]) != PAD_FILE_COLUMNS:
-        raise ConfigError(f"{name}, line 1: expected the header {','.join(PAD_FILE_COLUMNS)}")
     segments = []
-    for line, row in enumerate(rows[1:], start=2):
-        if not any(cell.strip() for cell in row):
-            continue
+    for line, row in read_timed_rows(path, PAD_FILE_COLUMNS, what="PAD"):
         try:
             start, end, pleasure, arousal, dominance = (float(cell) for cell in row)
             segments.append(PadSegment(pleasure, arousal, dominance, start, end))
         except (ValueError, ConfigError) as error:
-            raise ConfigError(f"{name}, line {line}: expected {','.join(PAD_FILE_COLUMNS)} ({error})") from None
-    if not segments:
-        raise ConfigError(f"{name}: no PAD rows")
+            raise ConfigError(f"{path}, line {line}: expected {','.join(PAD_FILE_COLUMNS)} ({error})") from None
     return segments
 
 
