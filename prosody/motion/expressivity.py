@@ -201,14 +201,13 @@ class HeadShaper:
         self._nod_start: float | None = None
         self._nod_height = 0.0
         self._ratio = 0.0
+        self._threshold = 1.0  # the held share's running quantile of the speed ratio
         self.set(expressivity)
 
     def set(self, expressivity: Expressivity) -> None:
         """Change the controls from the next frame on (a live stream's controls can move while it runs)."""
         fps = self.fps
         self.expressivity = expressivity
-        if not hasattr(self, "_threshold"):
-            self._threshold = 1.0
         self._smooth_speed = _pole(SPEED_SMOOTHING_S, fps)
         self._visible_pole = _pole(VISIBLE_S, fps)
         self._smooth_gate = _pole(GATE_SMOOTHING_S, fps)
@@ -229,7 +228,6 @@ class HeadShaper:
         if self._previous is None:
             self._previous = x.copy()
             self._output = x.copy()
-            self._slow[:] = 0.0
         velocity = x - self._previous
         self._previous = x.copy()
         self._frames += 1
