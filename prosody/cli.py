@@ -817,32 +817,198 @@ def _cmd_track(args: argparse.Namespace) -> int:
     return EXIT_FAILURE if failed else EXIT_OK
 
 
-def _cmd_study_plan(args: argparse.Namespace) -> int:
-    from .evaluation.study import plan_study, write_plan
+def _study_condition_names(text: str | None) -> list[str] | None:
+    """--conditions of 'study plan': comma-separated names, or a conditions file (its names, in order)."""
+    if text is None:
+        return None
+    if text.lower().endswith(".json") or os.path.isfile(text):
+        from .jobs.study_stimuli import read_condition_options
 
-    rows = plan_study(args.stimuli.split(","), seed=args.seed)
+        return list(read_condition_options(text))
+    return [name for name in text.split(",")]
+
+
+def _cmd_study_plan(args: argparse.Namespace) -> int:
+    from .evaluation.designs import make_plan
+    from .evaluation.study import write_plan
+
+    rows = make_plan(args.stimuli.split(","), design=args.design, conditions=_study_condition_names(args.conditions),
+                     seed=args.seed, repeats=args.repeats)
     write_plan(rows, args.output)
-    _say(f"{args.output}: {len(rows)} presentations")
+    _say(f"{args.output}: {args.design} plan, {len(rows)} presentations")
+    return EXIT_OK
+
+
+class _ConditionOptionsParser(_Parser):
+    """Reads one study condition's convert options; a mistake is a ConfigError naming the condition."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        from .errors import ConfigError
+
+        raise ConfigError(f"condition {self.prog}: {message}")
+
+
+def _study_conditions(plan, path: str | None) -> dict:
+    """A StudyCondition for every condition of ``plan``: the thesis's four by their options, the others from the
+    conditions file."""
+    import shlex
+
+    from .errors import ConfigError
+    from .jobs.study_stimuli import BUILT_IN, StudyCondition, read_condition_options
+
+    given = read_condition_options(path) if path is not None else {}
+    conditions = {}
+    for name in plan.conditions:
+        if name in given:
+            label, options = given[name]
+        elif name in BUILT_IN:
+            label, options = name, BUILT_IN[name]
+        else:
+            raise ConfigError(f"the plan's condition {name} is not one of the thesis's four: define it in a "
+                              "conditions file (--conditions FILE.json)")
+        parser = _ConditionOptionsParser(prog=name, add_help=False)
+        _add_motion_options(parser)
+        _add_analysis_options(parser)
+        _add_eyebrow_options(parser)
+        try:
+            words = shlex.split(options)
+        except ValueError as error:
+            raise ConfigError(f"condition {name}: its options cannot be read ({error})") from None
+        parsed = parser.parse_args(words)
+        if parsed.ground_truth is not None:
+            raise ConfigError(f"condition {name}: --ground-truth is found per stimulus (<stimulus>.head.csv next to "
+                              "its recording); leave it out")
+        _check_motion_options(parsed)
+        conditions[name] = StudyCondition(name, label, options, _motion_kwargs(parsed))
+    return conditions
+
+
+def _cmd_study_stimuli(args: argparse.Namespace) -> int:
+    from .evaluation.designs import read_plan
+    from .jobs.study_stimuli import make_stimuli
+
+    plan = read_plan(args.plan)
+    conditions = _study_conditions(plan, args.conditions)
+    bar = _ProgressBar(f"{args.output}: videos", "video")
+
+    def on_video(stimulus: str, condition: str, drawn: bool) -> None:
+        if not drawn:
+            bar.say(f"{args.output}/{stimulus}/{condition}.mp4: already complete")
+
+    manifest = make_stimuli(plan, args.recordings, args.output, conditions, width=args.width, force=args.force,
+                            on_video=on_video, progress=bar)
+    _say(f"{args.output}: {len(manifest['videos'])} videos of {len(plan.stimuli)} stimulus/stimuli and "
+         f"{len(plan.conditions)} conditions, listed in stimuli.json")
+    return EXIT_OK
+
+
+def _cmd_study_serve(args: argparse.Namespace) -> int:
+    import time
+
+    from .evaluation.designs import read_plan
+    from .jobs.server import parse_address
+    from .jobs.study_server import StudyServer
+    from .jobs.study_store import StudyStore
+
+    plan = read_plan(args.plan)
+    host, port = parse_address(args.listen)
+    store = StudyStore(args.db, plan)
+    try:
+        server = StudyServer(plan, args.stimuli, store, host=host, port=port, break_every=args.break_every,
+                             allow_origins=args.allow_origin, report=lambda line: _say(f"prosody study serve: {line}"))
+        progress = store.progress()
+        _say(f"prosody study serve: the study is at {server.url} ({plan.design}, {len(plan.trials)} trials each; "
+             f"{progress['participants']} participant(s) and {progress['answers']} answer(s) so far in {args.db})")
+        _say(f"prosody study serve: organiser's token {server.token} (export: {server.url}admin/export.csv?token="
+             f"{server.token}, or 'prosody study export {args.db} -o ballots.csv')")
+        if host not in ("127.0.0.1", "::1", "localhost"):
+            _say(f"prosody study serve: warning: listening on {host}: other machines can reach the study")
+        server.start()
+        try:
+            while True:
+                time.sleep(3600)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            server.close()
+        progress = store.progress()
+        _say(f"prosody study serve: stopped; {progress['participants']} participant(s), {progress['finished']} "
+             f"finished, {progress['answers']} answer(s) saved in {args.db}")
+    finally:
+        store.close()
+    return EXIT_OK
+
+
+def _cmd_study_export(args: argparse.Namespace) -> int:
+    from audio_features.atomic import atomic_write
+
+    from .jobs.study_store import StudyStore
+
+    store = StudyStore(args.db, create=False)
+    try:
+        text = store.export_csv()
+        progress = store.progress()
+    finally:
+        store.close()
+    with atomic_write(args.output, newline="\n") as handle:
+        handle.write(text)
+    _say(f"{args.output}: {progress['answers']} answer(s) of {progress['participants']} participant(s) "
+         f"({progress['finished']} finished), {store.design} ballots")
     return EXIT_OK
 
 
 def _cmd_study_analyze(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
     from audio_features.atomic import atomic_write
 
-    from .evaluation.study import analyze_ballots, missing_pairs, read_ballots, study_markdown
+    from .errors import BallotError
+    from .evaluation import ratings
+    from .evaluation.designs import read_plan
+    from .evaluation.study import (CONDITIONS, analyze_ballots, missing_pairs, parse_ballots, read_text_file,
+                                   study_markdown)
 
-    ballots = read_ballots(args.input)
-    notes = missing_pairs(ballots)
-    for note in notes:
-        _MESSAGES.emit("warning", f"prosody study analyze: warning: {args.input}: {note}")
-    results = analyze_ballots(ballots)
+    plan = read_plan(args.plan) if args.plan else None
+    text = read_text_file(args.input)
+    design = ratings.ballot_design(text)
+    if plan is not None and plan.design != design:
+        raise BallotError(f"{args.input}: {design} ballots, but {args.plan} is a {plan.design} plan")
+    conditions = plan.conditions if plan is not None else None
+    figure = None
+    if args.report:
+        report = Path(args.report)
+        figure = report.with_name(report.stem + (".confusion.png" if design == "identification" else ".means.png"))
+    if design == "paired":
+        ballots = parse_ballots(text, source=args.input, conditions=conditions or CONDITIONS)
+        notes = missing_pairs(ballots, conditions or CONDITIONS)
+        for note in notes:
+            _MESSAGES.emit("warning", f"prosody study analyze: warning: {args.input}: {note}")
+        results = analyze_ballots(ballots, conditions or CONDITIONS)
+        summary = f"{len(ballots)} ballots, {len(results['scores'])} stimulus/stimuli"
+        markdown = study_markdown(ballots, results, notes=notes, conditions=conditions or CONDITIONS) \
+            if args.report else ""
+    elif design == "mos":
+        scores = ratings.parse_ratings(text, source=args.input, conditions=conditions)
+        results = ratings.analyze_ratings(scores, conditions)
+        summary = f"{len(scores)} ratings by {results['subjects']} subject(s)"
+        if args.report:
+            ratings.plot_means(results, figure)
+            markdown = ratings.ratings_markdown(results, figure=figure.name)
+    else:
+        answers = ratings.parse_identifications(text, source=args.input, classes=conditions)
+        results = ratings.analyze_identifications(answers, conditions)
+        summary = (f"{len(answers)} answers by {results['subjects']} subject(s), "
+                   f"{results['overall']['accuracy']:.1%} correct (chance {results['chance']:.1%})")
+        if args.report:
+            ratings.plot_confusion(results, figure)
+            markdown = ratings.identification_markdown(results, figure=figure.name)
     with atomic_write(args.output, newline="\n") as handle:
         json.dump(results, handle, indent=1, allow_nan=False)
         handle.write("\n")
     if args.report:
         with atomic_write(args.report, newline="\n") as handle:
-            handle.write(study_markdown(ballots, results, notes=notes))
-    _say(f"{args.output}: {len(ballots)} ballots, {len(results['scores'])} stimulus/stimuli")
+            handle.write(markdown)
+    _say(f"{args.output}: {design} study, {summary}")
     return EXIT_OK
 
 
@@ -1137,36 +1303,113 @@ def build_parser() -> argparse.ArgumentParser:
     track.set_defaults(handler=_cmd_track)
 
     study = commands.add_parser(
-        "study", help="plan a paired-comparison perceptual study, or analyse its ballots",
-        description="Paired comparisons of the four conditions, as the thesis's perceptual study ran them: "
-                    "'plan' writes the presentation "
-                    "order, 'analyze' scores the ballots and runs paired t-tests.",
+        "study", help="run a perceptual study: plan it, make its videos, serve its page, export and analyse the answers",
+        description="A perceptual study from plan to analysis. 'plan' writes the presentation order of one of three "
+                    "designs (paired comparisons as the thesis, 1-5 opinion scores as seed 000, identification as "
+                    "seed 002); 'stimuli' draws the face video of every stimulus and condition; 'serve' runs the "
+                    "study's page and saves every answer in an SQLite database; 'export' writes the answers as "
+                    "ballots; 'analyze' runs the design's statistics.",
     )
     study_commands = study.add_subparsers(dest="study_command", required=True, metavar="STEP",
                                           parser_class=_Parser)
     plan = study_commands.add_parser(
         "plan", help="write the randomised presentation order",
-        description="Every ordered pair of NO_PROSODY, RANDOM, SPEECH_DRIVEN, GROUND_TRUTH (16 per stimulus, "
-                    "same-model pairs included, so each condition is left 4 times and right 4 times), in 16 "
-                    "rounds that show one pair of every stimulus in shuffled order. CSV columns: "
-                    "order,stimulus,left,right. The same seed gives the same plan.",
+        description="paired (default): every ordered pair of the conditions per stimulus (with the thesis's four, "
+                    "16 pairs, same-model pairs included, so each condition is left 4 times and right 4 times), in "
+                    "rounds that show one pair of every stimulus in shuffled order; CSV columns "
+                    "order,stimulus,left,right. mos: every condition of every stimulus --repeats times, in rounds; "
+                    "columns order,stimulus,condition. identification: the same, columns order,stimulus,shown; the "
+                    "answer options are the conditions. The same seed gives the same plan; 'serve' gives each "
+                    "participant their own order from it.",
     )
-    plan.add_argument("--stimuli", required=True, metavar="NAME[,NAME...]", help="stimulus names, comma-separated")
+    plan.add_argument("--stimuli", required=True, metavar="NAME[,NAME...]",
+                      help="stimulus names, comma-separated (each the name of a recording: NAME.wav)")
+    plan.add_argument("--design", choices=["paired", "mos", "identification"], default="paired",
+                      help="paired comparison (default), opinion scores 1-5, or identification")
+    plan.add_argument("--conditions", default=None, metavar="NAME,NAME...|FILE.json",
+                      help="the conditions compared (default: none,random,speech,truth, the thesis's four; "
+                           "identification needs its own): names, or a conditions file (see 'study stimuli')")
+    plan.add_argument("--repeats", type=_whole_number(1, 100, "1 to 100"), default=1, metavar="N",
+                      help="mos and identification: show each condition of each stimulus N times (default 1)")
     plan.add_argument("--seed", type=_seed, default=0, help="seed of the order (a whole number >= 0, default 0)")
     plan.add_argument("-o", "--output", required=True, help="plan CSV to write")
     plan.set_defaults(handler=_cmd_study_plan)
+
+    stimuli = study_commands.add_parser(
+        "stimuli", help="draw the video of every stimulus and condition of a plan",
+        description="For every stimulus and condition of PLAN, the drawn face animated by that condition with the "
+                    "recording's audio, as OUT/<stimulus>/<condition>.mp4 (no curve strip and no caption, so nothing "
+                    "on screen names the condition), listed in OUT/stimuli.json. Recordings are RECORDINGS/"
+                    "<stimulus>.wav (or another audio ending), with <stimulus>.head.csv (or .fap) for the truth "
+                    "condition. The thesis's four conditions need no definition; others are defined in a JSON file: "
+                    '{"format": "visual-prosody-study-conditions", "version": 1, "conditions": {"calm": {"label": '
+                    '"Calm", "options": "--activation 0.4 --pad 0.5,-0.3,0"}}}, where options are any of '
+                    "'prosody convert''s motion, face, expressivity and analysis options. Videos already made with "
+                    "the same settings are kept; MP4 needs ffmpeg (or the imageio-ffmpeg package).",
+    )
+    stimuli.add_argument("plan", metavar="PLAN.csv", help="the study's plan")
+    stimuli.add_argument("--recordings", required=True, metavar="DIR", help="folder of <stimulus>.wav recordings")
+    stimuli.add_argument("--conditions", default=None, metavar="FILE.json",
+                         help="definitions of the plan's conditions other than the thesis's four")
+    stimuli.add_argument("--width", type=_whole_number(64, 1920, "64 to 1920"), default=360, metavar="PX",
+                         help="video width in pixels (the face is square; default 360)")
+    stimuli.add_argument("--force", action="store_true", help="draw every video again")
+    stimuli.add_argument("-o", "--output", required=True, metavar="DIR", help="folder of the videos")
+    stimuli.set_defaults(handler=_cmd_study_stimuli)
+
+    serve = study_commands.add_parser(
+        "serve", help="serve the study's page to participants and save their answers",
+        description="Serves a page (nothing loaded from other sites) where each participant gets an anonymous ID, "
+                    "watches every trial of PLAN in their own counterbalanced order (sequence reshuffled per "
+                    "participant, sides swapped for every second one), answers, gets a break every --break-every "
+                    "trials, and a completion code at the end. Every answer is one SQLite transaction (WAL) in "
+                    "--db: a crash, a restart or a closed tab loses nothing, a participant resumes where they "
+                    "stopped (same browser, or /?participant=ID), a repeated submission counts once. Restart with "
+                    "the same --db to go on. Only this server's own page may use it. Prints the organiser's token "
+                    "for /admin/export.csv and /admin/progress.",
+    )
+    serve.add_argument("plan", metavar="PLAN.csv", help="the study's plan")
+    serve.add_argument("--stimuli", required=True, metavar="DIR", help="the videos made by 'prosody study stimuli'")
+    serve.add_argument("--db", required=True, metavar="study.sqlite",
+                       help="the answers' database (made if missing; must be of this plan)")
+    serve.add_argument("--listen", default="127.0.0.1:8766", metavar="HOST:PORT",
+                       help="address to serve on (default 127.0.0.1:8766, this machine only; 0.0.0.0:PORT opens it "
+                            "to the network)")
+    serve.add_argument("--break-every", type=_whole_number(0, 10000, "0 to 10000"), default=20, metavar="N",
+                       help="a break screen every N trials (default 20; 0: none)")
+    serve.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
+                       help="also let pages from ORIGIN (http(s)://HOST[:PORT]) use the study (repeatable)")
+    serve.set_defaults(handler=_cmd_study_serve)
+
+    export = study_commands.add_parser(
+        "export", help="write the answers of a study database as ballots",
+        description="Writes every answer in DB, once, as the ballots 'study analyze' reads: paired "
+                    "stimulus,subject,left,right,choice; mos stimulus,subject,condition,score; identification "
+                    "stimulus,subject,shown,answer; each with order (the plan's trial number). The subject is the "
+                    "participant's anonymous ID. Safe while the server runs.",
+    )
+    export.add_argument("db", metavar="study.sqlite", help="the study's database")
+    export.add_argument("-o", "--output", required=True, metavar="BALLOTS.csv", help="ballots to write")
+    export.set_defaults(handler=_cmd_study_export)
+
     analyze = study_commands.add_parser(
-        "analyze", help="score ballots and run paired t-tests",
-        description="BALLOTS.csv has the columns stimulus,subject,left,right,choice (choice: left or right). "
-                    "Writes {\"scores\": {stimulus: {condition: points}}, \"ttests\": [...]}: one paired t-test "
-                    "of per-subject scores (a minus b, 95% CI, two-tailed p, and p_holm: Holm-corrected over the "
-                    "stimulus's six tests) for each pair of conditions per "
-                    "stimulus. Incomplete, duplicated or unknown-condition rows are reported by line number.",
+        "analyze", help="analyse a study's ballots (the design is read from their columns)",
+        description="paired (stimulus,subject,left,right,choice): scores, and one paired t-test of per-subject "
+                    "scores per pair of conditions and stimulus (a minus b, 95% CI, two-tailed p, p_holm: "
+                    "Holm-corrected over the stimulus's tests). mos (stimulus,subject,condition,score): means with "
+                    "95% CIs, one-way ANOVA (F, df, p, eta and omega squared), repeated-measures ANOVA over the "
+                    "subjects who rated every condition (partial eta squared), Tukey's pairwise tests with Cohen's "
+                    "d. identification (stimulus,subject,shown,answer): accuracy per class with exact 95% CIs and "
+                    "one-sided binomial tests against chance (Holm-corrected), and the confusion matrix. Bad rows "
+                    "are reported by line number. --report also writes the figure beside it.",
     )
     analyze.add_argument("input", metavar="BALLOTS.csv", help="ballot file")
     analyze.add_argument("-o", "--output", required=True, metavar="results.json", help="results to write")
+    analyze.add_argument("--plan", default=None, metavar="PLAN.csv",
+                         help="the study's plan: its conditions are the ones ballots may name (needed for paired "
+                              "studies of conditions other than the thesis's four)")
     analyze.add_argument("--report", default=None, metavar="OUT.md",
-                         help="also write a readable report (confusion matrices, scores, tests)")
+                         help="also write a readable report, and its figure (OUT.means.png or OUT.confusion.png)")
     analyze.set_defaults(handler=_cmd_study_analyze)
 
     inspect = commands.add_parser(
@@ -1226,7 +1469,8 @@ def _as_flags(message: str) -> str:
 #: Commands whose -o may be - (standard output).
 _STDOUT_COMMANDS = frozenset({"features", "convert", "stream"})
 #: Options that name files or folders a command reads.
-_INPUT_OPTIONS = ("input", "base", "ground_truth", "model", "data", "ground_truth_dir", "audio")
+_INPUT_OPTIONS = ("input", "base", "ground_truth", "model", "data", "ground_truth_dir", "audio", "plan", "conditions",
+                  "db", "recordings")
 #: Options that name what a command writes.
 _OUTPUT_OPTIONS = ("output", "report")
 

@@ -150,18 +150,21 @@ class FaceRenderer:
     Parameters
     ----------
     width : int in [64, 3840]
-        Frame width in pixels; the height is ``width * 5 / 4`` rounded to an even number.
+        Frame width in pixels; the height is ``width * 5 / 4`` rounded to an even number (``width`` without the
+        strip).
     model : FaceModel, optional
         Face geometry.
+    strip : bool
+        Leave room for the curve strip below the face.
     """
 
-    def __init__(self, width: int = 480, *, model: FaceModel | None = None) -> None:
+    def __init__(self, width: int = 480, *, model: FaceModel | None = None, strip: bool = True) -> None:
         if not (isinstance(width, (int, np.integer)) and MIN_WIDTH <= width <= MAX_WIDTH):
             raise ConfigError(f"preview width must be a whole number of pixels from {MIN_WIDTH} to {MAX_WIDTH}, "
                               f"got {width!r}")
         self.width = width + width % 2
         self.face_height = self.width
-        self.height = self.width + 2 * round(self.width / 8)
+        self.height = self.width + (2 * round(self.width / 8) if strip else 0)
         self.model = model or FaceModel()
         # head units -> pixels: the head (half-height 1) takes about 60 % of the face square
         self.scale = 0.30 * self.face_height
@@ -370,7 +373,8 @@ def strip_scales(streams: list[FapStream]) -> tuple[float, float]:
 def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.0,
                   brow_scale: float = BROW_VIEW_SCALE,
                   first_frame: int = 0, n_frames: int | None = None, strip: bool = True,
-                  label: str | None = None, scales: tuple[float, float] | None = None) -> Iterator[np.ndarray]:
+                  label: str | None = None, scales: tuple[float, float] | None = None,
+                  caption: bool = True) -> Iterator[np.ndarray]:
     """Frames of the preview of ``stream``, one RGB array (height, width, 3) uint8 per stream frame.
 
     Parameters
@@ -391,6 +395,8 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
         Caption of every frame instead of the stream's name.
     scales : (float, float), optional
         The strip's brow (ENS) and head (AU) scales; default: this stream's largest magnitudes.
+    caption : bool
+        Write the name, time and drawing scale at the top (False: the face alone, as a study shows it).
 
     Examples
     --------
@@ -403,16 +409,17 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
         raise ConfigError(f"exaggerate must be a positive number, got {exaggerate!r}")
     if not (math.isfinite(brow_scale) and brow_scale > 0):
         raise ConfigError(f"brow_scale must be a positive number, got {brow_scale!r}")
-    renderer = FaceRenderer(width)
-    curves = CurveStrip(stream, width=renderer.width, height=renderer.height - renderer.face_height, scales=scales)
+    renderer = FaceRenderer(width, strip=strip)
+    curves = CurveStrip(stream, width=renderer.width, height=max(1, renderer.height - renderer.face_height),
+                        scales=scales)
     last = stream.n_frames if n_frames is None else min(stream.n_frames, first_frame + n_frames)
     excerpt = FapStream(stream.values[first_frame:last], stream.mask[first_frame:last], stream.fps, stream.name)
     note = (f"  x{exaggerate:g}" if exaggerate != 1 else "") + (
         f"  brows x{exaggerate * brow_scale:g}" if brow_scale != 1 and stream.mask[:, 30:36].any() else "")
     for offset, pose in enumerate(poses(excerpt, exaggerate=exaggerate, brow_scale=brow_scale)):
         frame = first_frame + offset
-        caption = f"{label or stream.name}  {frame / stream.fps:7.2f} s{note}"
-        yield renderer.render(pose, strip=curves.render(frame) if strip else None, caption=caption)
+        text = f"{label or stream.name}  {frame / stream.fps:7.2f} s{note}" if caption else ""
+        yield renderer.render(pose, strip=curves.render(frame) if strip else None, caption=text)
 
 
 def find_ffmpeg() -> str | None:
@@ -490,7 +497,8 @@ def _reporting(frames: Iterator[np.ndarray], progress: Callable[[int, int], None
 def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: str | os.PathLike[str] | None = None,
                   width: int = 480, exaggerate: float = 1.0, start_s: float = 0.0, duration_s: float | None = None,
                   ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None,
-                  scales: tuple[float, float] | None = None, brow_scale: float = BROW_VIEW_SCALE) -> Path:
+                  scales: tuple[float, float] | None = None, brow_scale: float = BROW_VIEW_SCALE,
+                  strip: bool = True, caption: bool = True) -> Path:
     """Write the drawn-face preview of ``stream`` to ``output`` (``.mp4`` or ``.gif``).
 
     Parameters
@@ -516,6 +524,8 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
     scales : (float, float), optional
         Full scale of the strip's brow (ENS) and head (AU) curves; default: this stream's largest values.
         Give the same scales to previews that will be compared.
+    strip, caption : bool
+        Draw the curve strip and the caption (False and False: the face alone, a study's stimulus).
 
     Returns
     -------
@@ -525,7 +535,7 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
         raise ConfigError(f"strip scales must be positive numbers, got {scales!r}")
     return _write_video([(None, stream)], output, audio=audio, width=width, exaggerate=exaggerate,
                         brow_scale=brow_scale, start_s=start_s, duration_s=duration_s, ffmpeg=ffmpeg,
-                        progress=progress, scales=scales)
+                        progress=progress, scales=scales, strip=strip, caption=caption)
 
 
 def write_side_by_side(streams: Mapping[str, FapStream], output: str | os.PathLike[str], *,
@@ -550,7 +560,7 @@ def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.Pa
                  audio: str | os.PathLike[str] | None, width: int, exaggerate: float, brow_scale: float,
                  start_s: float,
                  duration_s: float | None, ffmpeg: str | None, progress: Callable[[int, int], None] | None,
-                 scales: tuple[float, float] | None) -> Path:
+                 scales: tuple[float, float] | None, strip: bool = True, caption: bool = True) -> Path:
     """The panels (label, stream) side by side as one .mp4 or .gif; the strips share ``scales`` (default:
     what fits every stream)."""
     path = Path(output)
@@ -568,7 +578,8 @@ def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.Pa
     count = n - first if duration_s is None else min(n - first, max(1, round(duration_s * fps)))
     shared = scales if scales is not None else strip_scales([s for _, s in panels])
     drawn = [render_frames(s, width=width, exaggerate=exaggerate, brow_scale=brow_scale, first_frame=first,
-                           n_frames=count, label=label, scales=shared) for label, s in panels]
+                           n_frames=count, label=label, scales=shared, strip=strip, caption=caption)
+             for label, s in panels]
     frames: Iterator[np.ndarray] = drawn[0] if len(drawn) == 1 else (np.hstack(row) for row in zip(*drawn,
                                                                                                   strict=True))
     if progress is not None:
@@ -580,7 +591,7 @@ def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.Pa
     if executable is None:
         raise PreviewError(f"{path}: MP4 needs ffmpeg; install it (or `pip install imageio-ffmpeg`), "
                            "or write a .gif")
-    renderer = FaceRenderer(width)
+    renderer = FaceRenderer(width, strip=strip)
     _write_mp4(frames, path, fps=fps, width=renderer.width * len(panels), height=renderer.height,
                ffmpeg=executable, audio=Path(audio) if audio is not None else None, start_s=first / fps,
                duration_s=count / fps)

@@ -16,6 +16,7 @@ import io
 import itertools
 import math
 import os
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -34,10 +35,57 @@ BALLOT_COLUMNS = ("stimulus", "subject", "left", "right", "choice")
 MAX_BALLOT_BYTES = 256 << 20
 #: Ballot problems listed in one error message before "and N more".
 _MAX_LISTED = 20
+_CONDITION_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_.-]{0,63}")
+_STIMULUS_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}")
 
 
-def plan_study(stimuli: Sequence[str], *, seed: int = 0) -> list[dict[str, str | int]]:
+def condition_name(text: str) -> str:
+    """A condition's name as plans and ballots hold it: the command line's short names (none, random, speech,
+    truth) become the full ones; other names (a study's own conditions) are kept if they are 1-64 letters,
+    digits, ``_``, ``-`` or ``.``, starting with a letter.
+
+    Examples
+    --------
+    >>> condition_name("speech"), condition_name("calm-0.5")
+    ('SPEECH_DRIVEN', 'calm-0.5')
+    """
+    name = text.strip()
+    name = SHORT_NAMES.get(name.lower(), name)
+    if not _CONDITION_NAME.fullmatch(name):
+        raise ConfigError(f"condition name {text!r} must be 1-64 letters, digits, '_', '-' or '.', starting with a "
+                          "letter")
+    return name
+
+
+def condition_names(names: Sequence[str]) -> tuple[str, ...]:
+    """:func:`condition_name` of each, checked to be at least two and all different."""
+    chosen = tuple(condition_name(name) for name in names)
+    if len(chosen) < 2:
+        raise ConfigError(f"a study compares two or more conditions, got {list(names)!r}")
+    if len(set(chosen)) != len(chosen):
+        raise ConfigError(f"condition names repeat: {list(chosen)!r}")
+    return chosen
+
+
+def stimulus_names(stimuli: Sequence[str]) -> list[str]:
+    """Stimulus names stripped, checked to be non-empty, different and usable as file names."""
+    names = [name.strip() for name in stimuli]
+    if not names or any(not name for name in names):
+        raise ConfigError(f"give one or more non-empty stimulus names, got {list(stimuli)!r}")
+    if len(set(names)) != len(names):
+        raise ConfigError(f"stimulus names repeat: {names!r}")
+    bad = [name for name in names if not _STIMULUS_NAME.fullmatch(name)]
+    if bad:
+        raise ConfigError(f"stimulus name(s) {', '.join(map(repr, bad))} must be 1-128 letters, digits, '_', '-' or "
+                          "'.', not starting with '.' (they name files: <stimulus>.wav)")
+    return names
+
+
+def plan_study(stimuli: Sequence[str], *, seed: int = 0,
+               conditions: Sequence[str] = CONDITIONS) -> list[dict[str, str | int]]:
     """The presentation order: rows ``{"order", "stimulus", "left", "right"}``, ``order`` from 1.
+
+    Every ordered pair of ``conditions`` (the thesis's four by default) for every stimulus, in rounds.
 
     Examples
     --------
@@ -45,13 +93,10 @@ def plan_study(stimuli: Sequence[str], *, seed: int = 0) -> list[dict[str, str |
     >>> len(rows), sorted({row["stimulus"] for row in rows})
     (32, ['s1', 's2'])
     """
-    names = [name.strip() for name in stimuli]
-    if not names or any(not name for name in names):
-        raise ConfigError(f"give one or more non-empty stimulus names, got {list(stimuli)!r}")
-    if len(set(names)) != len(names):
-        raise ConfigError(f"stimulus names repeat: {names!r}")
+    names = stimulus_names(stimuli)
     generator = np.random.default_rng(seed)
-    pairs = list(itertools.product(CONDITIONS, CONDITIONS))
+    chosen = condition_names(conditions)
+    pairs = list(itertools.product(chosen, chosen))
     per_stimulus = {name: [pairs[i] for i in generator.permutation(len(pairs))] for name in names}
     sequence: list[tuple[str, str, str]] = []
     for round_index in range(len(pairs)):
@@ -64,9 +109,12 @@ def plan_study(stimuli: Sequence[str], *, seed: int = 0) -> list[dict[str, str |
 
 
 def write_plan(rows: Sequence[dict], path: str | os.PathLike[str]) -> None:
-    """Write a plan as CSV with the columns ``order,stimulus,left,right`` (atomically)."""
+    """Write a plan as CSV (atomically): the columns ``order,stimulus,left,right`` of a paired plan, or
+    those of the rows (``order,stimulus,condition`` or ``order,stimulus,shown``)."""
+    if not rows:
+        raise ConfigError("the plan has no rows")
     with atomic_write(path) as handle:
-        writer = csv.DictWriter(handle, fieldnames=PLAN_COLUMNS, lineterminator="\n")
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]), lineterminator="\n")
         writer.writeheader()
         writer.writerows(rows)
 
@@ -108,8 +156,10 @@ def _rows(reader, source: str):
         yield reader.line_num, cells
 
 
-def parse_ballots(text: str, *, source: str = "<ballots>") -> list[Ballot]:
+def parse_ballots(text: str, *, source: str = "<ballots>", conditions: Sequence[str] = CONDITIONS) -> list[Ballot]:
     """Parse ballot CSV text (columns ``stimulus,subject,left,right,choice``; extra columns are ignored).
+
+    ``conditions``: the names a ballot may give (the thesis's four by default; a plan's own).
 
     Raises
     ------
@@ -141,10 +191,10 @@ def parse_ballots(text: str, *, source: str = "<ballots>") -> list[Ballot]:
             continue
         for side in ("left", "right"):  # the short names the other commands take are read too
             values[side] = SHORT_NAMES.get(values[side].lower(), values[side])
-        unknown = [values[side] for side in ("left", "right") if values[side] not in CONDITIONS]
+        unknown = [values[side] for side in ("left", "right") if values[side] not in conditions]
         if unknown:
             problems.append(f"row {line} names unknown condition(s) {', '.join(map(repr, unknown))} "
-                            f"(expected {', '.join(CONDITIONS)})")
+                            f"(expected {', '.join(conditions)})")
             continue
         choice = values["choice"].lower()
         if choice not in ("left", "right"):
@@ -164,29 +214,34 @@ def parse_ballots(text: str, *, source: str = "<ballots>") -> list[Ballot]:
     return ballots
 
 
-def read_ballots(path: str | os.PathLike[str]) -> list[Ballot]:
-    """Read and check a ballot file (see :func:`parse_ballots`)."""
+def read_text_file(path: str | os.PathLike[str], *, what: str = "CSV") -> str:
+    """The text of a ballot or plan file (UTF-8, a byte-order mark allowed, at most
+    :data:`MAX_BALLOT_BYTES`); a BallotError naming the file when it cannot be read."""
     try:
         with open_input(path, text=True, encoding="utf-8-sig", newline="", max_bytes=MAX_BALLOT_BYTES) as handle:
-            text = handle.read()
+            return handle.read()
     except FileNotFoundError:
         raise BallotError(f"{path}: no such file") from None
     except OSError as error:
         raise BallotError(f"{path}: cannot be read ({error.strerror or error})") from None
     except UnicodeDecodeError as error:
-        raise BallotError(f"{path}: cannot be read as CSV text ({error})") from None
-    return parse_ballots(text, source=str(path))
+        raise BallotError(f"{path}: cannot be read as {what} text ({error})") from None
 
 
-def missing_pairs(ballots: Sequence[Ballot]) -> list[str]:
-    """Subjects who did not judge all 16 ordered pairs of a stimulus, one line each."""
+def read_ballots(path: str | os.PathLike[str], *, conditions: Sequence[str] = CONDITIONS) -> list[Ballot]:
+    """Read and check a ballot file (see :func:`parse_ballots`)."""
+    return parse_ballots(read_text_file(path), source=str(path), conditions=conditions)
+
+
+def missing_pairs(ballots: Sequence[Ballot], conditions: Sequence[str] = CONDITIONS) -> list[str]:
+    """Subjects who did not judge every ordered pair of a stimulus (16 of the four conditions), one line each."""
     judged: dict[tuple[str, str], set[tuple[str, str]]] = {}
     for ballot in ballots:
         judged.setdefault((ballot.stimulus, ballot.subject), set()).add((ballot.left, ballot.right))
     notes = []
     for (stimulus, subject), pairs in judged.items():
-        if len(pairs) < len(CONDITIONS) ** 2:
-            notes.append(f"subject {subject} judged {len(pairs)} of {len(CONDITIONS) ** 2} pairs of {stimulus}")
+        if len(pairs) < len(conditions) ** 2:
+            notes.append(f"subject {subject} judged {len(pairs)} of {len(conditions) ** 2} pairs of {stimulus}")
     return notes
 
 
@@ -206,7 +261,7 @@ def paired_t_test(a: np.ndarray, b: np.ndarray) -> dict[str, float | int | None]
     return paired_t_tests(np.asarray(a, float)[:, None], np.asarray(b, float)[:, None])[0]
 
 
-def analyze_ballots(ballots: Sequence[Ballot]) -> dict:
+def analyze_ballots(ballots: Sequence[Ballot], conditions: Sequence[str] = CONDITIONS) -> dict:
     """Scores per stimulus and condition, and the paired t-tests between conditions per stimulus.
 
     Returns
@@ -214,27 +269,27 @@ def analyze_ballots(ballots: Sequence[Ballot]) -> dict:
     dict
         ``{"scores": {stimulus: {condition: int}}, "ttests": [{"stimulus", "a", "b", "mean", "sd", "se",
         "ci_low", "ci_high", "t", "df", "p", "p_holm"}]}`` (``p_holm``: Holm-corrected over the stimulus's
-        six tests); a comes before b in NO_PROSODY, RANDOM, SPEECH_DRIVEN,
-        GROUND_TRUTH order and the differences are a minus b over the subjects who judged the stimulus.
+        tests); a comes before b in the order of ``conditions`` (NO_PROSODY, RANDOM, SPEECH_DRIVEN,
+        GROUND_TRUTH by default) and the differences are a minus b over the subjects who judged the stimulus.
     """
     by_stimulus: dict[str, list[Ballot]] = {}
     for ballot in ballots:  # one pass: the work grows with the ballots, not with ballots x stimuli
         by_stimulus.setdefault(ballot.stimulus, []).append(ballot)
-    column = {name: i for i, name in enumerate(CONDITIONS)}
-    pairs = list(itertools.combinations(range(len(CONDITIONS)), 2))
+    column = {name: i for i, name in enumerate(conditions)}
+    pairs = list(itertools.combinations(range(len(conditions)), 2))
     scores: dict[str, dict[str, int]] = {}
     tests: list[dict] = []
     # the tests of all stimuli judged by the same number of subjects run as one vectorised call
     groups: dict[int, list[tuple[int, np.ndarray, np.ndarray]]] = {}
     for stimulus, mine in by_stimulus.items():
         subjects = {subject: i for i, subject in enumerate(dict.fromkeys(ballot.subject for ballot in mine))}
-        per_subject = np.zeros((len(subjects), len(CONDITIONS)), dtype=int)
+        per_subject = np.zeros((len(subjects), len(conditions)), dtype=int)
         for ballot in mine:
             per_subject[subjects[ballot.subject], column[ballot.chosen]] += 1
-        scores[stimulus] = {name: int(per_subject[:, i].sum()) for i, name in enumerate(CONDITIONS)}
+        scores[stimulus] = {name: int(per_subject[:, i].sum()) for i, name in enumerate(conditions)}
         for i, j in pairs:
             groups.setdefault(len(subjects), []).append((len(tests), per_subject[:, i], per_subject[:, j]))
-            tests.append({"stimulus": stimulus, "a": CONDITIONS[i], "b": CONDITIONS[j]})
+            tests.append({"stimulus": stimulus, "a": conditions[i], "b": conditions[j]})
     for members in groups.values():
         indices = [index for index, _, _ in members]
         results = paired_t_tests(np.column_stack([a for _, a, _ in members]),
@@ -305,18 +360,19 @@ def _add_holm(tests: list[dict]) -> None:
             test["p_holm"] = float(value)
 
 
-def confusion_matrix(ballots: Sequence[Ballot], stimulus: str) -> np.ndarray:
+def confusion_matrix(ballots: Sequence[Ballot], stimulus: str, conditions: Sequence[str] = CONDITIONS) -> np.ndarray:
     """``m[i, j]``: how often condition i was chosen when shown with condition j (either side)."""
-    matrix = np.zeros((len(CONDITIONS), len(CONDITIONS)), dtype=int)
+    matrix = np.zeros((len(conditions), len(conditions)), dtype=int)
     for ballot in ballots:
         if ballot.stimulus != stimulus:
             continue
         other = ballot.right if ballot.choice == "left" else ballot.left
-        matrix[CONDITIONS.index(ballot.chosen), CONDITIONS.index(other)] += 1
+        matrix[conditions.index(ballot.chosen), conditions.index(other)] += 1
     return matrix
 
 
-def study_markdown(ballots: Sequence[Ballot], results: dict, *, notes: Sequence[str] = ()) -> str:
+def study_markdown(ballots: Sequence[Ballot], results: dict, *, notes: Sequence[str] = (),
+                   conditions: Sequence[str] = CONDITIONS) -> str:
     """A readable report: per stimulus the confusion matrix, the scores and the t-tests."""
 
     def number(value: float | None, digits: int = 2) -> str:
@@ -335,13 +391,13 @@ def study_markdown(ballots: Sequence[Ballot], results: dict, *, notes: Sequence[
         tests_by_stimulus.setdefault(test["stimulus"], []).append(test)
     for stimulus, scores in results["scores"].items():
         lines += ["", f"## {stimulus}", "", "Times the row condition was chosen when shown with the column "
-                  "condition (either side):", "", "| chosen \\ against | " + " | ".join(CONDITIONS) + " |",
-                  "|---" * (len(CONDITIONS) + 1) + "|"]
-        matrix = confusion_matrix(by_stimulus.get(stimulus, []), stimulus)
-        for i, name in enumerate(CONDITIONS):
+                  "condition (either side):", "", "| chosen \\ against | " + " | ".join(conditions) + " |",
+                  "|---" * (len(conditions) + 1) + "|"]
+        matrix = confusion_matrix(by_stimulus.get(stimulus, []), stimulus, conditions)
+        for i, name in enumerate(conditions):
             lines.append(f"| {name} | " + " | ".join(str(v) for v in matrix[i]) + " |")
         lines += ["", "| condition | score |", "|---|---|"]
-        lines += [f"| {name} | {scores[name]} |" for name in CONDITIONS]
+        lines += [f"| {name} | {scores[name]} |" for name in conditions]
         lines += ["", "| a − b | mean | sd | se | 95% CI | t | df | p | p (Holm) |",
                   "|---|---|---|---|---|---|---|---|---|"]
         for test in tests_by_stimulus.get(stimulus, []):

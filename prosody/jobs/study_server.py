@@ -1,0 +1,321 @@
+"""The study's web page and its answers (``prosody study serve``).
+
+One HTTP server on a loopback address by default. A participant opens ``/`` (the page: everything it needs is
+served here, nothing comes from another site), gets an anonymous ID (kept in the browser, and shown so that they
+can come back from another one with ``/?participant=ID``), watches each trial and answers; the page saves each
+answer before showing the next trial, and retries while the server is away. The routes:
+
+- ``GET /``: the page; ``GET /api/study``: the design, the question and the answer options;
+- ``POST /api/participants``: a new participant; ``GET /api/state?participant=ID``: where they are;
+- ``POST /api/answer`` ``{"participant", "position", "answer", "seconds"}``: one answer, one transaction;
+- ``GET /stimuli/<sha256 prefix>.mp4``: the videos listed in the stimuli manifest (and nothing else), named by
+  their content so that the address does not say the condition, with byte ranges;
+- ``GET /admin/export.csv`` and ``/admin/progress`` with the organiser's token (``Authorization: Bearer TOKEN``
+  or ``?token=TOKEN``), printed when the server starts.
+
+Requests from a page of another site are refused: a browser names the page in ``Origin`` (and
+``Sec-Fetch-Site``), and only this server's own origin, on a host no other site can point here (an address,
+``localhost``, this machine's name), or one allowed with ``--allow-origin`` is served. Answers must be JSON.
+"""
+
+from __future__ import annotations
+
+import hmac
+import json
+import re
+import secrets
+import sqlite3
+import threading
+import urllib.parse
+from collections.abc import Callable, Iterable
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from importlib import resources
+from pathlib import Path
+
+from ..errors import ConfigError
+from ..evaluation.designs import StudyPlan
+from .server import _trusted_host, normalize_origin
+from .study_store import StudyStore, StudyStoreError
+from .study_stimuli import check_stimuli
+
+#: Largest request body read (an answer is under 200 bytes).
+MAX_BODY_BYTES = 4096
+#: Questions asked, per design.
+QUESTIONS = {"paired": "Which face moves more naturally with the voice?",
+             "mos": "How natural is the face's motion with the voice?",
+             "identification": "What does the face express?"}
+_RANGE = re.compile(r"bytes=(\d*)-(\d*)$")
+
+
+def study_page() -> bytes:
+    return resources.files("prosody.jobs").joinpath("study.html").read_bytes()
+
+
+class StudyServer:
+    """Serves ``plan``'s study with the videos of ``stimuli`` and the answers in ``store``.
+
+    Parameters
+    ----------
+    plan : StudyPlan
+    stimuli : folder
+        Made by ``prosody study stimuli`` for this plan (checked).
+    store : StudyStore
+        The database of answers (for this plan).
+    host, port : str, int
+        Where to listen (port 0: any free port; see :attr:`url`).
+    break_every : int
+        Trials between two break screens (0: none).
+    allow_origins : iterable of str
+        Other web origins allowed to use the study (``http://host:port``).
+    token : str, optional
+        The organiser's token (default: a new random one, :attr:`token`).
+    report : callable
+        Gets one line per event worth telling the organiser.
+    """
+
+    def __init__(self, plan: StudyPlan, stimuli: str | Path, store: StudyStore, *, host: str = "127.0.0.1",
+                 port: int = 8766, break_every: int = 20, allow_origins: Iterable[str] = (),
+                 token: str | None = None, report: Callable[[str], None] = lambda line: None) -> None:
+        manifest = check_stimuli(plan, stimuli)
+        self.plan, self.store, self.report = plan, store, report
+        self.folder = Path(stimuli).resolve()
+        # videos are served by the start of their SHA-256: nothing in the address names the condition
+        self.files = {f"{entry['sha256'][:24]}.mp4": self.folder / str(entry["file"])
+                      for entry in manifest["videos"].values()}
+        self.videos = {key: f"/stimuli/{entry['sha256'][:24]}.mp4" for key, entry in manifest["videos"].items()}
+        self.labels = {name: str(entry.get("label", name)) for name, entry in manifest["conditions"].items()}
+        self.break_every = break_every
+        self.allow_origins = frozenset(normalize_origin(origin) for origin in allow_origins)
+        self.token = token or secrets.token_urlsafe(18)
+        self._page = study_page()
+        handler = type("Handler", (_Handler,), {"study": self})
+        try:
+            self._http = ThreadingHTTPServer((host, port), handler)
+        except OSError as error:
+            raise ConfigError(f"cannot listen on {host}:{port} ({error.strerror or error})") from None
+        self._http.daemon_threads = True
+        self._thread: threading.Thread | None = None
+
+    @property
+    def url(self) -> str:
+        host, port = self._http.server_address[:2]
+        shown = f"[{host}]" if ":" in str(host) else host
+        return f"http://{shown}:{port}/"
+
+    def start(self) -> StudyServer:
+        self._thread = threading.Thread(target=self._http.serve_forever, name="study-server", daemon=True)
+        self._thread.start()
+        return self
+
+    def serve_forever(self) -> None:
+        self._http.serve_forever()
+
+    def close(self) -> None:
+        self._http.shutdown()
+        self._http.server_close()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+
+    def study_info(self) -> dict:
+        design = self.plan.design
+        info: dict = {"design": design, "question": QUESTIONS[design], "total": len(self.plan.trials),
+                      "break_every": self.break_every, "study": self.plan.sha256[:12]}
+        if design == "identification":
+            info["options"] = [{"name": name, "label": self.labels.get(name, name)} for name in self.plan.conditions]
+        if design == "mos":
+            info["options"] = [{"name": str(k), "label": label} for k, label in
+                               ((1, "1 bad"), (2, "2 poor"), (3, "3 fair"), (4, "4 good"), (5, "5 excellent"))]
+        return info
+
+    def with_videos(self, state: dict) -> dict:
+        trial = state.pop("trial", None)
+        if trial is not None:
+            state["trial"] = {"position": trial["position"],
+                              "videos": [self.videos[f"{trial['stimulus']}/{name}"] for name in trial["conditions"]]}
+        return state
+
+
+class _Handler(BaseHTTPRequestHandler):
+    study: StudyServer
+    server_version = "prosody-study"
+    sys_version = ""
+
+    def log_message(self, format: str, *args: object) -> None:  # noqa: A002 - the base class's name
+        pass  # requests are not logged one by one; events are reported
+
+    # helpers ---------------------------------------------------------------------------------------------------
+    def _send(self, status: int, body: bytes, content_type: str, extra: dict[str, str] | None = None) -> None:
+        self.send_response(status)
+        self.send_header("Content-Type", content_type)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-store")
+        self.send_header("X-Content-Type-Options", "nosniff")
+        self.send_header("Referrer-Policy", "no-referrer")
+        for key, value in (extra or {}).items():
+            self.send_header(key, value)
+        self.end_headers()
+        if self.command != "HEAD":
+            self.wfile.write(body)
+
+    def _json(self, status: int, payload: dict) -> None:
+        self._send(status, json.dumps(payload).encode(), "application/json")
+
+    def _error(self, status: int, message: str) -> None:
+        self._json(status, {"error": message})
+
+    def _allowed_origin(self) -> bool:
+        """True unless a browser says the request comes from a page of another site."""
+        study = self.study
+        hosts = self.headers.get_all("Host") or []
+        origins = self.headers.get_all("Origin") or []
+        if self.headers.get("Sec-Fetch-Site", "").lower() == "cross-site" and not origins:
+            return False
+        if len(hosts) > 1 or len(origins) > 1:
+            return False
+        try:
+            own = normalize_origin(f"http://{hosts[0]}") if hosts else None
+        except ConfigError:
+            return False
+        if own is not None and own not in study.allow_origins \
+                and not _trusted_host(urllib.parse.urlsplit(own).hostname or ""):
+            return False  # a name another site's DNS could point here (DNS rebinding)
+        if not origins:
+            return True  # not a browser page: a program, or a same-origin GET
+        try:
+            origin = normalize_origin(origins[0])
+        except ConfigError:
+            return False
+        return origin in study.allow_origins or origin == own
+
+    def _query(self) -> dict[str, str]:
+        query = urllib.parse.urlsplit(self.path).query
+        return {key: values[0] for key, values in urllib.parse.parse_qs(query).items()}
+
+    def _token_ok(self) -> bool:
+        given = self._query().get("token", "")
+        header = self.headers.get("Authorization", "")
+        if header.startswith("Bearer "):
+            given = header[7:].strip()
+        return bool(given) and hmac.compare_digest(given.encode(), self.study.token.encode())
+
+    def _body(self) -> dict | None:
+        if self.headers.get("Content-Type", "").split(";")[0].strip().lower() != "application/json":
+            self._error(415, "send JSON (Content-Type: application/json)")
+            return None
+        try:
+            length = int(self.headers.get("Content-Length", ""))
+        except ValueError:
+            self._error(411, "a Content-Length is needed")
+            return None
+        if not 0 <= length <= MAX_BODY_BYTES:
+            self._error(413, f"the request is over {MAX_BODY_BYTES} bytes")
+            return None
+        try:
+            payload = json.loads(self.rfile.read(length) or b"{}")
+        except (ValueError, RecursionError):
+            self._error(400, "the request is not JSON")
+            return None
+        if not isinstance(payload, dict):
+            self._error(400, "the request must be a JSON object")
+            return None
+        return payload
+
+    def _refuse_origin(self) -> None:
+        origin = (self.headers.get("Origin") or self.headers.get("Host") or "?")[:200]
+        self.study.report(f"refused a request from {origin!r}: only this server's own page may use the study "
+                          "(allow another with --allow-origin ORIGIN)")
+        self._error(403, "forbidden: this study is only for the page served here")
+
+    # routes ----------------------------------------------------------------------------------------------------
+    def do_HEAD(self) -> None:  # noqa: N802 - http.server's name
+        self.do_GET()
+
+    def do_GET(self) -> None:  # noqa: N802
+        if not self._allowed_origin():
+            self._refuse_origin()
+            return
+        path = urllib.parse.urlsplit(self.path).path
+        study = self.study
+        try:
+            if path in ("/", "/index.html"):
+                self._send(200, study._page, "text/html; charset=utf-8", {
+                    "Content-Security-Policy": "default-src 'self'; script-src 'self' 'unsafe-inline'; "
+                                               "style-src 'self' 'unsafe-inline'; media-src 'self'; "
+                                               "connect-src 'self'; frame-ancestors 'none'"})
+            elif path == "/api/study":
+                self._json(200, study.study_info())
+            elif path == "/api/state":
+                self._json(200, study.with_videos(study.store.state(self._query().get("participant", ""))))
+            elif path.startswith("/stimuli/"):
+                self._video(urllib.parse.unquote(path[len("/stimuli/"):]))
+            elif path in ("/admin/export.csv", "/admin/progress"):
+                if not self._token_ok():
+                    study.report("refused an organiser's request without the right token")
+                    self._error(401, "the organiser's token is needed (printed when the server started)")
+                elif path == "/admin/progress":
+                    self._json(200, study.store.progress())
+                else:
+                    self._send(200, study.store.export_csv().encode(), "text/csv; charset=utf-8",
+                               {"Content-Disposition": 'attachment; filename="ballots.csv"'})
+            else:
+                self._error(404, "not found: the study is at /")
+        except StudyStoreError as error:
+            self._error(error.status, str(error))
+        except sqlite3.Error as error:
+            study.report(f"the database cannot be read: {error}")
+            self._error(503, f"the study's database cannot be read ({error}); try again")
+
+    def do_POST(self) -> None:  # noqa: N802
+        if not self._allowed_origin():
+            self._refuse_origin()
+            return
+        path = urllib.parse.urlsplit(self.path).path
+        study = self.study
+        payload = self._body()
+        if payload is None:
+            return
+        try:
+            if path == "/api/participants":
+                participant = study.store.new_participant()
+                progress = study.store.progress()
+                study.report(f"participant {progress['participants']} arrived ({participant})")
+                self._json(201, study.with_videos(study.store.state(participant)))
+            elif path == "/api/answer":
+                state = study.store.answer(payload.get("participant"), payload.get("position"),
+                                           payload.get("answer"), payload.get("seconds"))
+                if state["finished"] and state["answered"] == payload.get("position"):
+                    study.report(f"participant {state['participant']} finished")
+                self._json(200, study.with_videos(state))
+            else:
+                self._error(404, "not found")
+        except StudyStoreError as error:
+            self._error(error.status, str(error))
+        except sqlite3.Error as error:
+            study.report(f"an answer could not be saved: {error}")
+            self._error(503, f"the answer could not be saved ({error}); it will be sent again")
+
+    def _video(self, name: str) -> None:
+        path = self.study.files.get(name)
+        if path is None:
+            self._error(404, "no such video")
+            return
+        try:
+            data = path.read_bytes()
+        except OSError as error:
+            self._error(404, f"the video cannot be read ({error.strerror or error})")
+            return
+        headers = {"Accept-Ranges": "bytes"}
+        match = _RANGE.match(self.headers.get("Range", "").strip())
+        if match and (match[1] or match[2]):
+            size = len(data)
+            if match[1]:
+                start, end = int(match[1]), min(int(match[2]) if match[2] else size - 1, size - 1)
+            else:
+                start, end = max(0, size - int(match[2])), size - 1
+            if start > end or start >= size:
+                self._send(416, b"", "video/mp4", {"Content-Range": f"bytes */{size}"})
+                return
+            headers["Content-Range"] = f"bytes {start}-{end}/{size}"
+            self._send(206, data[start:end + 1], "video/mp4", headers)
+            return
+        self._send(200, data, "video/mp4", headers)

@@ -1,0 +1,271 @@
+"""The videos of a perceptual study (``prosody study stimuli``): one per stimulus and condition of a plan.
+
+Each video is the drawn face (``prosody preview``'s, without the curve strip and without a caption, so nothing
+on screen names the condition) animated by one condition, with the recording's audio: ``DIR/<stimulus>/
+<condition>.mp4``. Paired trials show two of them side by side; the study page plays them together.
+
+A condition is what ``prosody convert`` would make with some options: the thesis's four (``none``, ``random``,
+``speech``, ``truth``) need no options; a study's own are given in a conditions file (JSON)::
+
+    {"format": "visual-prosody-study-conditions", "version": 1,
+     "conditions": {"calm":  {"label": "Calm",  "options": "--activation 0.4 --pad 0.5,-0.3,0"},
+                    "arx":   {"options": "--model arx --brows thesis"}}}
+
+``options`` are ``prosody convert``'s motion, face, expressivity and analysis options; ``label`` is what the
+participant reads in an identification study (default: the name).
+
+Recordings are found by the stimulus's name in a folder: ``<stimulus>.wav`` (or any audio ending the other
+commands read), with ``<stimulus>.head.csv`` (or ``.fap``) for ``truth``. Every input is checked before the
+first video is drawn. ``DIR/stimuli.json`` lists the videos with their SHA-256 and the settings that made them;
+a video whose settings, audio and file are unchanged is not drawn again, and each is written atomically, so an
+interrupted run goes on where it stopped.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import warnings
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from audio_features import AUDIO_EXTENSIONS
+from audio_features.atomic import atomic_write
+
+from ..errors import ConfigError
+from ..evaluation.designs import StudyPlan
+from ..evaluation.preview import write_preview
+from ..motion.conditions import Condition
+from .pipeline import convert
+
+STIMULI_FORMAT = "visual-prosody-study-stimuli"
+CONDITIONS_FORMAT = "visual-prosody-study-conditions"
+FORMAT_VERSION = 1
+MANIFEST = "stimuli.json"
+#: Largest conditions or manifest file read.
+MAX_JSON_BYTES = 16 << 20
+#: The thesis's four conditions: the ``convert`` options that make each.
+BUILT_IN = {"NO_PROSODY": "--condition none", "RANDOM": "--condition random",
+            "SPEECH_DRIVEN": "--condition speech", "GROUND_TRUTH": "--condition truth"}
+
+
+@dataclass(frozen=True)
+class StudyCondition:
+    """One condition of a study: its name, the label participants read, the ``convert`` options it was given
+    as (for the manifest) and the keyword arguments of :func:`prosody.jobs.pipeline.convert` they mean."""
+
+    name: str
+    label: str
+    options: str
+    settings: Mapping[str, object] = field(default_factory=dict)
+
+    @property
+    def needs_truth(self) -> bool:
+        return Condition.parse(str(self.settings.get("condition", "speech"))) is Condition.GROUND_TRUTH
+
+
+def _read_json(path: str | os.PathLike[str], what: str) -> dict:
+    from audio_features.inputs import open_input
+
+    try:
+        with open_input(path, text=True, encoding="utf-8", max_bytes=MAX_JSON_BYTES) as handle:
+            payload = json.load(handle)
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such file") from None
+    except OSError as error:
+        raise ConfigError(f"{path}: cannot be read ({error.strerror or error})") from None
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as error:
+        raise ConfigError(f"{path}: not a {what} (not JSON: {error})") from None
+    if not isinstance(payload, dict):
+        raise ConfigError(f"{path}: not a {what} (expected a JSON object)")
+    return payload
+
+
+def read_condition_options(path: str | os.PathLike[str]) -> dict[str, tuple[str, str]]:
+    """A conditions file: ``{name: (label, options)}`` in the file's order (names checked as plans check them)."""
+    from ..evaluation.study import condition_name
+
+    payload = _read_json(path, "study conditions file")
+    if payload.get("format") != CONDITIONS_FORMAT or payload.get("version") != FORMAT_VERSION:
+        raise ConfigError(f"{path}: not a study conditions file (expected \"format\": \"{CONDITIONS_FORMAT}\", "
+                          f"\"version\": {FORMAT_VERSION})")
+    entries = payload.get("conditions")
+    if not isinstance(entries, dict) or not entries:
+        raise ConfigError(f"{path}: \"conditions\" must be an object of one or more named conditions")
+    found: dict[str, tuple[str, str]] = {}
+    for raw, entry in entries.items():
+        try:
+            name = condition_name(raw)
+        except ConfigError as error:
+            raise ConfigError(f"{path}: {error}") from None
+        if not isinstance(entry, dict) or set(entry) - {"label", "options"}:
+            raise ConfigError(f"{path}: condition {raw!r} must be an object with \"options\" (and \"label\")")
+        options, label = entry.get("options", ""), entry.get("label", name)
+        if not isinstance(options, str) or not isinstance(label, str) or not label.strip() or len(label) > 80:
+            raise ConfigError(f"{path}: condition {raw!r}: \"options\" must be text and \"label\" 1-80 characters")
+        found[name] = (label.strip(), options)
+    return found
+
+
+def find_recording(folder: Path, stimulus: str) -> Path | None:
+    """``<stimulus>`` with an audio ending in ``folder`` (the first in AUDIO_EXTENSIONS order)."""
+    for ending in AUDIO_EXTENSIONS:
+        candidate = folder / f"{stimulus}{ending}"
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def find_truth(folder: Path, stimulus: str) -> Path | None:
+    for ending in (".head.csv", ".fap"):
+        candidate = folder / f"{stimulus}{ending}"
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def read_manifest(folder: str | os.PathLike[str]) -> dict:
+    """``DIR/stimuli.json``, checked to be this project's."""
+    path = Path(folder) / MANIFEST
+    if not path.is_file():
+        raise ConfigError(f"{folder}: no {MANIFEST} here; make the stimuli first with 'prosody study stimuli PLAN "
+                          f"--recordings DIR -o {folder}'")
+    payload = _read_json(path, "stimuli manifest")
+    if payload.get("format") != STIMULI_FORMAT or payload.get("version") != FORMAT_VERSION \
+            or not isinstance(payload.get("videos"), dict) or not isinstance(payload.get("conditions"), dict):
+        raise ConfigError(f"{path}: not a stimuli manifest of this project (format {STIMULI_FORMAT})")
+    return payload
+
+
+def video_key(stimulus: str, condition: str) -> str:
+    return f"{stimulus}/{condition}"
+
+
+def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: str | os.PathLike[str],
+                 conditions: Mapping[str, StudyCondition], *, width: int = 360, force: bool = False,
+                 on_video: Callable[[str, str, bool], None] | None = None,
+                 progress: Callable[[int, int], None] | None = None) -> dict:
+    """Draw every (stimulus, condition) video ``plan`` needs into ``output``; return the manifest written.
+
+    Parameters
+    ----------
+    plan : StudyPlan
+        The study's plan (:func:`prosody.evaluation.designs.read_plan`).
+    recordings : folder
+        ``<stimulus>.wav`` for every stimulus, and ``<stimulus>.head.csv`` (or ``.fap``) where a condition is
+        ``truth``.
+    output : folder
+        Where the videos and ``stimuli.json`` go (made if missing).
+    conditions : mapping
+        A :class:`StudyCondition` for every condition the plan names.
+    width : int
+        Video width in pixels (the face is square).
+    force : bool
+        Draw again videos that are already complete.
+    on_video : callable, optional
+        Called as ``on_video(stimulus, condition, drawn)`` after each video (``drawn`` False: kept as it was).
+    progress : callable, optional
+        ``progress(done, total)`` in videos.
+    """
+    folder, out = Path(recordings), Path(output)
+    missing = [name for name in plan.conditions if name not in conditions]
+    if missing:
+        raise ConfigError(f"the plan names condition(s) {', '.join(missing)} that are not defined: give them in a "
+                          "conditions file (--conditions FILE.json)")
+    if not folder.is_dir():
+        raise ConfigError(f"{folder}: not a folder of recordings")
+    truth_needed = any(conditions[name].needs_truth for name in plan.conditions)
+    inputs: dict[str, tuple[Path, Path | None]] = {}
+    problems = []
+    for stimulus in plan.stimuli:
+        audio = find_recording(folder, stimulus)
+        truth = find_truth(folder, stimulus) if truth_needed else None
+        if audio is None:
+            problems.append(f"no recording {stimulus}.wav (or {', '.join(AUDIO_EXTENSIONS[1:4])}, ...)")
+        elif truth_needed and truth is None:
+            problems.append(f"no recorded motion {stimulus}.head.csv (or .fap) for the truth condition")
+        else:
+            inputs[stimulus] = (audio, truth)
+    if problems:
+        raise ConfigError(f"{folder}: " + "; ".join(problems[:10])
+                          + (f"; and {len(problems) - 10} more" if len(problems) > 10 else ""))
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        old = read_manifest(out)["videos"]
+    except ConfigError:
+        old = {}
+    manifest = {"format": STIMULI_FORMAT, "version": FORMAT_VERSION, "plan_sha256": plan.sha256,
+                "design": plan.design, "width": width,
+                "conditions": {name: {"label": conditions[name].label, "options": conditions[name].options}
+                               for name in plan.conditions},
+                "videos": {}}
+    needed = sorted({(trial.stimulus, name) for trial in plan.trials for name in trial.conditions},
+                    key=lambda pair: (plan.stimuli.index(pair[0]), plan.conditions.index(pair[1])))
+    for done, (stimulus, name) in enumerate(needed, start=1):
+        audio, truth = inputs[stimulus]
+        condition = conditions[name]
+        audio_sha = _sha256(audio)
+        settings = json.dumps({"options": condition.options, "audio": audio_sha, "width": width,
+                               "truth": _sha256(truth) if truth is not None and condition.needs_truth else None},
+                              sort_keys=True)
+        key = video_key(stimulus, name)
+        path = out / stimulus / f"{name}.mp4"
+        previous = old.get(key)
+        kept = (not force and isinstance(previous, dict) and previous.get("settings") == settings and path.is_file()
+                and previous.get("sha256") == _sha256(path))
+        if kept:
+            manifest["videos"][key] = previous
+        else:
+            kwargs = dict(condition.settings)
+            if condition.needs_truth:
+                kwargs["ground_truth"] = truth
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                stream = convert(audio, **kwargs)
+            for warning in caught:  # said once each, naming the video they are about
+                warnings.warn(f"{key}: {warning.message}", warning.category, stacklevel=2)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            write_preview(stream, path, audio=audio, width=width, strip=False, caption=False)
+            manifest["videos"][key] = {"file": f"{stimulus}/{name}.mp4", "sha256": _sha256(path),
+                                       "seconds": round(stream.n_frames / stream.fps, 3), "settings": settings}
+        _write_manifest(out, manifest, old, needed[done:])
+        if on_video is not None:
+            on_video(stimulus, name, not kept)
+        if progress is not None:
+            progress(done, len(needed))
+    return manifest
+
+
+def _write_manifest(out: Path, manifest: dict, old: dict, remaining: list[tuple[str, str]]) -> None:
+    """The manifest after each video: what is done, and what an earlier run made that is still to check."""
+    pending = {video_key(*pair) for pair in remaining}
+    videos = {**{key: entry for key, entry in old.items() if key in pending}, **manifest["videos"]}
+    with atomic_write(out / MANIFEST, newline="\n") as handle:
+        json.dump({**manifest, "videos": videos}, handle, indent=1)
+        handle.write("\n")
+
+
+def check_stimuli(plan: StudyPlan, folder: str | os.PathLike[str]) -> dict:
+    """The manifest of ``folder``, checked to hold every video of ``plan`` (made for this plan, file present)."""
+    manifest = read_manifest(folder)
+    if manifest.get("plan_sha256") != plan.sha256:
+        raise ConfigError(f"{folder}: these stimuli were made for another plan; make them again with 'prosody study "
+                          "stimuli'")
+    needed = {video_key(trial.stimulus, name) for trial in plan.trials for name in trial.conditions}
+    absent = sorted(key for key in needed if key not in manifest["videos"]
+                    or not (Path(folder) / str(manifest["videos"][key].get("file", ""))).is_file())
+    if absent:
+        raise ConfigError(f"{folder}: {len(absent)} video(s) of the plan are missing ({', '.join(absent[:5])}"
+                          f"{', ...' if len(absent) > 5 else ''}); run 'prosody study stimuli' again")
+    return manifest
+
