@@ -34,9 +34,9 @@ def _pyplot():
     return plt
 
 
-def _save(figure, path: str | os.PathLike[str]) -> None:
+def _save(figure, path: str | os.PathLike[str], *, tight: bool = False) -> None:
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=110)
+    figure.savefig(buffer, format="png", dpi=110, **({"bbox_inches": "tight", "pad_inches": 0.15} if tight else {}))
     with atomic_write(path, mode="wb") as handle:
         handle.write(buffer.getvalue())
 

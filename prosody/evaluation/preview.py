@@ -390,7 +390,7 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
     first_frame, n_frames : int
         The excerpt to draw (default: the whole stream).
     strip : bool
-        Draw the curve strip under the face.
+        Draw the curve strip under the face (False: the frame is the face square alone).
     label : str, optional
         Caption of every frame instead of the stream's name.
     scales : (float, float), optional
@@ -403,7 +403,7 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
     >>> import numpy as np
     >>> stream = FapStream.from_curves({31: np.array([0.0, 400.0])}, fps=30)
     >>> [frame.shape for frame in render_frames(stream, width=64, strip=False)]
-    [(80, 64, 3), (80, 64, 3)]
+    [(64, 64, 3), (64, 64, 3)]
     """
     if not exaggerate > 0:
         raise ConfigError(f"exaggerate must be a positive number, got {exaggerate!r}")

@@ -355,6 +355,19 @@ def _number(value: float | None, digits: int = 2) -> str:
     return "–" if value is None else f"{value:.{digits}f}"
 
 
+def _p(value: float | None) -> str:
+    """A p-value as reports print it: four decimals, or "< 0.0001"."""
+    if value is None:
+        return "–"
+    return "< 0.0001" if value < 1e-4 else f"{value:.4f}"
+
+
+def _p_is(value: float | None) -> str:
+    """``p = 0.0123`` or ``p < 0.0001``."""
+    text = _p(value)
+    return f"p {text}" if text.startswith("<") else f"p = {text}"
+
+
 def ratings_markdown(results: dict, *, figure: str | None = None) -> str:
     """A readable report of :func:`analyze_ratings`."""
     lines = ["# Opinion-score study", "",
@@ -372,7 +385,7 @@ def ratings_markdown(results: dict, *, figure: str | None = None) -> str:
         lines.append(f"Not run: {anova['skipped']}.")
     else:
         lines.append(f"F({anova['df_between']}, {anova['df_within']}) = {_number(anova['F'])}, "
-                     f"p = {_number(anova['p'], 4)}, η² = {_number(anova['eta_squared'], 3)}, "
+                     f"{_p_is(anova['p'])}, η² = {_number(anova['eta_squared'], 3)}, "
                      f"ω² = {_number(anova['omega_squared'], 3)}")
     rm = results["anova_rm"]
     lines += ["", "## Repeated-measures ANOVA (each subject's mean per condition)", ""]
@@ -382,7 +395,7 @@ def ratings_markdown(results: dict, *, figure: str | None = None) -> str:
         left_out = f" ({rm['subjects_left_out']} subject(s) who missed a condition left out)" \
             if rm["subjects_left_out"] else ""
         lines.append(f"{rm['subjects']} subjects{left_out}: F({rm['df_condition']}, {rm['df_error']}) = "
-                     f"{_number(rm['F'])}, p = {_number(rm['p'], 4)}, partial η² = "
+                     f"{_number(rm['F'])}, {_p_is(rm['p'])}, partial η² = "
                      f"{_number(rm['partial_eta_squared'], 3)}")
     if results["tukey"]:
         lines += ["", "## Tukey's pairwise tests", "", "| a − b | difference | 95% CI | p (adjusted) | Cohen's d |",
@@ -390,7 +403,7 @@ def ratings_markdown(results: dict, *, figure: str | None = None) -> str:
         for test in results["tukey"]:
             interval = "–" if test["ci_low"] is None else f"[{test['ci_low']:.2f}, {test['ci_high']:.2f}]"
             lines.append(f"| {test['a']} − {test['b']} | {test['mean_difference']:.2f} | {interval} | "
-                         f"{_number(test['p_adjusted'], 4)} | {_number(test['cohen_d'])} |")
+                         f"{_p(test['p_adjusted'])} | {_number(test['cohen_d'])} |")
     lines += ["", "## Mean per stimulus", "", "| stimulus | " + " | ".join(results["conditions"]) + " |",
               "|---" * (len(results["conditions"]) + 1) + "|"]
     for stimulus, means in results["by_stimulus"].items():
@@ -428,7 +441,7 @@ def plot_means(results: dict, path: str | os.PathLike[str]) -> Path:
     plt = _pyplot()
     names = list(results["conditions"])
     entries = [results["conditions"][name] for name in names]
-    figure, axes = plt.subplots(figsize=(max(4.0, 1.1 * len(names) + 1.5), 3.6), layout="constrained")
+    figure, axes = plt.subplots(figsize=(max(4.0, 1.1 * len(names) + 1.5), 3.6), layout="tight")
     means = [entry["mean"] for entry in entries]
     errors = [[0 if e["ci_low"] is None else e["mean"] - e["ci_low"] for e in entries],
               [0 if e["ci_high"] is None else e["ci_high"] - e["mean"] for e in entries]]
@@ -438,7 +451,7 @@ def plot_means(results: dict, path: str | os.PathLike[str]) -> Path:
     axes.set_ylabel("mean score (1–5)")
     axes.set_title("Opinion scores, 95% intervals")
     try:
-        _save(figure, path)
+        _save(figure, path, tight=True)
     finally:
         plt.close(figure)
     return Path(path)
@@ -453,7 +466,7 @@ def plot_confusion(results: dict, path: str | os.PathLike[str]) -> Path:
     counts = np.asarray(results["confusion"], float)
     shares = counts / np.maximum(counts.sum(axis=1, keepdims=True), 1)
     size = max(3.6, 0.8 * len(names) + 2.0)
-    figure, axes = plt.subplots(figsize=(size + 0.8, size), layout="constrained")
+    figure, axes = plt.subplots(figsize=(size + 0.8, size), layout="tight")
     image = axes.imshow(shares, vmin=0, vmax=1, cmap="Blues")
     for i, j in itertools.product(range(len(names)), repeat=2):
         axes.text(j, i, f"{int(counts[i, j])}", ha="center", va="center",
@@ -465,7 +478,7 @@ def plot_confusion(results: dict, path: str | os.PathLike[str]) -> Path:
     axes.set_title(f"Identification (chance {results['chance']:.0%})")
     figure.colorbar(image, ax=axes, fraction=0.046, label="share of the row")
     try:
-        _save(figure, path)
+        _save(figure, path, tight=True)
     finally:
         plt.close(figure)
     return Path(path)

@@ -126,15 +126,11 @@ class StudyStore:
             self._db.execute("BEGIN IMMEDIATE")
             try:
                 yield self._db
+                self._db.execute("COMMIT")
             except BaseException:
-                self._db.execute("ROLLBACK")
-                raise
-            else:
-                try:
-                    self._db.execute("COMMIT")
-                except sqlite3.Error:
+                if self._db.in_transaction:  # SQLite may have rolled back already (a full disk does)
                     self._db.execute("ROLLBACK")
-                    raise
+                raise
 
     def close(self) -> None:
         with self._lock:
@@ -191,6 +187,8 @@ class StudyStore:
         ``answer``: ``left`` or ``right`` (paired), a whole number 1-5 (mos), a condition name
         (identification). Answering the trial already answered with the same answer changes nothing.
         """
+        with self._lock:
+            self._participant(participant)
         if isinstance(position, bool) or not isinstance(position, int):
             raise StudyStoreError("the trial position must be a whole number")
         given = self._check_answer(answer)

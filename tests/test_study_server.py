@@ -1,0 +1,300 @@
+"""The running study without a browser: its videos, its database of answers and its HTTP server, including
+what goes wrong (answers out of turn, twice, from another site, on a full disk, a database of another kind)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import sqlite3
+import threading
+import urllib.error
+import urllib.request
+
+import pytest
+import soundfile
+from conftest import REPO
+
+from prosody.cli import main
+from prosody.errors import ConfigError
+from prosody.evaluation.designs import make_plan, parse_plan
+from prosody.evaluation.preview import find_ffmpeg
+from prosody.jobs.study_stimuli import BUILT_IN, StudyCondition, check_stimuli, make_stimuli
+from prosody.jobs.study_store import StudyStore, StudyStoreError
+
+needs_ffmpeg = pytest.mark.skipif(find_ffmpeg() is None, reason="needs ffmpeg (pip install imageio-ffmpeg)")
+
+
+def _plan(design: str = "paired", conditions=("none", "speech"), stimuli=("a", "b")):
+    rows = make_plan(list(stimuli), design=design, conditions=list(conditions), seed=1)
+    columns = list(rows[0])
+    return parse_plan(",".join(columns) + "\n" + "".join(",".join(str(r[c]) for c in columns) + "\n" for r in rows))
+
+
+# the database -----------------------------------------------------------------------------------------------------
+
+
+def test_answers_count_once_and_in_turn(tmp_path) -> None:
+    plan = _plan()  # 2 stimuli x 4 ordered pairs
+    store = StudyStore(tmp_path / "s.sqlite", plan)
+    who = store.new_participant()
+    state = store.state(who)
+    assert (state["answered"], state["total"], state["finished"]) == (0, 8, False)
+    assert state["trial"]["position"] == 1
+    with pytest.raises(StudyStoreError, match="not the next one") as caught:
+        store.answer(who, 2, "left")
+    assert caught.value.status == 409
+    assert store.answer(who, 1, "left")["answered"] == 1
+    assert store.answer(who, 1, "left")["answered"] == 1  # the same answer again: counted once
+    with pytest.raises(StudyStoreError, match="already answered"):
+        store.answer(who, 1, "right")
+    with pytest.raises(StudyStoreError, match="left or right"):
+        store.answer(who, 2, "middle")
+    with pytest.raises(StudyStoreError, match="not a participant") as caught:
+        store.state("P000000000000")
+    assert caught.value.status == 404
+    for position in range(2, 9):
+        state = store.answer(who, position, "right")
+    assert state["finished"] and len(state["code"]) == 8 and "trial" not in state
+    rows = list(csv.DictReader(io.StringIO(store.export_csv())))
+    assert len(rows) == 8 and [r["choice"] for r in rows] == ["left"] + ["right"] * 7
+    assert sorted(int(r["order"]) for r in rows) == list(range(1, 9))
+    store.close()
+    # opened again (a restart): the same participant, the same answers
+    again = StudyStore(tmp_path / "s.sqlite", plan)
+    assert again.state(who)["finished"] and again.progress() == {"participants": 1, "finished": 1, "answers": 8,
+                                                                 "trials_each": 8}
+    again.close()
+
+
+def test_many_participants_at_once_get_their_own_numbers(tmp_path) -> None:
+    plan = _plan("mos", ("none", "speech", "random"))
+    store = StudyStore(tmp_path / "s.sqlite", plan)
+    found: list[str] = []
+
+    def arrive() -> None:
+        for _ in range(5):
+            who = store.new_participant()
+            found.append(who)
+            store.answer(who, 1, 3)
+
+    threads = [threading.Thread(target=arrive) for _ in range(8)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(set(found)) == 40
+    ordinals = [row[0] for row in store._db.execute("SELECT ordinal FROM participants ORDER BY ordinal")]
+    assert ordinals == list(range(1, 41))
+    rows = list(csv.DictReader(io.StringIO(store.export_csv())))
+    assert len(rows) == 40 and {r["score"] for r in rows} == {"3"}
+    store.close()
+
+
+def test_a_full_disk_loses_nothing_and_says_so(tmp_path) -> None:
+    plan = _plan()
+    store = StudyStore(tmp_path / "s.sqlite", plan)
+    who = store.new_participant()
+    store.answer(who, 1, "left")
+    pages = store._db.execute("PRAGMA page_count").fetchone()[0]
+    store._db.execute(f"PRAGMA max_page_count = {pages}")  # the database cannot grow: as on a full disk
+    with pytest.raises(sqlite3.OperationalError, match="full"):
+        for _ in range(200):  # participants until the free space is used up
+            before = store.progress()
+            store.new_participant()
+    assert store.progress() == before  # the failed arrival left nothing behind
+    trials = store._db.execute("SELECT COUNT(*) FROM trials").fetchone()[0]
+    assert trials == 8 * before["participants"]  # and no participant is without their trials
+    store._db.execute("PRAGMA max_page_count = 1000000")
+    assert store.answer(who, 2, "right")["answered"] == 2  # and the study goes on once there is room
+    store.close()
+
+
+def test_a_database_that_is_not_this_studys_is_refused(tmp_path) -> None:
+    plan = _plan()
+    text = tmp_path / "notes.sqlite"
+    text.write_text("hello, this is not a database at all" * 40)
+    with pytest.raises(ConfigError, match="not a study database"):
+        StudyStore(text, plan)
+    other = tmp_path / "other.sqlite"
+    with sqlite3.connect(other) as db:
+        db.execute("CREATE TABLE customers (id INTEGER)")
+    with pytest.raises(ConfigError, match="not a study database of this project"):
+        StudyStore(other, plan)
+    StudyStore(tmp_path / "s.sqlite", plan).close()
+    with pytest.raises(ConfigError, match="another plan"):
+        StudyStore(tmp_path / "s.sqlite", _plan(stimuli=("a", "c")))
+    with pytest.raises(ConfigError, match="no such study database"):
+        StudyStore(tmp_path / "missing.sqlite", create=False)
+    assert main(["study", "export", str(text), "-o", str(tmp_path / "b.csv")]) == 2
+    assert not (tmp_path / "b.csv").exists()
+
+
+# the videos -------------------------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def recordings(tmp_path):
+    folder = tmp_path / "recordings"
+    folder.mkdir()
+    samples, rate = soundfile.read(REPO / "samples" / "arctic_a0009.wav")
+    for name, gain in (("a", 1.0), ("b", 0.5)):
+        soundfile.write(folder / f"{name}.wav", gain * samples, rate)
+    return folder
+
+
+def _conditions(plan):
+    from prosody.cli import _study_conditions
+
+    return _study_conditions(plan, None)
+
+
+@needs_ffmpeg
+def test_stimuli_are_made_once_and_checked(tmp_path, recordings) -> None:
+    plan = _plan()
+    made: list[tuple[str, str, bool]] = []
+    manifest = make_stimuli(plan, recordings, tmp_path / "stimuli", _conditions(plan), width=64,
+                            on_video=lambda s, c, drawn: made.append((s, c, drawn)))
+    assert sorted(manifest["videos"]) == ["a/NO_PROSODY", "a/SPEECH_DRIVEN", "b/NO_PROSODY", "b/SPEECH_DRIVEN"]
+    assert all(drawn for _, _, drawn in made)
+    assert (tmp_path / "stimuli" / "a" / "SPEECH_DRIVEN.mp4").stat().st_size > 1000
+    assert check_stimuli(plan, tmp_path / "stimuli")["plan_sha256"] == plan.sha256
+    made.clear()
+    make_stimuli(plan, recordings, tmp_path / "stimuli", _conditions(plan), width=64,
+                 on_video=lambda s, c, drawn: made.append((s, c, drawn)))
+    assert not any(drawn for _, _, drawn in made)  # nothing changed: nothing drawn again
+    (tmp_path / "stimuli" / "b" / "NO_PROSODY.mp4").unlink()
+    with pytest.raises(ConfigError, match=r"1 video\(s\) of the plan are missing \(b/NO_PROSODY\)"):
+        check_stimuli(plan, tmp_path / "stimuli")
+    with pytest.raises(ConfigError, match="another plan"):
+        check_stimuli(_plan(stimuli=("a", "c")), tmp_path / "stimuli")
+
+
+def test_stimuli_inputs_are_checked_before_drawing(tmp_path, recordings) -> None:
+    plan = _plan(conditions=("none", "truth", "calm"))
+    with pytest.raises(ConfigError, match="calm that are not defined"):
+        make_stimuli(plan, recordings, tmp_path / "out", {n: StudyCondition(n, n, BUILT_IN[n], {"condition": "none"})
+                                                          for n in ("NO_PROSODY", "GROUND_TRUTH")})
+    conditions = {"NO_PROSODY": StudyCondition("NO_PROSODY", "x", "", {"condition": "none"}),
+                  "GROUND_TRUTH": StudyCondition("GROUND_TRUTH", "x", "", {"condition": "truth"}),
+                  "calm": StudyCondition("calm", "x", "", {"condition": "speech"})}
+    with pytest.raises(ConfigError, match=r"no recorded motion (a|b).head.csv .*no recorded motion (a|b).head.csv"):
+        make_stimuli(plan, recordings, tmp_path / "out", conditions)
+    with pytest.raises(ConfigError, match="no recording c.wav"):
+        make_stimuli(_plan(stimuli=("a", "c")), recordings, tmp_path / "out", _conditions(_plan()))
+    assert not (tmp_path / "out").exists()  # nothing was started
+
+
+def test_condition_files_take_convert_options(tmp_path, capsys) -> None:
+    from prosody.cli import _study_conditions
+
+    plan = _plan(conditions=("none", "calm"))
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps({"format": "visual-prosody-study-conditions", "version": 1, "conditions": {
+        "calm": {"label": "Calm", "options": "--activation 0.4 --model arx --pad=0.5,-0.3,0"}}}))
+    conditions = _study_conditions(plan, str(path))
+    calm = conditions["calm"]
+    assert calm.label == "Calm" and calm.settings["model"] == "arx"
+    assert calm.settings["expressivity"].activation == 0.4 and calm.settings["pad"] == "0.5,-0.3,0"
+    assert conditions["NO_PROSODY"].settings["condition"] == "none"
+    for options, message in (("--activation 2", "condition calm: argument --activation"),
+                             ("--ground-truth x.csv", "found per stimulus"),
+                             ("--frobnicate", "unrecognized arguments: --frobnicate"),
+                             ("--condition none --model arx", "--model is the head model")):
+        path.write_text(json.dumps({"format": "visual-prosody-study-conditions", "version": 1,
+                                    "conditions": {"calm": {"options": options}}}))
+        with pytest.raises(ConfigError, match=message):
+            _study_conditions(plan, str(path))
+    path.write_text(json.dumps({"format": "something-else", "conditions": {}}))
+    with pytest.raises(ConfigError, match="not a study conditions file"):
+        _study_conditions(plan, str(path))
+    with pytest.raises(ConfigError, match="define it in a conditions file"):
+        _study_conditions(plan, None)
+
+
+# the server -------------------------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def served(tmp_path, recordings):
+    if find_ffmpeg() is None:
+        pytest.skip("needs ffmpeg (pip install imageio-ffmpeg)")
+    from prosody.jobs.study_server import StudyServer
+
+    plan = _plan("identification", ("none", "speech"))
+    make_stimuli(plan, recordings, tmp_path / "stimuli", _conditions(plan), width=64)
+    store = StudyStore(tmp_path / "s.sqlite", plan)
+    lines: list[str] = []
+    server = StudyServer(plan, tmp_path / "stimuli", store, port=0, token="secret-token", report=lines.append).start()
+    server.lines = lines
+    yield server
+    server.close()
+    store.close()
+
+
+def _request(server, path: str, body: dict | None = None, headers: dict | None = None, data: bytes | None = None):
+    request = urllib.request.Request(server.url.rstrip("/") + path, method="POST" if body or data else "GET",
+                                     data=data if data is not None else (json.dumps(body).encode() if body else None),
+                                     headers={"Content-Type": "application/json", **(headers or {})})
+    try:
+        with urllib.request.urlopen(request, timeout=10) as response:
+            return response.status, response.read(), dict(response.headers)
+    except urllib.error.HTTPError as error:
+        return error.code, error.read(), dict(error.headers)
+
+
+def test_server_round_trip_and_refusals(served) -> None:
+    status, body, headers = _request(served, "/")
+    assert status == 200 and b"studyState" in body and "default-src 'self'" in headers["Content-Security-Policy"]
+    info = json.loads(_request(served, "/api/study")[1])
+    assert info["design"] == "identification" and [o["name"] for o in info["options"]] == ["NO_PROSODY",
+                                                                                          "SPEECH_DRIVEN"]
+    status, body, _ = _request(served, "/api/participants", {"start": True})
+    state = json.loads(body)
+    assert status == 201 and state["trial"]["position"] == 1
+    video = state["trial"]["videos"][0]
+    assert "NO_PROSODY" not in video and "SPEECH" not in video  # the address does not give the answer away
+    status, clip, _ = _request(served, video)
+    assert status == 200 and clip[4:8] == b"ftyp"
+    status, part, headers = _request(served, video, headers={"Range": "bytes=10-19"})
+    assert status == 206 and part == clip[10:20] and headers["Content-Range"] == f"bytes 10-19/{len(clip)}"
+    assert _request(served, "/stimuli/../s.sqlite")[0] == 404
+    assert _request(served, "/stimuli/a/NO_PROSODY.mp4")[0] == 404  # only the served names
+    who = state["participant"]
+    status, body, _ = _request(served, "/api/answer", {"participant": who, "position": 1, "answer": "SPEECH_DRIVEN"})
+    assert status == 200 and json.loads(body)["answered"] == 1
+    assert _request(served, "/api/answer", {"participant": "Pnobody", "position": 1, "answer": "x"})[0] == 404
+    assert _request(served, "/api/answer", {"participant": who, "position": 2, "answer": "joy"})[0] == 400
+    # not JSON, too big, from another site
+    assert _request(served, "/api/answer", data=b"participant=x", headers={"Content-Type": "text/plain"})[0] == 415
+    assert _request(served, "/api/answer", data=b"{" + b" " * 5000 + b"}")[0] == 413
+    status, _, _ = _request(served, "/api/participants", {"start": True}, headers={"Origin": "https://evil.example"})
+    assert status == 403 and any("refused a request from 'https://evil.example'" in line for line in served.lines)
+    status, _, _ = _request(served, "/api/study", headers={"Host": "rebind.example:80"})
+    assert status == 403  # a name another site's DNS could point here
+    own = served.url.rstrip("/")
+    assert _request(served, "/api/participants", {"start": True}, headers={"Origin": own})[0] == 201
+    # the organiser's export needs the token
+    assert _request(served, "/admin/export.csv")[0] == 401
+    assert _request(served, "/admin/export.csv?token=wrong")[0] == 401
+    status, body, _ = _request(served, "/admin/export.csv", headers={"Authorization": "Bearer secret-token"})
+    rows = list(csv.DictReader(io.StringIO(body.decode())))
+    assert status == 200 and len(rows) == 1 and rows[0]["answer"] == "SPEECH_DRIVEN" and rows[0]["subject"] == who
+    progress = json.loads(_request(served, "/admin/progress?token=secret-token")[1])
+    assert progress == {"participants": 2, "finished": 0, "answers": 1, "trials_each": 4}
+
+
+def test_server_says_503_when_the_answer_cannot_be_saved(served) -> None:
+    who = json.loads(_request(served, "/api/participants", {"start": True})[1])["participant"]
+    store = served.store
+    pages = store._db.execute("PRAGMA page_count").fetchone()[0]
+    store._db.execute(f"PRAGMA max_page_count = {pages}")
+    for _ in range(30):  # fill the last free pages
+        status, body, _ = _request(served, "/api/participants", {"start": True})
+        if status == 503:
+            break
+    assert status == 503 and b"could not be saved" in body
+    answered = store.progress()["answers"]
+    store._db.execute("PRAGMA max_page_count = 1000000")
+    status, body, _ = _request(served, "/api/answer", {"participant": who, "position": 1, "answer": "NO_PROSODY"})
+    assert status == 200 and store.progress()["answers"] == answered + 1
