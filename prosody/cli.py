@@ -818,14 +818,16 @@ def _cmd_track(args: argparse.Namespace) -> int:
 
 
 def _study_condition_names(text: str | None) -> list[str] | None:
-    """--conditions of 'study plan': comma-separated names, or a conditions file (its names, in order)."""
+    """--conditions of 'study plan': comma-separated names, where an item ending in .json is a conditions file
+    standing for its names (in its order)."""
     if text is None:
         return None
-    if text.lower().endswith(".json") or os.path.isfile(text):
-        from .jobs.study_stimuli import read_condition_options
+    from .jobs.study_stimuli import read_condition_options
 
-        return list(read_condition_options(text))
-    return [name for name in text.split(",")]
+    names: list[str] = []
+    for item in text.split(","):
+        names += list(read_condition_options(item.strip())) if item.strip().lower().endswith(".json") else [item]
+    return names
 
 
 def _cmd_study_plan(args: argparse.Namespace) -> int:
@@ -890,15 +892,16 @@ def _cmd_study_stimuli(args: argparse.Namespace) -> int:
     plan = read_plan(args.plan)
     conditions = _study_conditions(plan, args.conditions)
     bar = _ProgressBar(f"{args.output}: videos", "video")
+    drawn = [0]
 
-    def on_video(stimulus: str, condition: str, drawn: bool) -> None:
-        if not drawn:
-            bar.say(f"{args.output}/{stimulus}/{condition}.mp4: already complete")
+    def on_video(stimulus: str, condition: str, made: bool) -> None:
+        drawn[0] += made
 
     manifest = make_stimuli(plan, args.recordings, args.output, conditions, width=args.width, force=args.force,
                             on_video=on_video, progress=bar)
+    kept = len(manifest["videos"]) - drawn[0]
     _say(f"{args.output}: {len(manifest['videos'])} videos of {len(plan.stimuli)} stimulus/stimuli and "
-         f"{len(plan.conditions)} conditions, listed in stimuli.json")
+         f"{len(plan.conditions)} conditions ({drawn[0]} drawn, {kept} already complete), listed in stimuli.json")
     return EXIT_OK
 
 
@@ -965,8 +968,14 @@ def _cmd_study_analyze(args: argparse.Namespace) -> int:
     from .errors import BallotError
     from .evaluation import ratings
     from .evaluation.designs import read_plan
-    from .evaluation.study import (CONDITIONS, analyze_ballots, missing_pairs, parse_ballots, read_text_file,
-                                   study_markdown)
+    from .evaluation.study import (
+        CONDITIONS,
+        analyze_ballots,
+        missing_pairs,
+        parse_ballots,
+        read_text_file,
+        study_markdown,
+    )
 
     plan = read_plan(args.plan) if args.plan else None
     text = read_text_file(args.input)
@@ -974,10 +983,8 @@ def _cmd_study_analyze(args: argparse.Namespace) -> int:
     if plan is not None and plan.design != design:
         raise BallotError(f"{args.input}: {design} ballots, but {args.plan} is a {plan.design} plan")
     conditions = plan.conditions if plan is not None else None
-    figure = None
-    if args.report:
-        report = Path(args.report)
-        figure = report.with_name(report.stem + (".confusion.png" if design == "identification" else ".means.png"))
+    report = Path(args.report or "report.md")
+    figure = report.with_name(report.stem + (".confusion.png" if design == "identification" else ".means.png"))
     if design == "paired":
         ballots = parse_ballots(text, source=args.input, conditions=conditions or CONDITIONS)
         notes = missing_pairs(ballots, conditions or CONDITIONS)
@@ -1303,7 +1310,7 @@ def build_parser() -> argparse.ArgumentParser:
     track.set_defaults(handler=_cmd_track)
 
     study = commands.add_parser(
-        "study", help="run a perceptual study: plan it, make its videos, serve its page, export and analyse the answers",
+        "study", help="run a perceptual study: plan it, make its videos, serve its page, export and analyse answers",
         description="A perceptual study from plan to analysis. 'plan' writes the presentation order of one of three "
                     "designs (paired comparisons as the thesis, 1-5 opinion scores as seed 000, identification as "
                     "seed 002); 'stimuli' draws the face video of every stimulus and condition; 'serve' runs the "
@@ -1326,9 +1333,10 @@ def build_parser() -> argparse.ArgumentParser:
                       help="stimulus names, comma-separated (each the name of a recording: NAME.wav)")
     plan.add_argument("--design", choices=["paired", "mos", "identification"], default="paired",
                       help="paired comparison (default), opinion scores 1-5, or identification")
-    plan.add_argument("--conditions", default=None, metavar="NAME,NAME...|FILE.json",
+    plan.add_argument("--conditions", default=None, metavar="NAME|FILE.json,...",
                       help="the conditions compared (default: none,random,speech,truth, the thesis's four; "
-                           "identification needs its own): names, or a conditions file (see 'study stimuli')")
+                           "identification needs its own): names, comma-separated; an item ending in .json is a "
+                           "conditions file and stands for the conditions it defines (see 'study stimuli')")
     plan.add_argument("--repeats", type=_whole_number(1, 100, "1 to 100"), default=1, metavar="N",
                       help="mos and identification: show each condition of each stimulus N times (default 1)")
     plan.add_argument("--seed", type=_seed, default=0, help="seed of the order (a whole number >= 0, default 0)")
@@ -1351,8 +1359,8 @@ def build_parser() -> argparse.ArgumentParser:
     stimuli.add_argument("--recordings", required=True, metavar="DIR", help="folder of <stimulus>.wav recordings")
     stimuli.add_argument("--conditions", default=None, metavar="FILE.json",
                          help="definitions of the plan's conditions other than the thesis's four")
-    stimuli.add_argument("--width", type=_whole_number(64, 1920, "64 to 1920"), default=360, metavar="PX",
-                         help="video width in pixels (the face is square; default 360)")
+    stimuli.add_argument("--width", type=_whole_number(64, 1920, "64 to 1920"), default=480, metavar="PX",
+                         help="video width in pixels (the face is square; default 480)")
     stimuli.add_argument("--force", action="store_true", help="draw every video again")
     stimuli.add_argument("-o", "--output", required=True, metavar="DIR", help="folder of the videos")
     stimuli.set_defaults(handler=_cmd_study_stimuli)

@@ -13,8 +13,13 @@ import pytest
 from prosody.cli import main
 from prosody.errors import BallotError, ConfigError
 from prosody.evaluation.designs import make_plan, parse_plan, participant_trials
-from prosody.evaluation.ratings import (analyze_identifications, analyze_ratings, ballot_design,
-                                        parse_identifications, parse_ratings)
+from prosody.evaluation.ratings import (
+    analyze_identifications,
+    analyze_ratings,
+    ballot_design,
+    parse_identifications,
+    parse_ratings,
+)
 from prosody.evaluation.study import CONDITIONS, plan_study, write_plan
 
 
@@ -244,5 +249,11 @@ def test_plan_cli_designs(tmp_path) -> None:
     assert main(["study", "plan", "--stimuli", "a,b", "--design", "mos", "--conditions", "none,speech",
                  "--repeats", "3", "-o", str(out)]) == 0
     assert out.read_text().splitlines()[0] == "order,stimulus,condition" and len(out.read_text().splitlines()) == 13
+    conditions = tmp_path / "mine.json"
+    conditions.write_text(json.dumps({"format": "visual-prosody-study-conditions", "version": 1, "conditions": {
+        "calm": {"options": "--activation 0.4"}, "lively": {"options": "--spatial 0.5"}}}))
+    assert main(["study", "plan", "--stimuli", "a", "--design", "identification", "--conditions",
+                 f"none,{conditions}", "-o", str(out)]) == 0
+    assert parse_plan(out.read_text()).conditions == ("NO_PROSODY", "calm", "lively")
     assert main(["study", "plan", "--stimuli", "a", "--design", "identification", "-o", str(out)]) == 2
     assert main(["study", "plan", "--stimuli", "a", "--repeats", "2", "-o", str(out)]) == 2

@@ -25,8 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import BallotError, ConfigError
-from .study import CONDITIONS, PLAN_COLUMNS, condition_name, condition_names, plan_study, read_text_file, \
-    stimulus_names
+from .study import CONDITIONS, PLAN_COLUMNS, condition_name, condition_names, plan_study, read_text_file, stimulus_names
 
 DESIGNS = ("paired", "mos", "identification")
 #: The column naming the condition of a trial, per design (paired trials have two: left and right).

@@ -374,7 +374,7 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
                   brow_scale: float = BROW_VIEW_SCALE,
                   first_frame: int = 0, n_frames: int | None = None, strip: bool = True,
                   label: str | None = None, scales: tuple[float, float] | None = None,
-                  caption: bool = True) -> Iterator[np.ndarray]:
+                  captioned: bool = True) -> Iterator[np.ndarray]:
     """Frames of the preview of ``stream``, one RGB array (height, width, 3) uint8 per stream frame.
 
     Parameters
@@ -395,7 +395,7 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
         Caption of every frame instead of the stream's name.
     scales : (float, float), optional
         The strip's brow (ENS) and head (AU) scales; default: this stream's largest magnitudes.
-    caption : bool
+    captioned : bool
         Write the name, time and drawing scale at the top (False: the face alone, as a study shows it).
 
     Examples
@@ -418,7 +418,7 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
         f"  brows x{exaggerate * brow_scale:g}" if brow_scale != 1 and stream.mask[:, 30:36].any() else "")
     for offset, pose in enumerate(poses(excerpt, exaggerate=exaggerate, brow_scale=brow_scale)):
         frame = first_frame + offset
-        text = f"{label or stream.name}  {frame / stream.fps:7.2f} s{note}" if caption else ""
+        text = f"{label or stream.name}  {frame / stream.fps:7.2f} s{note}" if captioned else ""
         yield renderer.render(pose, strip=curves.render(frame) if strip else None, caption=text)
 
 
@@ -498,7 +498,7 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
                   width: int = 480, exaggerate: float = 1.0, start_s: float = 0.0, duration_s: float | None = None,
                   ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None,
                   scales: tuple[float, float] | None = None, brow_scale: float = BROW_VIEW_SCALE,
-                  strip: bool = True, caption: bool = True) -> Path:
+                  strip: bool = True, captioned: bool = True) -> Path:
     """Write the drawn-face preview of ``stream`` to ``output`` (``.mp4`` or ``.gif``).
 
     Parameters
@@ -524,7 +524,7 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
     scales : (float, float), optional
         Full scale of the strip's brow (ENS) and head (AU) curves; default: this stream's largest values.
         Give the same scales to previews that will be compared.
-    strip, caption : bool
+    strip, captioned : bool
         Draw the curve strip and the caption (False and False: the face alone, a study's stimulus).
 
     Returns
@@ -535,7 +535,7 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
         raise ConfigError(f"strip scales must be positive numbers, got {scales!r}")
     return _write_video([(None, stream)], output, audio=audio, width=width, exaggerate=exaggerate,
                         brow_scale=brow_scale, start_s=start_s, duration_s=duration_s, ffmpeg=ffmpeg,
-                        progress=progress, scales=scales, strip=strip, caption=caption)
+                        progress=progress, scales=scales, strip=strip, captioned=captioned)
 
 
 def write_side_by_side(streams: Mapping[str, FapStream], output: str | os.PathLike[str], *,
@@ -560,7 +560,7 @@ def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.Pa
                  audio: str | os.PathLike[str] | None, width: int, exaggerate: float, brow_scale: float,
                  start_s: float,
                  duration_s: float | None, ffmpeg: str | None, progress: Callable[[int, int], None] | None,
-                 scales: tuple[float, float] | None, strip: bool = True, caption: bool = True) -> Path:
+                 scales: tuple[float, float] | None, strip: bool = True, captioned: bool = True) -> Path:
     """The panels (label, stream) side by side as one .mp4 or .gif; the strips share ``scales`` (default:
     what fits every stream)."""
     path = Path(output)
@@ -578,7 +578,7 @@ def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.Pa
     count = n - first if duration_s is None else min(n - first, max(1, round(duration_s * fps)))
     shared = scales if scales is not None else strip_scales([s for _, s in panels])
     drawn = [render_frames(s, width=width, exaggerate=exaggerate, brow_scale=brow_scale, first_frame=first,
-                           n_frames=count, label=label, scales=shared, strip=strip, caption=caption)
+                           n_frames=count, label=label, scales=shared, strip=strip, captioned=captioned)
              for label, s in panels]
     frames: Iterator[np.ndarray] = drawn[0] if len(drawn) == 1 else (np.hstack(row) for row in zip(*drawn,
                                                                                                   strict=True))

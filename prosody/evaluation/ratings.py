@@ -420,7 +420,8 @@ def identification_markdown(results: dict, *, figure: str | None = None) -> str:
              f"(chance {results['chance']:.1%}).", "",
              f"Overall: {overall['correct']} of {overall['n']} correct ({overall['accuracy']:.1%}, 95% CI "
              f"[{overall['ci_low']:.1%}, {overall['ci_high']:.1%}]), binomial p = {overall['p']:.2g} against "
-             "chance.", "", "| shown | n | correct | accuracy | 95% CI | p | p (Holm) |", "|---|---|---|---|---|---|---|"]
+             "chance.", "", "| shown | n | correct | accuracy | 95% CI | p | p (Holm) |",
+             "|---|---|---|---|---|---|---|"]
     for name, entry in results["per_class"].items():
         lines.append(f"| {name} | {entry['n']} | {entry['correct']} | {entry['accuracy']:.1%} | "
                      f"[{entry['ci_low']:.1%}, {entry['ci_high']:.1%}] | {entry['p']:.2g} | {entry['p_holm']:.2g} |")

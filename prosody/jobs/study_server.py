@@ -35,8 +35,8 @@ from pathlib import Path
 from ..errors import ConfigError
 from ..evaluation.designs import StudyPlan
 from .server import _trusted_host, normalize_origin
-from .study_store import StudyStore, StudyStoreError
 from .study_stimuli import check_stimuli
+from .study_store import StudyStore, StudyStoreError
 
 #: Largest request body read (an answer is under 200 bytes).
 MAX_BODY_BYTES = 4096
@@ -69,20 +69,21 @@ class StudyServer:
         Other web origins allowed to use the study (``http://host:port``).
     token : str, optional
         The organiser's token (default: a new random one, :attr:`token`).
-    report : callable
+    report : callable, optional
         Gets one line per event worth telling the organiser.
     """
 
     def __init__(self, plan: StudyPlan, stimuli: str | Path, store: StudyStore, *, host: str = "127.0.0.1",
                  port: int = 8766, break_every: int = 20, allow_origins: Iterable[str] = (),
-                 token: str | None = None, report: Callable[[str], None] = lambda line: None) -> None:
+                 token: str | None = None, report: Callable[[str], None] | None = None) -> None:
         manifest = check_stimuli(plan, stimuli)
-        self.plan, self.store, self.report = plan, store, report
+        self.plan, self.store = plan, store
+        self.report: Callable[[str], None] = report or (lambda line: None)
         self.folder = Path(stimuli).resolve()
         # videos are served by the start of their SHA-256: nothing in the address names the condition
-        self.files = {f"{entry['sha256'][:24]}.mp4": self.folder / str(entry["file"])
+        self.files = {f"{str(entry['sha256'])[:24]}.mp4": self.folder / str(entry["file"])
                       for entry in manifest["videos"].values()}
-        self.videos = {key: f"/stimuli/{entry['sha256'][:24]}.mp4" for key, entry in manifest["videos"].items()}
+        self.videos = {key: f"/stimuli/{str(entry['sha256'])[:24]}.mp4" for key, entry in manifest["videos"].items()}
         self.labels = {name: str(entry.get("label", name)) for name, entry in manifest["conditions"].items()}
         self.break_every = break_every
         self.allow_origins = frozenset(normalize_origin(origin) for origin in allow_origins)
@@ -99,7 +100,8 @@ class StudyServer:
     @property
     def url(self) -> str:
         host, port = self._http.server_address[:2]
-        shown = f"[{host}]" if ":" in str(host) else host
+        name = host.decode() if isinstance(host, bytes) else str(host)
+        shown = f"[{name}]" if ":" in name else name
         return f"http://{shown}:{port}/"
 
     def start(self) -> StudyServer:

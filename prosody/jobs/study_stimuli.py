@@ -30,6 +30,7 @@ import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from audio_features import AUDIO_EXTENSIONS
 from audio_features.atomic import atomic_write
@@ -59,7 +60,7 @@ class StudyCondition:
     name: str
     label: str
     options: str
-    settings: Mapping[str, object] = field(default_factory=dict)
+    settings: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def needs_truth(self) -> bool:
@@ -152,7 +153,7 @@ def video_key(stimulus: str, condition: str) -> str:
 
 
 def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: str | os.PathLike[str],
-                 conditions: Mapping[str, StudyCondition], *, width: int = 360, force: bool = False,
+                 conditions: Mapping[str, StudyCondition], *, width: int = 480, force: bool = False,
                  on_video: Callable[[str, str, bool], None] | None = None,
                  progress: Callable[[int, int], None] | None = None) -> dict:
     """Draw every (stimulus, condition) video ``plan`` needs into ``output``; return the manifest written.
@@ -204,7 +205,7 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
         old = read_manifest(out)["videos"]
     except ConfigError:
         old = {}
-    manifest = {"format": STIMULI_FORMAT, "version": FORMAT_VERSION, "plan_sha256": plan.sha256,
+    manifest: dict[str, Any] = {"format": STIMULI_FORMAT, "version": FORMAT_VERSION, "plan_sha256": plan.sha256,
                 "design": plan.design, "width": width,
                 "conditions": {name: {"label": conditions[name].label, "options": conditions[name].options}
                                for name in plan.conditions},
@@ -226,7 +227,7 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
         if kept:
             manifest["videos"][key] = previous
         else:
-            kwargs = dict(condition.settings)
+            kwargs: dict[str, Any] = dict(condition.settings)
             if condition.needs_truth:
                 kwargs["ground_truth"] = truth
             with warnings.catch_warnings(record=True) as caught:
@@ -235,7 +236,7 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
             for warning in caught:  # said once each, naming the video they are about
                 warnings.warn(f"{key}: {warning.message}", warning.category, stacklevel=2)
             path.parent.mkdir(parents=True, exist_ok=True)
-            write_preview(stream, path, audio=audio, width=width, strip=False, caption=False)
+            write_preview(stream, path, audio=audio, width=width, strip=False, captioned=False)
             manifest["videos"][key] = {"file": f"{stimulus}/{name}.mp4", "sha256": _sha256(path),
                                        "seconds": round(stream.n_frames / stream.fps, 3), "settings": settings}
         _write_manifest(out, manifest, old, needed[done:])

@@ -59,7 +59,7 @@ class StudyStoreError(ProsodyError, ValueError):
 
 
 def _now() -> str:
-    return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
 
 class StudyStore:
@@ -161,7 +161,7 @@ class StudyStore:
             raise StudyStoreError(f"{participant[:64]!r} is not a participant of this study", status=404)
         return row
 
-    def state(self, participant: str) -> dict:
+    def state(self, participant: object) -> dict:
         """Where ``participant`` is: ``{"participant", "answered", "total", "finished", "code"?, "trial"?}``;
         ``trial`` (the next one): ``{"position", "stimulus", "conditions": [...]}``."""
         with self._lock:
@@ -181,7 +181,7 @@ class StudyStore:
                               "conditions": [name for name in row[2:] if name is not None]}
             return state
 
-    def answer(self, participant: str, position: object, answer: object, seconds: object = None) -> dict:
+    def answer(self, participant: object, position: object, answer: object, seconds: object = None) -> dict:
         """Record ``answer`` to trial ``position`` of ``participant`` in one transaction; the new state.
 
         ``answer``: ``left`` or ``right`` (paired), a whole number 1-5 (mos), a condition name
