@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -79,6 +80,29 @@ def make_features(f0_conditioned_hz, energy_db, *, fps: float = 30.0):
         duration_s=f0.shape[0] / fps,
         source="<synthetic>",
     )
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+CHROMEDRIVER = shutil.which("chromedriver")
+#: Marks a test that drives Debian's headless Chromium.
+needs_chromium = pytest.mark.skipif(CHROMIUM is None or CHROMEDRIVER is None,
+                                    reason="needs Debian's chromium and chromium-driver "
+                                           "(apt-get install chromium chromium-driver)")
+
+
+def headless_chromium(*flags: str):
+    """A selenium driver of headless Chromium with ``flags`` besides the quiet, sandbox-free defaults; skips
+    the test where the selenium package (the test extra) is missing."""
+    webdriver = pytest.importorskip("selenium.webdriver", reason="needs the selenium package (the test extra)")
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--autoplay-policy=no-user-gesture-required", *flags):
+        options.add_argument(flag)
+    return webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
 
 
 @pytest.fixture

@@ -8,37 +8,23 @@ with a reason where they are missing (``apt-get install chromium chromium-driver
 from __future__ import annotations
 
 import io
-import shutil
 import time
 
 import numpy as np
 import pytest
-from conftest import REPO
+from conftest import REPO, headless_chromium, needs_chromium
 
 from prosody.jobs.server import FrameServer
 from prosody.jobs.stream import LiveConverter, LiveFrame
 
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-DRIVER = shutil.which("chromedriver")
-pytestmark = pytest.mark.skipif(CHROMIUM is None or DRIVER is None,
-                                reason="needs Debian's chromium and chromium-driver "
-                                       "(apt-get install chromium chromium-driver)")
+pytestmark = needs_chromium
 
 
 @pytest.fixture
 def browser():
-    webdriver = pytest.importorskip("selenium.webdriver", reason="needs the selenium package (the test extra)")
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                 "--disable-quic", "--window-size=520,760", "--use-fake-ui-for-media-stream",
-                 "--use-fake-device-for-media-stream", "--autoplay-policy=no-user-gesture-required",
-                 f"--use-file-for-fake-audio-capture={REPO / 'samples' / 'arctic_a0009.wav'}"):
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(DRIVER), options=options)
+    driver = headless_chromium("--disable-quic", "--window-size=520,760", "--use-fake-ui-for-media-stream",
+                               "--use-fake-device-for-media-stream",
+                               f"--use-file-for-fake-audio-capture={REPO / 'samples' / 'arctic_a0009.wav'}")
     yield driver
     driver.quit()
 

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BallotError
-from .study import BALLOT_COLUMNS, SHORT_NAMES, _fail, _rows, holm
+from .study import BALLOT_COLUMNS, SHORT_NAMES, _fail, _rows, header_index, holm
 
 MOS_COLUMNS = ("stimulus", "subject", "condition", "score")
 IDENTIFICATION_COLUMNS = ("stimulus", "subject", "shown", "answer")
@@ -79,16 +79,7 @@ def ballot_design(text: str) -> str:
 def _records(text: str, source: str, columns: Sequence[str]):
     """``(line, values)`` of each non-empty row with every column filled; the problems of the others."""
     reader = csv.reader(io.StringIO(text))
-    header = next(_rows(reader, source), (1, None))[1]
-    if header is None:
-        raise BallotError(f"{source}: the file is empty; expected the header {','.join(columns)}")
-    names = [cell.strip().lower() for cell in header]
-    missing = [name for name in columns if name not in names]
-    if missing:
-        raise BallotError(f"{source}, line 1: the header lacks {', '.join(missing)}; expected columns "
-                          f"{','.join(columns)}")
-    wanted = [*columns, "order"] if "order" in names else list(columns)
-    index = {name: names.index(name) for name in wanted}
+    index = header_index(reader, source, columns, optional=("order",))
     records, problems = [], []
     for line, cells in _rows(reader, source):
         if not any(cell.strip() for cell in cells):

@@ -156,6 +156,20 @@ def _rows(reader, source: str):
         yield reader.line_num, cells
 
 
+def header_index(reader, source: str, columns: Sequence[str], optional: Sequence[str] = ()) -> dict[str, int]:
+    """The position of each of ``columns`` (and of those of ``optional`` present) in a ballot file's header,
+    read from ``reader``; a BallotError when the file is empty or lacks a column."""
+    header = next(_rows(reader, source), (1, None))[1]
+    if header is None:
+        raise BallotError(f"{source}: the file is empty; expected the header {','.join(columns)}")
+    names = [cell.strip().lower() for cell in header]
+    missing = [name for name in columns if name not in names]
+    if missing:
+        raise BallotError(f"{source}, line 1: the header lacks {', '.join(missing)}; expected columns "
+                          f"{','.join(columns)}")
+    return {name: names.index(name) for name in (*columns, *optional) if name in names}
+
+
 def parse_ballots(text: str, *, source: str = "<ballots>", conditions: Sequence[str] = CONDITIONS) -> list[Ballot]:
     """Parse ballot CSV text (columns ``stimulus,subject,left,right,choice``; extra columns are ignored).
 
@@ -169,15 +183,7 @@ def parse_ballots(text: str, *, source: str = "<ballots>", conditions: Sequence[
         line number.
     """
     reader = csv.reader(io.StringIO(text))
-    header = next(_rows(reader, source), (1, None))[1]
-    if header is None:
-        raise BallotError(f"{source}: the file is empty; expected the header {','.join(BALLOT_COLUMNS)}")
-    columns = [cell.strip().lower() for cell in header]
-    missing = [name for name in BALLOT_COLUMNS if name not in columns]
-    if missing:
-        raise BallotError(f"{source}, line 1: the header lacks {', '.join(missing)}; expected columns "
-                          f"{','.join(BALLOT_COLUMNS)}")
-    index = {name: columns.index(name) for name in BALLOT_COLUMNS}
+    index = header_index(reader, source, BALLOT_COLUMNS)
     ballots: list[Ballot] = []
     problems: list[str] = []
     seen: dict[tuple[str, str, str, str], int] = {}
