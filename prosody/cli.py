@@ -1009,6 +1009,12 @@ def _cmd_study_analyze(args: argparse.Namespace) -> int:
         if args.report:
             ratings.plot_confusion(results, figure)
             markdown = ratings.identification_markdown(results, figure=figure.name)
+    if plan is not None:
+        parsed = ballots if design == "paired" else scores if design == "mos" else answers
+        strangers = [f"row {b.row} ({b.stimulus})" for b in parsed if b.stimulus not in plan.stimuli]
+        if strangers:
+            raise BallotError(f"{args.input}: {len(strangers)} ballot row(s) name a stimulus that is not in "
+                              f"{args.plan}: " + ", ".join(strangers[:20]) + (", ..." if len(strangers) > 20 else ""))
     with atomic_write(args.output, newline="\n") as handle:
         json.dump(results, handle, indent=1, allow_nan=False)
         handle.write("\n")

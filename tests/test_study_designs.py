@@ -236,6 +236,12 @@ def test_analyze_cli_reads_each_design_and_draws_its_figure(tmp_path, capsys) ->
     with Image.open(tmp_path / "id.confusion.png") as image:
         assert image.size[0] > 300
     assert "66.7% correct (chance 50.0%)" in capsys.readouterr().err
+    # a ballot of a stimulus the plan does not have
+    (tmp_path / "stray.csv").write_text(ident.read_text() + "elsewhere,p1,joy,joy\n")
+    assert main(["study", "analyze", str(tmp_path / "stray.csv"), "--plan", str(plan), "-o",
+                 str(tmp_path / "x.json")]) == 1
+    assert "1 ballot row(s) name a stimulus that is not in" in capsys.readouterr().err
+    assert not (tmp_path / "x.json").exists()
     # ballots of one design against a plan of another: one line
     assert main(["study", "analyze", str(mos), "--plan", str(plan), "-o", str(tmp_path / "x.json")]) == 1
     assert "mos ballots, but" in capsys.readouterr().err
