@@ -25,7 +25,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import BallotError, ConfigError
-from .study import CONDITIONS, PLAN_COLUMNS, condition_name, condition_names, plan_study, read_text_file, stimulus_names
+from .study import (
+    CONDITIONS,
+    PLAN_COLUMNS,
+    condition_name,
+    condition_names,
+    in_rounds,
+    plan_study,
+    read_text_file,
+    stimulus_names,
+)
 
 DESIGNS = ("paired", "mos", "identification")
 #: The column naming the condition of a trial, per design (paired trials have two: left and right).
@@ -68,19 +77,6 @@ def _ordered_conditions(names: Sequence[str]) -> tuple[str, ...]:
     return tuple(name for name in CONDITIONS if name in seen) + tuple(sorted(seen - set(CONDITIONS)))
 
 
-def _in_rounds(per_stimulus: dict[str, list[str]], generator: np.random.Generator) -> list[tuple[str, str]]:
-    """(stimulus, condition) in rounds: round r shows the r-th entry of every stimulus, stimuli shuffled, never
-    the same stimulus twice in a row across rounds."""
-    names = list(per_stimulus)
-    sequence: list[tuple[str, str]] = []
-    for round_index in range(len(next(iter(per_stimulus.values())))):
-        order = [names[i] for i in generator.permutation(len(names))]
-        if sequence and len(order) > 1 and order[0] == sequence[-1][0]:
-            order[0], order[-1] = order[-1], order[0]
-        sequence += [(name, per_stimulus[name][round_index]) for name in order]
-    return sequence
-
-
 def plan_single(stimuli: Sequence[str], conditions: Sequence[str], *, design: str, seed: int = 0,
                 repeats: int = 1) -> list[dict[str, str | int]]:
     """A ``mos`` or ``identification`` plan: each condition of each stimulus ``repeats`` times, in rounds
@@ -103,7 +99,7 @@ def plan_single(stimuli: Sequence[str], conditions: Sequence[str], *, design: st
     per_stimulus = {name: [shown[i] for i in generator.permutation(len(shown))] for name in names}
     column = CONDITION_COLUMNS[design][0]
     return [{"order": k + 1, "stimulus": stimulus, column: condition}
-            for k, (stimulus, condition) in enumerate(_in_rounds(per_stimulus, generator))]
+            for k, (stimulus, condition) in enumerate(in_rounds(per_stimulus, generator))]
 
 
 def make_plan(stimuli: Sequence[str], *, design: str = "paired", conditions: Sequence[str] | None = None,
@@ -200,14 +196,7 @@ def participant_trials(plan: StudyPlan, ordinal: int) -> list[Trial]:
         for trial in trials:
             per_stimulus.setdefault(trial.stimulus, []).append(trial)
         lists = {name: [mine[i] for i in generator.permutation(len(mine))] for name, mine in per_stimulus.items()}
-        rounds = max(len(mine) for mine in lists.values())
-        trials = []
-        for round_index in range(rounds):
-            names = [name for name in lists if round_index < len(lists[name])]
-            order = [names[i] for i in generator.permutation(len(names))]
-            if trials and len(order) > 1 and order[0] == trials[-1].stimulus:
-                order[0], order[-1] = order[-1], order[0]
-            trials += [lists[name][round_index] for name in order]
+        trials = [trial for _, trial in in_rounds(lists, generator)]
     if plan.design == "paired" and ordinal % 2 == 0:
         trials = [Trial(trial.order, trial.stimulus, trial.conditions[::-1]) for trial in trials]
     return trials

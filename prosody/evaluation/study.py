@@ -19,6 +19,7 @@ import os
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -35,6 +36,7 @@ BALLOT_COLUMNS = ("stimulus", "subject", "left", "right", "choice")
 MAX_BALLOT_BYTES = 256 << 20
 #: Ballot problems listed in one error message before "and N more".
 _MAX_LISTED = 20
+T = TypeVar("T")
 _CONDITION_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_.-]{0,63}")
 _STIMULUS_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}")
 
@@ -98,14 +100,21 @@ def plan_study(stimuli: Sequence[str], *, seed: int = 0,
     chosen = condition_names(conditions)
     pairs = list(itertools.product(chosen, chosen))
     per_stimulus = {name: [pairs[i] for i in generator.permutation(len(pairs))] for name in names}
-    sequence: list[tuple[str, str, str]] = []
-    for round_index in range(len(pairs)):
+    return [{"order": k + 1, "stimulus": s, "left": left, "right": right}
+            for k, (s, (left, right)) in enumerate(in_rounds(per_stimulus, generator))]
+
+
+def in_rounds(per_stimulus: dict[str, list[T]], generator: np.random.Generator) -> list[tuple[str, T]]:
+    """``(stimulus, entry)`` in rounds: round r shows the r-th entry of every stimulus that has one, the stimuli
+    in shuffled order, never the same stimulus twice in a row across rounds (where another can go first)."""
+    sequence: list[tuple[str, T]] = []
+    for round_index in range(max(map(len, per_stimulus.values()), default=0)):
+        names = [name for name, entries in per_stimulus.items() if round_index < len(entries)]
         order = [names[i] for i in generator.permutation(len(names))]
         if sequence and len(order) > 1 and order[0] == sequence[-1][0]:
-            order[0], order[-1] = order[-1], order[0]  # never the same stimulus twice in a row across rounds
-        sequence += [(name, *per_stimulus[name][round_index]) for name in order]
-    return [{"order": k + 1, "stimulus": s, "left": left, "right": right}
-            for k, (s, left, right) in enumerate(sequence)]
+            order[0], order[-1] = order[-1], order[0]
+        sequence += [(name, per_stimulus[name][round_index]) for name in order]
+    return sequence
 
 
 def write_plan(rows: Sequence[dict], path: str | os.PathLike[str]) -> None:

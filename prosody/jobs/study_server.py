@@ -109,9 +109,6 @@ class StudyServer:
         self._thread.start()
         return self
 
-    def serve_forever(self) -> None:
-        self._http.serve_forever()
-
     def close(self) -> None:
         self._http.shutdown()
         self._http.server_close()

@@ -102,7 +102,6 @@ class StudyStore:
                               "--db for this one")
         self.design = meta["design"]
         self.plan_sha256 = meta["plan_sha256"]
-        self.plan_text = meta["plan"]
         self.conditions = tuple(meta["conditions"].split(","))
         self.total = int(meta["trials"])
         self.plan = plan
