@@ -911,14 +911,26 @@ def _cmd_study_serve(args: argparse.Namespace) -> int:
     from .evaluation.designs import read_plan
     from .jobs.server import parse_address
     from .jobs.study_server import StudyServer
+    from .jobs.study_stimuli import check_stimuli
     from .jobs.study_store import StudyStore
 
     plan = read_plan(args.plan)
     host, port = parse_address(args.listen)
+    check_stimuli(plan, args.stimuli)  # before the database is made: a refused start leaves nothing behind
+    new = not os.path.exists(args.db)
     store = StudyStore(args.db, plan)
     try:
-        server = StudyServer(plan, args.stimuli, store, host=host, port=port, break_every=args.break_every,
-                             allow_origins=args.allow_origin, report=lambda line: _say(f"prosody study serve: {line}"))
+        try:
+            server = StudyServer(plan, args.stimuli, store, host=host, port=port, break_every=args.break_every,
+                                 allow_origins=args.allow_origin,
+                                 report=lambda line: _say(f"prosody study serve: {line}"))
+        except BaseException:
+            if new:
+                store.close()
+                for ending in ("", "-wal", "-shm"):
+                    with contextlib.suppress(FileNotFoundError):
+                        os.remove(args.db + ending)
+            raise
         progress = store.progress()
         _say(f"prosody study serve: the study is at {server.url} ({plan.design}, {len(plan.trials)} trials each; "
              f"{progress['participants']} participant(s) and {progress['answers']} answer(s) so far in {args.db})")

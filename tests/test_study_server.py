@@ -298,3 +298,26 @@ def test_server_says_503_when_the_answer_cannot_be_saved(served) -> None:
     store._db.execute("PRAGMA max_page_count = 1000000")
     status, body, _ = _request(served, "/api/answer", {"participant": who, "position": 1, "answer": "NO_PROSODY"})
     assert status == 200 and store.progress()["answers"] == answered + 1
+
+
+@needs_ffmpeg
+def test_a_refused_start_leaves_no_database(tmp_path, recordings, capsys) -> None:
+    import socket
+
+    plan_path = tmp_path / "plan.csv"
+    assert main(["study", "plan", "--stimuli", "a", "--conditions", "none,speech", "-o", str(plan_path)]) == 0
+    assert main(["study", "stimuli", str(plan_path), "--recordings", str(recordings), "--width", "64",
+                 "-o", str(tmp_path / "stimuli")]) == 0
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        assert main(["study", "serve", str(plan_path), "--stimuli", str(tmp_path / "stimuli"), "--db",
+                     str(tmp_path / "s.sqlite"), "--listen", f"127.0.0.1:{port}"]) == 2
+    assert "cannot listen on" in capsys.readouterr().err
+    other = tmp_path / "other.csv"
+    assert main(["study", "plan", "--stimuli", "b", "--conditions", "none,speech", "-o", str(other)]) == 0
+    assert main(["study", "serve", str(other), "--stimuli", str(tmp_path / "stimuli"), "--db",
+                 str(tmp_path / "s.sqlite")]) == 2
+    assert "made for another plan" in capsys.readouterr().err
+    assert not list(tmp_path.glob("s.sqlite*"))
