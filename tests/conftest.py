@@ -105,6 +105,20 @@ def headless_chromium(*flags: str):
     return webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
 
 
+def wait_in_page(driver, script: str, describe: str, timeout_s: float = 30.0):
+    """The first truthy value of ``script`` run in the page, polled; on timeout an AssertionError with what the
+    ``describe`` script returns (the page's own account of its state)."""
+    import time
+
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = driver.execute_script(script)
+        if value:
+            return value
+        time.sleep(0.05)
+    raise AssertionError(f"timed out waiting for {script!r}; page: {driver.execute_script(describe)}")
+
+
 @pytest.fixture
 def frame_server():
     """A live frame server on a free loopback port, with a converter per client; ``.lines`` holds what it

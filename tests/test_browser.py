@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import REPO, headless_chromium, needs_chromium
+from conftest import REPO, headless_chromium, needs_chromium, wait_in_page
 
 from prosody.jobs.server import FrameServer
 from prosody.jobs.stream import LiveConverter, LiveFrame
@@ -30,14 +30,7 @@ def browser():
 
 
 def _wait_for(driver, script: str, timeout_s: float = 30.0):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = driver.execute_script(script)
-        if value:
-            return value
-        time.sleep(0.1)
-    raise AssertionError(f"timed out waiting for {script!r}; page stats: "
-                         f"{driver.execute_script('return JSON.stringify(window.prosodyStats)')}")
+    return wait_in_page(driver, script, "return JSON.stringify(window.prosodyStats)", timeout_s)
 
 
 def _face(driver) -> np.ndarray:

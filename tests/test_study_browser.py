@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 import soundfile
-from conftest import REPO, headless_chromium, needs_chromium
+from conftest import REPO, headless_chromium, needs_chromium, wait_in_page
 
 from prosody.cli import main
 from prosody.evaluation.preview import find_ffmpeg
@@ -105,15 +105,8 @@ def study(tmp_path):
 
 
 def _wait_for(driver, script: str, timeout_s: float = 30.0):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = driver.execute_script(script)
-        if value:
-            return value
-        time.sleep(0.05)
-    state = driver.execute_script("return JSON.stringify(window.studyState)")
-    status = driver.execute_script("return document.getElementById('status').textContent")
-    raise AssertionError(f"timed out waiting for {script!r}; state: {state}, status: {status}")
+    return wait_in_page(driver, script, "return JSON.stringify(window.studyState) + ' / status: ' + "
+                                        "document.getElementById('status').textContent", timeout_s)
 
 
 def _answer(driver, answered: int, choice: str) -> None:

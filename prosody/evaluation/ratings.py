@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BallotError
-from .study import BALLOT_COLUMNS, SHORT_NAMES, _fail, _rows, header_index, holm
+from .study import BALLOT_COLUMNS, SHORT_NAMES, _fail, filled_rows, holm
 
 MOS_COLUMNS = ("stimulus", "subject", "condition", "score")
 IDENTIFICATION_COLUMNS = ("stimulus", "subject", "shown", "answer")
@@ -76,23 +76,6 @@ def ballot_design(text: str) -> str:
                       f"{','.join(IDENTIFICATION_COLUMNS)} (identification)")
 
 
-def _records(text: str, source: str, columns: Sequence[str]):
-    """``(line, values)`` of each non-empty row with every column filled; the problems of the others."""
-    reader = csv.reader(io.StringIO(text))
-    index = header_index(reader, source, columns, optional=("order",))
-    records, problems = [], []
-    for line, cells in _rows(reader, source):
-        if not any(cell.strip() for cell in cells):
-            continue
-        values = {name: cells[i].strip() if i < len(cells) else "" for name, i in index.items()}
-        empty = [name for name, value in values.items() if not value]
-        if empty:
-            problems.append(f"row {line} is incomplete (no {', '.join(empty)})")
-            continue
-        records.append((line, values))
-    return records, problems
-
-
 def _check_names(line: int, values: dict, columns: Sequence[str], allowed: Sequence[str] | None,
                  problems: list[str]) -> bool:
     for column in columns:
@@ -123,7 +106,7 @@ def parse_ratings(text: str, *, source: str = "<ballots>", conditions: Sequence[
 
     ``conditions``: the names a ballot may give (a plan's); any name when None.
     """
-    records, problems = _records(text, source, MOS_COLUMNS)
+    records, problems = filled_rows(text, source, MOS_COLUMNS, ("order",))
     ratings: list[Rating] = []
     seen: dict[tuple, int] = {}
     for line, values in records:
@@ -153,7 +136,7 @@ def parse_identifications(text: str, *, source: str = "<ballots>",
 
     ``classes``: the names shown and answered (a plan's conditions); any name when None.
     """
-    records, problems = _records(text, source, IDENTIFICATION_COLUMNS)
+    records, problems = filled_rows(text, source, IDENTIFICATION_COLUMNS, ("order",))
     answers: list[Identification] = []
     seen: dict[tuple, int] = {}
     for line, values in records:

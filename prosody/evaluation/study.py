@@ -179,6 +179,25 @@ def header_index(reader, source: str, columns: Sequence[str], optional: Sequence
     return {name: names.index(name) for name in (*columns, *optional) if name in names}
 
 
+def filled_rows(text: str, source: str, columns: Sequence[str],
+                optional: Sequence[str] = ()) -> tuple[list[tuple[int, dict[str, str]]], list[str]]:
+    """``(line, {column: value})`` of each non-empty row of a ballot file's text with every column filled, and
+    one problem line for each row that is not."""
+    reader = csv.reader(io.StringIO(text))
+    index = header_index(reader, source, columns, optional)
+    records, problems = [], []
+    for line, cells in _rows(reader, source):
+        if not any(cell.strip() for cell in cells):
+            continue
+        values = {name: cells[i].strip() if i < len(cells) else "" for name, i in index.items()}
+        empty = [name for name, value in values.items() if not value]
+        if empty:
+            problems.append(f"row {line} is incomplete (no {', '.join(empty)})")
+            continue
+        records.append((line, values))
+    return records, problems
+
+
 def parse_ballots(text: str, *, source: str = "<ballots>", conditions: Sequence[str] = CONDITIONS) -> list[Ballot]:
     """Parse ballot CSV text (columns ``stimulus,subject,left,right,choice``; extra columns are ignored).
 
@@ -191,19 +210,10 @@ def parse_ballots(text: str, *, source: str = "<ballots>", conditions: Sequence[
         name an unknown condition, or choose neither ``left`` nor ``right``; every bad row is listed by its
         line number.
     """
-    reader = csv.reader(io.StringIO(text))
-    index = header_index(reader, source, BALLOT_COLUMNS)
+    records, problems = filled_rows(text, source, BALLOT_COLUMNS)
     ballots: list[Ballot] = []
-    problems: list[str] = []
     seen: dict[tuple[str, str, str, str], int] = {}
-    for line, cells in _rows(reader, source):
-        if not any(cell.strip() for cell in cells):
-            continue
-        values = {name: cells[i].strip() if i < len(cells) else "" for name, i in index.items()}
-        empty = [name for name, value in values.items() if not value]
-        if empty:
-            problems.append(f"row {line} is incomplete (no {', '.join(empty)})")
-            continue
+    for line, values in records:
         for side in ("left", "right"):  # the short names the other commands take are read too
             values[side] = SHORT_NAMES.get(values[side].lower(), values[side])
         unknown = [values[side] for side in ("left", "right") if values[side] not in conditions]
