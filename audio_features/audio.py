@@ -158,6 +158,8 @@ def _check_riff(handle, file: Path, size: int, *, big_endian: bool, rf64: bool) 
             fields = handle.read(24)
             if len(fields) == 24:
                 _, data_size_64, _ = struct.unpack("<QQQ", fields)
+        elif chunk_id == b"fmt ":
+            _check_pcm_layout(handle.read(16), file, endian)
         elif chunk_id == b"data":
             promised = data_size_64 if (rf64 and chunk_size == 0xFFFFFFFF) else chunk_size
             available = size - offset - 8
@@ -166,6 +168,17 @@ def _check_riff(handle, file: Path, size: int, *, big_endian: bool, rf64: bool) 
                 raise _truncated(file, "RF64 file" if rf64 else "WAV", promised, available)
             return
         offset += 8 + chunk_size + (chunk_size & 1)
+
+
+def _check_pcm_layout(fields: bytes, file: Path, endian: str) -> None:
+    """Integer PCM whose bits per sample do not fill its frames (a 7-bit header on 16-bit frames) is read by
+    libsndfile from the bits, at the wrong length: refuse a header that contradicts itself."""
+    if len(fields) < 16:
+        return
+    tag, channels, _, _, block_align, bits = struct.unpack(endian + "HHIIHH", fields)
+    if tag == 1 and channels and bits and block_align != channels * ((bits + 7) // 8):
+        raise AudioLoadError(f"{file}: damaged WAV header: {channels} channel(s) of {bits}-bit samples take "
+                             f"{channels * ((bits + 7) // 8)} bytes per frame, but the header says {block_align}")
 
 
 def _check_chunks(handle, file: Path, size: int, *, container: str, start: int, header: str, data: bytes) -> None:

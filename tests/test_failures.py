@@ -364,6 +364,26 @@ def test_every_container_cut_off_is_reported_as_truncated(tmp_path, container, e
             load_audio(cut)
 
 
+def test_a_wav_header_whose_bits_do_not_fill_its_frames_is_refused(tmp_path) -> None:
+    # a 7-bit header on 16-bit frames: libsndfile reads it from the bits, as 8-bit audio of double length
+    import struct
+
+    samples = (harmonic_tone(150, 1.0, 16000) * 10000).astype("<i2").tobytes()
+
+    def wav(bits: int, block_align: int) -> bytes:
+        fmt = struct.pack("<HHIIHH", 1, 1, 16000, 16000 * block_align, block_align, bits)
+        body = b"WAVE" + b"fmt " + struct.pack("<I", 16) + fmt + b"data" + struct.pack("<I", len(samples)) + samples
+        return b"RIFF" + struct.pack("<I", len(body)) + body
+
+    damaged = tmp_path / "seven.wav"
+    damaged.write_bytes(wav(7, 2))
+    with pytest.raises(AudioLoadError, match="7-bit samples take 1 bytes per frame, but the header says 2"):
+        load_audio(damaged)
+    consistent = tmp_path / "sixteen.wav"
+    consistent.write_bytes(wav(16, 2))
+    assert load_audio(consistent).samples.size == 16000
+
+
 @pytest.mark.parametrize("floor", ["0.01", "1e-9", "19.9"])
 def test_a_pitch_floor_below_any_voice_is_refused_before_analysis(tmp_path, capsys, floor) -> None:
     # Praat's window is three periods of the floor: 0.01 Hz asked for 980 MB on a 3 s file, 1e-9 for 349 TiB
