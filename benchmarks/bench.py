@@ -226,8 +226,12 @@ def main() -> int:
         long_s, long_mb = _run_measured("prosody.cli", "main",
                                         ["convert", str(long_file), "-o", str(folder / "long.fap"), "--lips", "none"])
         long_file.unlink()
+        long_fap = folder / "long.fap"
+        read_s, read_mb = _run_measured("prosody.cli", "main", ["inspect", str(long_fap)])
         print("\n2-hour recording at 44.1 kHz (16-bit WAV, 635 MB):")
         print(f"  convert --lips none                {long_s:7.2f} s   peak {long_mb:6.0f} MB   (aim: < 600 MB)")
+        print(f"  inspect its .fap ({long_fap.stat().st_size / 1e6:.0f} MB)         {read_s:7.2f} s   peak "
+              f"{read_mb:6.0f} MB   ({read_s / long_s:.2f} x the conversion)")
         batch = batch_throughput(speech, folder)
         print(f"\nbatch throughput (12 clips of 60 s, all conditions, no plots; median of {REPEATS}, alternated):")
         for jobs, (rate, busy) in batch.items():

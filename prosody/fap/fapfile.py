@@ -86,10 +86,11 @@ def _parse_number(token: str, *, path: str, line: int, what: str) -> float:
     return value
 
 
-def _read_lines(path: str | os.PathLike[str], name: str) -> list[str]:
-    """The file's lines, decoded as Latin-1, each and all within bounds (a device or a huge line is refused)."""
-    lines: list[str] = []
+def _read_lines(path: str | os.PathLike[str], name: str) -> Iterator[str]:
+    """The file's lines one at a time, decoded as Latin-1, each and all within bounds (a device or a huge line
+    is refused)."""
     total = 0
+    first = True
     try:
         with open_input(path, max_bytes=MAX_FAP_BYTES) as handle:
             while True:
@@ -98,25 +99,131 @@ def _read_lines(path: str | os.PathLike[str], name: str) -> list[str]:
                     break
                 total += len(raw)
                 if len(raw) > MAX_LINE_BYTES and not raw.endswith(b"\n"):
-                    raise FapFormatError(name, len(lines) + 1, f"a line longer than {MAX_LINE_BYTES} bytes: "
-                                         "not a .fap file")
+                    raise FapFormatError(name, None, f"a line longer than {MAX_LINE_BYTES} bytes: not a .fap file")
                 if total > MAX_FAP_BYTES:
                     raise FapFormatError(name, None, f"larger than {MAX_FAP_BYTES >> 20} MiB: not a .fap file")
-                if not lines and raw.startswith(b"\xef\xbb\xbf"):
+                if first and raw.startswith(b"\xef\xbb\xbf"):
                     raw = raw[3:]  # a UTF-8 byte-order mark, as some editors write: not part of the header
-                lines.append(raw.decode("latin-1"))
+                first = False
+                # a lone CR or another Unicode line break ends a line too, as it would in an editor
+                yield from raw.decode("latin-1").splitlines()
     except FileNotFoundError:
         raise FapFormatError(name, None, "no such file") from None
     except IsADirectoryError:
         raise FapFormatError(name, None, "is a directory, not a .fap file") from None
     except OSError as error:
         raise FapFormatError(name, None, f"cannot be read ({error.strerror})") from None
-    return "".join(lines).splitlines()
+
+
+def _content_lines(path: str | os.PathLike[str], name: str, notes: list[str]) -> Iterator[tuple[int, str]]:
+    """(line number, stripped text) of every line that is neither blank nor a ``#`` comment."""
+    commented = False
+    for number, line in enumerate(_read_lines(path, name), start=1):
+        if number <= 2 and "\0" in line:
+            raise FapFormatError(name, 1, "holds binary data: not a .fap file (a text file of FAP values)")
+        text = line.strip()
+        if text.startswith("#"):
+            commented = True
+        elif text:
+            yield number, text
+    if commented:
+        notes.append("comment lines ('#') skipped")
+
+
+#: A value line of well-formed numbers, checked at once; token by token only when the line fails (to name
+#: the token).
+_NUMBER_PATTERN = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+_NUMBERS_LINE = re.compile(rf"{_NUMBER_PATTERN}(?:\s+{_NUMBER_PATTERN})*")
+#: What is left of a line of integers once digits, signs and blanks are deleted: nothing.
+_INTEGER_CHARACTERS = str.maketrans("", "", "0123456789+- \t\f\v")
+#: Frames gathered per block while reading, and distinct mask lines remembered.
+_BLOCK_FRAMES = 4096
+_MASK_CACHE = 256
+
+
+@dataclass(frozen=True)
+class _Mask:
+    bits: np.ndarray  # N_FAPS or N_FAPS + 1 booleans
+    expected: int  # values the mask sets
+    extra: dict[int, int]  # FAP -> extra values of its multi-value form
+
+
+def _read_mask(text: str, number: int, name: str, cache: dict[str, _Mask]) -> _Mask:
+    mask = cache.get(text)
+    if mask is None:
+        tokens = text.split()
+        if not _is_mask_line(tokens):
+            raise FapFormatError(
+                name, number, f"expected a mask line of {N_FAPS} tokens 0/1, found {len(tokens)} tokens "
+                f"starting {' '.join(tokens[:4])!r}"
+            )
+        bits = np.array([token == "1" for token in tokens])
+        extra = {fap: width - 1 for fap, width in _HIGH_LEVEL_WIDTHS.items() if bits[fap - 1]}
+        mask = _Mask(bits, int(bits.sum()), extra)
+        if len(cache) >= _MASK_CACHE:
+            cache.clear()
+        cache[text] = mask
+    return mask
+
+
+class _Frames:
+    """Masks and values gathered in blocks of preallocated arrays, so a long file costs its arrays only."""
+
+    def __init__(self) -> None:
+        self.blocks: list[tuple[np.ndarray, np.ndarray]] = []
+        self.count = 0
+
+    def append(self, bits: np.ndarray, numbers: list[float]) -> None:
+        slot = self.count % _BLOCK_FRAMES
+        if slot == 0:
+            self.blocks.append((np.zeros((_BLOCK_FRAMES, N_FAPS), dtype=bool), np.zeros((_BLOCK_FRAMES, N_FAPS))))
+        masks, values = self.blocks[-1]
+        row = np.zeros(bits.size)
+        row[bits] = numbers
+        masks[slot] = bits[:N_FAPS]
+        values[slot] = row[:N_FAPS]
+        self.count += 1
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        if not self.blocks:
+            return np.zeros((0, N_FAPS)), np.zeros((0, N_FAPS), dtype=bool)
+        values, masks = np.empty((self.count, N_FAPS)), np.empty((self.count, N_FAPS), dtype=bool)
+        self.blocks.reverse()
+        for start in range(0, self.count, _BLOCK_FRAMES):  # each block freed once copied: no second copy
+            block_masks, block_values = self.blocks.pop()
+            stop = min(start + _BLOCK_FRAMES, self.count)
+            values[start:stop], masks[start:stop] = block_values[:stop - start], block_masks[:stop - start]
+        return values, masks
+
+
+def _value_numbers(tokens: list[str], text: str, number: int, name: str) -> tuple[list[float], bool]:
+    """The FAP values of a value line (its tokens after the frame number) and whether all are integers."""
+    values = tokens[1:]
+    if not values:
+        return [], True
+    # the common line, integers only: a token of digits and signs that float() takes is an integer
+    if not text.translate(_INTEGER_CHARACTERS):
+        try:
+            numbers = list(map(float, values))
+        except ValueError:
+            pass
+        else:
+            if math.isfinite(max(numbers)) and math.isfinite(min(numbers)):
+                return numbers, True
+    if _NUMBERS_LINE.fullmatch(text):
+        numbers = list(map(float, values))
+        if math.isfinite(max(numbers)) and math.isfinite(min(numbers)):
+            return numbers, all(re.fullmatch(r"[+-]?\d+", token) for token in values)
+    numbers = [_parse_number(token, path=name, line=number, what="a FAP value") for token in values]
+    return numbers, all(re.fullmatch(r"[+-]?\d+", token) for token in values)
 
 
 def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADERLESS_FPS,
              strict: bool = False) -> FapFile:
     """Read a .fap file.
+
+    The file is read line by line into arrays, so its size costs only the frames it holds (about 600 bytes
+    each).
 
     Parameters
     ----------
@@ -141,29 +248,22 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
         whose count disagrees with its mask, or a non-numeric token; with ``strict``, any irregularity.
     """
     name = str(path)
-    raw_lines = _read_lines(path, name)
-    if any("\0" in line for line in raw_lines[:2]):
-        raise FapFormatError(name, 1, "holds binary data: not a .fap file (a text file of FAP values)")
     notes: list[str] = []
-    lines = [
-        (number, line.strip())
-        for number, line in enumerate(raw_lines, start=1)
-        if line.strip() and not line.lstrip().startswith("#")
-    ]
-    if len(raw_lines) != len(lines) and any(line.lstrip().startswith("#") for line in raw_lines):
-        notes.append("comment lines ('#') skipped")
-    if not lines:
-        raise FapFormatError(name, None, "the file holds no header, mask or value line")
+    lines = _content_lines(path, name, notes)
+    try:
+        first_number, first_line = next(lines)
+    except StopIteration:
+        raise FapFormatError(name, None, "the file holds no header, mask or value line") from None
 
     version: str | None = None
     header_frames: int | None = None
     stream_name = Path(name).stem
     fps = default_fps
-    first_number, first_line = lines[0]
     first_tokens = first_line.split()
+    pending: tuple[int, str] | None = None
     if _is_mask_line(first_tokens):
         notes.append(f"no header line: a headerless stream, assumed {default_fps:g} fps")
-        body = lines
+        pending = (first_number, first_line)
     else:
         if len(first_tokens) < 3:
             raise FapFormatError(
@@ -184,59 +284,58 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
         stream_name = (middle.group(1) if middle else "") or stream_name
         if version not in ("2.0", "2.1"):
             notes.append(f"unknown version {version!r}: read as 2.1")
-        body = lines[1:]
 
-    masks: list[np.ndarray] = []
-    values: list[np.ndarray] = []
-    frame_numbers: list[int] = []
+    frames = _Frames()
+    mask_cache: dict[str, _Mask] = {}
+    first_frame_number: int | None = None
+    previous_frame_number: int | None = None
+    consecutive = True
     integer_values = True
     wide_masks = 0
     high_level = 0
-    index = 0
-    while index < len(body):
-        mask_number, mask_line = body[index]
-        tokens = mask_line.split()
-        if not _is_mask_line(tokens):
-            raise FapFormatError(
-                name, mask_number, f"expected a mask line of {N_FAPS} tokens 0/1, found {len(tokens)} tokens "
-                f"starting {' '.join(tokens[:4])!r}"
-            )
-        bits = np.array([token == "1" for token in tokens])
-        if bits.size == N_FAPS + 1:
+    while True:
+        if pending is not None:
+            (mask_number, mask_line), pending = pending, None
+        else:
+            following = next(lines, None)
+            if following is None:
+                break
+            mask_number, mask_line = following
+        mask = _read_mask(mask_line, mask_number, name, mask_cache)
+        if mask.bits.size == N_FAPS + 1:
             wide_masks += 1
-        if index + 1 >= len(body):
+        value = next(lines, None)
+        if value is None:
             raise FapFormatError(name, mask_number, "mask line without a value line: the file ends here")
-        value_number, value_line = body[index + 1]
+        value_number, value_line = value
         value_tokens = value_line.split()
-        expected = int(bits.sum())
-        extra = {fap: width - 1 for fap, width in _HIGH_LEVEL_WIDTHS.items() if bits[fap - 1]}
-        if extra and len(value_tokens) == expected + 1 + sum(extra.values()):
+        if mask.extra and len(value_tokens) == mask.expected + 1 + sum(mask.extra.values()):
             # the full MPEG-4 forms of FAP 1 (viseme: 4 values) and FAP 2 (expression: 6 values) that Xface
             # and the C++ Greta read: the first value of each (the viseme / expression selected) is kept
             kept, position = [value_tokens[0]], 1
-            for fap in (np.flatnonzero(bits) + 1).tolist():
+            for fap in (np.flatnonzero(mask.bits) + 1).tolist():
                 kept.append(value_tokens[position])
-                position += 1 + extra.get(fap, 0)
+                position += 1 + mask.extra.get(fap, 0)
             value_tokens = kept
+            value_line = " ".join(kept)
             high_level += 1
-        if len(value_tokens) != expected + 1:
+        if len(value_tokens) != mask.expected + 1:
             raise FapFormatError(
-                name, value_number, f"expected a frame number and {expected} values (one per FAP set in the "
+                name, value_number, f"expected a frame number and {mask.expected} values (one per FAP set in the "
                 f"mask on line {mask_number}), found {len(value_tokens)} tokens"
             )
-        frame_number = _parse_number(value_tokens[0], path=name, line=value_number, what="a frame number")
-        if frame_number != int(frame_number):
+        frame_value = _parse_number(value_tokens[0], path=name, line=value_number, what="a frame number")
+        if frame_value != int(frame_value):
             raise FapFormatError(name, value_number, f"frame number {value_tokens[0]!r} is not an integer")
-        numbers = [
-            _parse_number(token, path=name, line=value_number, what="a FAP value") for token in value_tokens[1:]
-        ]
-        integer_values = integer_values and all(re.fullmatch(r"[+-]?\d+", t) for t in value_tokens[1:])
-        row = np.zeros(bits.size)
-        row[bits] = numbers
-        masks.append(bits[:N_FAPS])
-        values.append(row[:N_FAPS])
-        frame_numbers.append(int(frame_number))
-        index += 2
+        numbers, integer = _value_numbers(value_tokens, value_line, value_number, name)
+        integer_values = integer_values and integer
+        frame_number = int(frame_value)
+        if first_frame_number is None:
+            first_frame_number = frame_number
+        elif frame_number != previous_frame_number + 1:  # type: ignore[operator]
+            consecutive = False
+        previous_frame_number = frame_number
+        frames.append(mask.bits, numbers)
 
     if high_level:
         notes.append(f"{high_level} frame(s) with FAP 1 (viseme) or FAP 2 (expression) in their multi-value "
@@ -244,26 +343,23 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
     if wide_masks:
         notes.append(f"{wide_masks} mask line(s) with {N_FAPS + 1} tokens (a known Greta writer bug): "
                         "the extra token was ignored")
-    if frame_numbers:
-        if frame_numbers[0] != 0:
-            notes.append(f"frame numbers start at {frame_numbers[0]}, not 0: frames renumbered from 0")
-        steps = np.diff(frame_numbers)
-        if np.any(steps != 1):
+    if first_frame_number is not None:
+        if first_frame_number != 0:
+            notes.append(f"frame numbers start at {first_frame_number}, not 0: frames renumbered from 0")
+        if not consecutive:
             notes.append("frame numbers are not consecutive: frames taken in file order")
-    if header_frames is not None and header_frames != len(frame_numbers):
-        notes.append(f"header promises {header_frames} frames but the file holds {len(frame_numbers)}: "
-                        f"all {len(frame_numbers)} were read")
+    if header_frames is not None and header_frames != frames.count:
+        notes.append(f"header promises {header_frames} frames but the file holds {frames.count}: "
+                        f"all {frames.count} were read")
     if not integer_values:
         notes.append("non-integer FAP values (players expect integers)")
-    stream = FapStream(
-        np.array(values).reshape(-1, N_FAPS), np.array(masks, dtype=bool).reshape(-1, N_FAPS), fps, stream_name
-    )
+    values, masks = frames.arrays()
+    stream = FapStream._adopt(values, masks, fps, stream_name)  # arrays made for it: not copied
     if strict and notes:
         raise FapFormatError(name, None, f"irregular .fap file (strict reading): {notes[0]}")
     for note in notes:
         warnings.warn(f"{name}: {note}", FapIrregularityWarning, stacklevel=2)
-    return FapFile(stream, name, version, header_frames, frame_numbers[0] if frame_numbers else None,
-                   integer_values, tuple(notes))
+    return FapFile(stream, name, version, header_frames, first_frame_number, integer_values, tuple(notes))
 
 
 class FapNameWarning(UserWarning):
