@@ -11,6 +11,7 @@ from prosody.motion.head_models import load_head_model
 from prosody.motion.pad_head import (
     AU_PER_DEGREE,
     TABLE3_AMPLITUDE_DEG,
+    TABLE3_AVERAGE_DEG,
     PadHeadModel,
     amplitude,
     pad_from_questionnaire,
@@ -92,7 +93,17 @@ def test_on_real_speech_amplitude_rises_with_arousal_and_is_of_table3_size(share
     by_arousal = {a: np.mean([np.ptp(pitch[w.start + 3:w.end - 3]) for w in words if w.arousal == a
                               and w.end - w.start > 12]) for a in (0.0, 0.5, 1.0)}
     assert by_arousal[0.0] < by_arousal[0.5] < by_arousal[1.0]
-    assert by_arousal[0.5] == pytest.approx(TABLE3_AMPLITUDE_DEG[0], rel=0.25)
+    # every axis, over three seeds: the peak-to-peak of a PW at A = 0.5 and the spread of the PWs' mean pose
+    # are Table 3's amplitude mean and pose std within 25 % (measured: 9.2 / 3.2 / 3.1 deg, 2.8 / 1.5 / 1.7 deg)
+    long_words = [w for w in words if w.end - w.start > 12]
+    for axis, fap in enumerate((48, 49, 50)):
+        sizes, spreads = [], []
+        for seed in range(3):
+            curve = PadHeadModel().generate(features, seed=seed)[fap] / AU_PER_DEGREE
+            sizes += [np.ptp(curve[w.start + 3:w.end - 3]) for w in long_words if w.arousal == 0.5]
+            spreads.append(np.std([curve[w.start:w.end].mean() for w in long_words]))
+        assert np.mean(sizes) == pytest.approx(TABLE3_AMPLITUDE_DEG[axis], rel=0.25), axis
+        assert np.mean(spreads) == pytest.approx(TABLE3_AVERAGE_DEG[axis][1], rel=0.25), axis
     again = PadHeadModel().generate(features, seed=3)
     np.testing.assert_array_equal(head[48], again[48])  # seeded
     assert not np.array_equal(head[48], PadHeadModel(randomized=True).generate(features, seed=3)[48])
