@@ -558,12 +558,15 @@ def _cmd_stream(args: argparse.Namespace) -> int:
     else:
         make_converter(16000)
     server = None
+    requested: list = []  # expressivity a page asked for, applied between two chunks (on this thread)
     if args.listen is not None:
         from .jobs.server import FrameServer, parse_address
 
         host, port = parse_address(args.listen)
         server = FrameServer(host, port, make_converter=make_converter, allow_origins=args.allow_origin,
-                             report=lambda line: _say(f"prosody stream: {line}"))
+                             report=lambda line: _say(f"prosody stream: {line}"),
+                             expressivity=options.get("expressivity"),
+                             on_expressivity=requested.append if reading else None)
         server.start()
         _say(f"prosody stream: serving the face at {server.url} (frames over a WebSocket on the same address)")
 
@@ -607,7 +610,12 @@ def _cmd_stream(args: argparse.Namespace) -> int:
             elif recorder is not None:
                 recorder.add(new)
 
-        interrupted = _read_until_stopped(chunks, lambda samples: emit(converter.push(samples)))
+        def consume(samples) -> None:
+            while requested:
+                converter.set_expressivity(requested.pop(0))
+            emit(converter.push(samples))
+
+        interrupted = _read_until_stopped(chunks, consume)
         emit(converter.finish())
         if recorder is not None:
             from .fap.exporters import write_stream

@@ -117,3 +117,49 @@ def test_page_draws_an_open_mouth_apart_from_a_closed_one(frame_server, browser,
     assert rows.min() > 0.6 * size and rows.max() < 0.85 * size  # and only the mouth changed
     dark = np.all(open_mouth < [120, 60, 70], axis=2) & changed
     assert dark.sum() > 50  # dark red: the inside of the mouth
+
+
+def test_expressivity_sliders_change_the_controls_on_the_server(frame_server, browser, tmp_path):
+    browser.get(frame_server.url)
+    _wait_for(browser, "return window.prosodyStats.expressivity !== undefined")
+    browser.find_element("css selector", "#expressivity summary").click()
+    names = [element.get_attribute("id") for element in browser.find_elements("css selector", "#sliders input")]
+    assert names == ["x-activation", "x-spatial", "x-temporal", "x-fluidity", "x-power", "x-repetition"]
+    slider = browser.find_element("id", "x-spatial")
+    assert (slider.get_attribute("min"), slider.get_attribute("max"), slider.get_attribute("value")) == ("-1", "1", "0")
+    slider.click()  # focus, then keys as a user would: two steps of 0.05 to the left of the middle
+    from selenium.webdriver.common.keys import Keys
+
+    slider.send_keys(Keys.ARROW_LEFT, Keys.ARROW_LEFT)
+    # the server answers with the controls now in force, which the page keeps
+    _wait_for(browser, "return window.prosodyStats.expressivity.spatial === -0.1")
+    assert browser.find_element("id", "x-spatial-value").text == "-0.10"
+    (tmp_path / "sliders.png").write_bytes(browser.get_screenshot_as_png())
+    browser.find_element("xpath", "//button[text()='Still']").click()
+    _wait_for(browser, "return window.prosodyStats.expressivity.activation === 0")
+    assert browser.execute_script("return window.prosodyStats.expressivity.spatial") == 0
+    assert browser.execute_script("return window.prosodyStats.errors") == []
+
+
+def test_page_closes_the_eyelids_by_fap_19_to_22(frame_server, browser, tmp_path):
+    browser.get(frame_server.url)
+    _wait_for(browser, "return window.prosodyStats && window.prosodyStats.connected")
+    frame_server.publish([LiveFrame(k, k / 30, {48: 0.0}) for k in range(3)])
+    _wait_for(browser, "return window.prosodyStats.inputFrames >= 3")
+    time.sleep(0.3)
+    opened = _face(browser)
+    shut = {19: 600.0, 20: 600.0, 21: 600.0, 22: 600.0, 48: 0.0}  # the lids meet: 2 x 600 > 1024 IRISD
+    frame_server.publish([LiveFrame(k, k / 30, shut) for k in range(3, 6)])
+    _wait_for(browser, "return window.prosodyStats.inputFrames >= 6")
+    time.sleep(0.3)
+    closed = _face(browser)
+    (tmp_path / "closed.png").write_bytes(browser.find_element("id", "face").screenshot_as_png)
+    size = opened.shape[1]
+    scale, cx, cy = 0.30 * size, size / 2, 0.47 * size  # the page's drawing geometry
+    for sign in (1, -1):  # both pupils: dark when open, skin when shut
+        u, v = int(cx + scale * sign * 0.30), int(cy - scale * 0.09)
+        assert opened[v, u].max() < 100
+        assert np.abs(closed[v + 3, u].astype(int) - [236, 200, 170]).max() < 30
+    changed = np.any(np.abs(opened.astype(int) - closed.astype(int)) > 30, axis=2)
+    rows = np.flatnonzero(changed.any(axis=1))
+    assert rows.min() > cy - scale * 0.21 and rows.max() < cy + 1  # only the eyes (y 0 to 0.2) changed

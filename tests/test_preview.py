@@ -273,3 +273,38 @@ def test_brows_are_drawn_four_times_larger_by_default_and_every_frame_says_so() 
     from prosody.evaluation.preview import BROW_VIEW_SCALE, poses
 
     assert BROW_VIEW_SCALE == 4 and poses(FapStream.from_curves({31: raises}, fps=30))[1].left_brow_ens[0] == 400
+
+
+@pytest.mark.parametrize("closing", [0.0, 200.0, 400.0, -150.0, 1024.0])
+def test_eyelids_open_and_close_the_characters_left_eye_by_fap_19_and_21(closing: float) -> None:
+    # at rest the lids rest on the iris (the opening is IRISD0); FAP 19 lowers the top lid and FAP 21 raises the
+    # bottom one by closing * IRISD0 / 1024, within the eye and never past each other
+    from prosody.evaluation.preview import _EYE_WHITE, _SKIN, _SKIN_EDGE
+
+    renderer = FaceRenderer(WIDTH)
+    m = renderer.model
+    frame = _frames({19: np.array([closing]), 21: np.array([closing / 2])})[0][: renderer.face_height]
+    rest = _frames({19: np.array([0.0])})[0][: renderer.face_height]
+    top, bottom = m.eyelids(closing, closing / 2)
+    expected = float(np.ptp(renderer.to_pixels(np.array([[m.eye_x, top, 0.0], [m.eye_x, bottom, 0.0]]))[:, 1]))
+    centre = renderer.to_pixels(np.array([[m.eye_x, m.eye_y, 0.0], [-m.eye_x, m.eye_y, 0.0]]))
+    for (column, row), moved in zip(centre, (True, False), strict=True):
+        line = frame[:, int(column)][:, None, :]
+        # the eye shows where the pixel is neither skin (a lid) nor a lid's edge: the run through the eye's centre
+        shows = ~(_color_mask(line, _SKIN, tolerance=20) | _color_mask(line, _SKIN_EDGE, tolerance=20))[:, 0]
+        run, k = 0, int(round(row))
+        if shows[k]:
+            lo, hi = k, k
+            while shows[lo - 1]:
+                lo -= 1
+            while shows[hi + 1]:
+                hi += 1
+            run = hi - lo + 1
+        if moved:  # the lids' edges are lines 2 px wide, centred on the lids
+            assert run == pytest.approx(max(0.0, expected - 2), abs=2.0)
+        else:  # the right eye keeps its neutral opening
+            band = slice(int(row) - 20, int(row) + 20), slice(int(column) - 20, int(column) + 20)
+            assert np.array_equal(frame[band], rest[band])
+    assert _color_mask(frame, _EYE_WHITE, tolerance=10).any()  # the other eye is open
+    assert m.irisd0 == pytest.approx(0.15) and m.eyelids(0.0, 0.0) == pytest.approx((0.175, 0.025))
+    assert m.eyelids(2000.0, 2000.0)[0] == m.eyelids(2000.0, 2000.0)[1]  # shut, not crossed

@@ -159,13 +159,16 @@ def _frames(k0: int, n: int) -> list[LiveFrame]:
     return [LiveFrame(k, k / 30, {31: 0.0, 48: float(k)}) for k in range(k0, k0 + n)]
 
 
-def _receive_all(connection, timeout_s: float = 1.0) -> list[dict]:
+def _receive_all(connection, timeout_s: float = 1.0, *, controls: bool = False) -> list[dict]:
+    """Every message until none comes for ``timeout_s``; the expressivity messages only if ``controls``."""
     from websockets.exceptions import ConnectionClosed
 
     messages = []
     try:
         while True:
-            messages.append(json.loads(connection.recv(timeout=timeout_s)))
+            message = json.loads(connection.recv(timeout=timeout_s))
+            if controls or message["type"] != "expressivity":
+                messages.append(message)
     except (TimeoutError, ConnectionClosed):
         return messages
 
@@ -361,3 +364,86 @@ def test_hostile_control_messages_are_refused_and_the_server_goes_on(frame_serve
         assert len(errors) == 2 and "cannot start" in errors[0]["message"]
         frame_server.publish(_frames(0, 3))
         assert [m["frame"] for m in _receive_all(client, 0.5)] == [0, 1, 2]
+
+
+def test_a_client_changes_the_expressivity_of_its_own_audio_and_bad_controls_are_refused(frame_server):
+    from websockets.sync.client import connect
+
+    from prosody.jobs.stream import LiveConverter
+    from prosody.motion.expressivity import Expressivity
+
+    samples = segments(16000, (0.6, 150, 0.5), (0.4, 230, 0.5), (0.6, 140, 0.5))
+    url = f"ws://127.0.0.1:{frame_server.port}/stream"
+    with connect(url) as talker:
+        greeting = json.loads(talker.recv(timeout=2))
+        talker.send(json.dumps({"type": "expressivity", "spatial": 5}))
+        talker.send(json.dumps({"type": "expressivity", "loudness": 1}))
+        talker.send(json.dumps({"type": "expressivity", "spatial": -1, "power": 0.5}))
+        talker.send(json.dumps({"type": "start", "sample_rate": 16000, "encoding": "f32le"}))
+        talker.send(samples.astype("<f4").tobytes())
+        talker.send(json.dumps({"type": "stop"}))
+        got = _receive_all(talker, 3.0, controls=True)
+    # a server without an input of its own: the controls are the client's, neutral to begin with
+    assert greeting["type"] == "expressivity" and greeting["source"] == "client"
+    assert greeting["controls"] == Expressivity().as_dict() and greeting["ranges"]["spatial"] == [-1, 1]
+    errors = [m["message"] for m in got if m["type"] == "error"]
+    assert "spatial must be a number in [-1, 1], got 5" in errors[0] and "unknown expressivity control" in errors[1]
+    answers = [m for m in got if m["type"] == "expressivity"]
+    assert answers == [{**greeting, "controls": {**greeting["controls"], "spatial": -1.0, "power": 0.5}}]
+    # the client's frames are those of a converter made with these controls
+    expected = LiveConverter(16000, expressivity=Expressivity(spatial=-1, power=0.5))
+    reference = expected.push(samples.astype("<f4").astype(float)) + expected.finish()  # as sent: float32
+    frames = [m for m in got if m["type"] == "frame"]
+    assert len(frames) == len(reference) == 48
+    for message, frame in zip(frames, reference, strict=True):
+        assert message["faps"] == {str(fap): round(value, 3) for fap, value in frame.faps.items()}
+
+
+def test_a_page_changes_the_expressivity_of_the_commands_input_for_every_client():
+    from websockets.sync.client import connect
+
+    from prosody.jobs.server import FrameServer
+    from prosody.jobs.stream import LiveConverter
+    from prosody.motion.expressivity import Expressivity
+
+    applied: list[Expressivity] = []
+    lines: list[str] = []
+    server = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lines.append,
+                         expressivity=Expressivity(fluidity=0.5), on_expressivity=applied.append).start()
+    try:
+        url = f"ws://127.0.0.1:{server.port}/stream"
+        with connect(url) as setter, connect(url) as watcher:
+            greetings = [json.loads(setter.recv(timeout=2)), json.loads(watcher.recv(timeout=2))]
+            setter.send(json.dumps({"type": "expressivity", "activation": 0}))
+            told = [_receive_all(client, 0.5, controls=True) for client in (setter, watcher)]
+    finally:
+        server.close(drain_s=0.2)
+    assert all(g["source"] == "input" and g["controls"]["fluidity"] == 0.5 for g in greetings)
+    assert applied == [Expressivity(activation=0, fluidity=0.5)]
+    for messages in told:  # both pages are shown the new controls of the input
+        assert [m["controls"]["activation"] for m in messages if m["type"] == "expressivity"] == [0.0]
+    assert any("set the input's expressivity: activation 0" in line for line in lines)
+
+
+def test_stream_command_applies_a_pages_expressivity_from_the_next_chunk(tmp_path):
+    # spatial -1 halves the head about rest: the frames after the change are half those of a neutral run
+    from websockets.sync.client import connect
+
+    neutral, changed = tmp_path / "neutral.jsonl", tmp_path / "changed.jsonl"
+    assert main(["stream", str(SAMPLE), "-o", str(neutral)]) == 0
+    with subprocess.Popen([*PROSODY, "stream", str(SAMPLE), "--realtime", "--listen", "127.0.0.1:0", "-o",
+                           str(changed)], stderr=subprocess.PIPE, env=ENV) as process:
+        line = process.stderr.readline().decode()
+        port = int(line.split("http://127.0.0.1:")[1].split("/")[0])
+        with connect(f"ws://127.0.0.1:{port}/stream") as client:
+            client.send(json.dumps({"type": "expressivity", "spatial": -1}))
+            _receive_all(client, 5.0)
+        _, err = process.communicate(timeout=30)
+    assert process.returncode == 0 and b"set the input's expressivity: spatial -1" in err
+    before = [json.loads(x)["faps"] for x in neutral.read_text().splitlines()]
+    after = [json.loads(x)["faps"] for x in changed.read_text().splitlines()]
+    assert len(before) == len(after) == 93
+    late = [(b[str(fap)], a[str(fap)]) for b, a in zip(before[-30:], after[-30:], strict=True) for fap in (48, 49, 50)
+            if abs(b[str(fap)]) > 100]
+    assert len(late) > 30
+    np.testing.assert_allclose([a for _, a in late], [b / 2 for b, _ in late], rtol=0.02, atol=2)

@@ -8,6 +8,8 @@ tilts to its right), and FAP 31-36 raise the inner, middle and outer brow points
 model's eye-nose separation (ENS0). ``exaggerate`` multiplies both for viewing; the caption says so. The brows
 are drawn :data:`BROW_VIEW_SCALE` times larger than true by default (a 20 ENS raise is well under a millimetre
 on a face: invisible at true scale), which every frame's caption says; ``brow_scale=1`` draws them true.
+The lips (FAP 3-7, 12-13) and the eyelids (FAP 19-22, in IRISD: the neutral lids rest on the iris, so the
+opening between them is the iris diameter IRISD0) are drawn at true size.
 
 A strip under the face plots the brow and head curves over a window around the current frame.
 
@@ -76,6 +78,25 @@ class FaceModel:
     #: Eyebrow points (inner, middle, outer) of the character's left brow; the right one mirrors it.
     brow_x: tuple[float, float, float] = (0.13, 0.30, 0.46)
     brow_y: tuple[float, float, float] = (0.30, 0.35, 0.30)
+    #: Where the neutral eyelids cross the eye, as a share of its radius above and below its centre: the lids
+    #: rest on the iris, so the opening between them is the iris diameter IRISD0.
+    lid_rest: float = 0.75
+
+    @property
+    def irisd0(self) -> float:
+        """Iris diameter (the IRISD reference distance): the opening between the neutral eyelids."""
+        return 2 * self.lid_rest * self.eye_radius
+
+    def eyelids(self, top_fap: float, bottom_fap: float) -> tuple[float, float]:
+        """Heights (y) of the upper and lower eyelid of an eye, from its closing FAPs (19/20 top, 21/22 bottom,
+        IRISD; positive closes): within the eye, and never past each other."""
+        shift = self.irisd0 / 1024
+        low, high = self.eye_y - self.eye_radius, self.eye_y + self.eye_radius
+        top = min(high, max(low, self.eye_y + self.lid_rest * self.eye_radius - top_fap * shift))
+        bottom = min(high, max(low, self.eye_y - self.lid_rest * self.eye_radius + bottom_fap * shift))
+        if top < bottom:  # closed: the lids meet where they crossed
+            top = bottom = (top + bottom) / 2
+        return top, bottom
 
     @property
     def ens0(self) -> float:
@@ -101,10 +122,14 @@ class FacePose:
     #: The lips, in their FAP units: FAP number -> value for 3 (jaw), 4 and 5 (mid lips), 6 and 7 (corners
     #: outwards, MW), 12 and 13 (corners up); absent is neutral.
     lip_faps: tuple[tuple[int, float], ...] = ()
+    #: Eyelid closing (IRISD, positive closes): top left, top right, bottom left, bottom right (FAP 19-22).
+    eyelids: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
 
 
 #: Lip FAPs the drawn mouth shows.
 DRAWN_LIP_FAPS = (3, 4, 5, 6, 7, 12, 13)
+#: Eyelid FAPs the drawn eyes show (top left, top right, bottom left, bottom right).
+EYELID_FAPS = (19, 20, 21, 22)
 
 
 def rotation(pitch_rad: float, yaw_rad: float, roll_rad: float) -> np.ndarray:
@@ -136,10 +161,12 @@ def poses(stream: FapStream, *, exaggerate: float = 1.0, brow_scale: float = BRO
     right = [brow_scale * curve(32), brow_scale * curve(34), brow_scale * curve(36, fallback=34)]
     # the lips at their true size: an exaggerated mouth is no longer a mouth
     lips = {fap: stream.curve(fap) for fap in DRAWN_LIP_FAPS if stream.mask[:, fap - 1].any()}
+    lids = [stream.curve(fap) for fap in EYELID_FAPS]  # at true size too, as the lips
     return [FacePose(float(head[0][k]), float(head[1][k]), float(head[2][k]),
                      (float(left[0][k]), float(left[1][k]), float(left[2][k])),
                      (float(right[0][k]), float(right[1][k]), float(right[2][k])),
-                     tuple((fap, float(values[k])) for fap, values in lips.items()))
+                     tuple((fap, float(values[k])) for fap, values in lips.items()),
+                     (float(lids[0][k]), float(lids[1][k]), float(lids[2][k]), float(lids[3][k])))
             for k in range(stream.n_frames)]
 
 
@@ -242,6 +269,16 @@ class FaceRenderer:
         normal = rotation(pose.pitch_rad, pose.yaw_rad, pose.roll_rad)[2, 2]
         return self.to_pixels(posed) if normal > 0.05 else None
 
+    def lid_cover(self, sign: float, height: float, *, upper: bool) -> np.ndarray:
+        """Face-model points of the part of an eye (``sign`` +1: the character's left) that an eyelid at
+        ``height`` covers: the arc beyond it, closed by the lid's edge."""
+        m = self.model
+        x0, y0, r = sign * m.eye_x, m.eye_y, m.eye_radius
+        reach = math.asin(min(1.0, max(-1.0, (height - y0) / r)))
+        t = np.linspace(reach, math.pi - reach, 16) if upper else np.linspace(math.pi - reach, 2 * math.pi + reach, 16)
+        z = m.surface_z(x0, y0) + 0.006
+        return np.column_stack([x0 + r * np.cos(t), y0 + r * np.sin(t), np.full(t.size, z)])
+
     def _circle(self, x: float, y: float, radius: float, n_points: int = 24) -> np.ndarray:
         t = np.linspace(0.0, 2.0 * np.pi, n_points, endpoint=False)
         z = self.model.surface_z(x, y) + 0.005
@@ -273,6 +310,14 @@ class FaceRenderer:
             if eye is not None and pupil is not None:
                 draw.polygon(flat(eye), fill=_EYE_WHITE, outline=_SKIN_EDGE, width=s)
                 draw.polygon(flat(pupil), fill=_PUPIL)
+                # the lids cover the eye above and below them; their edges are drawn as lash lines
+                top_fap, bottom_fap = pose.eyelids[0 if sign > 0 else 1], pose.eyelids[2 if sign > 0 else 3]
+                lid_top, lid_bottom = m.eyelids(top_fap, bottom_fap)
+                for height, is_upper in ((lid_top, True), (lid_bottom, False)):
+                    cover = self._feature(pose, self.lid_cover(sign, height, upper=is_upper))
+                    if cover is not None:
+                        draw.polygon(flat(cover), fill=_SKIN, outline=_SKIN_EDGE, width=s)
+                        draw.line(flat(cover[[0, -1]]), fill=_SKIN_EDGE, width=2 * s)
         bridge_z, base_z = m.surface_z(0.0, m.eye_y - 0.05), m.surface_z(0.0, m.nose_bottom_y)
         nose = self._feature(pose, np.array([
             [0.0, m.eye_y - 0.05, bridge_z], [0.0, m.nose_bottom_y + 0.04, base_z + m.nose_depth],

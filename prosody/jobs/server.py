@@ -8,7 +8,14 @@ client gets:
   "faps"}`` text messages;
 - if it sends audio of its own (the page's microphone button), frames of that audio, ``"source": "client"``,
   to it alone. It first sends ``{"type": "start", "sample_rate": HZ, "encoding": "f32le"|"s16le"}`` and then
-  binary messages of mono samples; ``{"type": "stop"}`` flushes its last frames.
+  binary messages of mono samples; ``{"type": "stop"}`` flushes its last frames;
+- the expressivity controls of what it is shown, and a way to change them: on joining it gets
+  ``{"type": "expressivity", "source": "input" | "client", "controls": {"activation": 1.0, ...}}``, and it may
+  send ``{"type": "expressivity", "activation": 0.5, ...}`` (any of the six controls of
+  :class:`~prosody.motion.expressivity.Expressivity`; the others keep their values). They change its own
+  audio's frames once it has started sending audio, else the command's input, for every client (each is sent
+  the new controls), from the next frame on. A server without an input of its own (``on_expressivity`` None)
+  changes the client's own audio only.
 
 A client that stops reading has its oldest frames dropped (it is told once, on stderr), a client that sends
 what is not audio is told why and its message ignored, and a client that goes away is reported once: the
@@ -39,6 +46,7 @@ from audio_features.errors import VisualProsodyError
 from audio_features.pcm import PcmDecoder, PcmFormat
 
 from ..errors import ConfigError
+from ..motion.expressivity import RANGES, Expressivity
 from .stream import LiveConverter, LiveFrame
 
 #: Frames kept for a client that is not reading (10 s at 30 fps); older ones are dropped.
@@ -114,6 +122,11 @@ def frame_message(frame: LiveFrame, source: str) -> str:
                       separators=(",", ":"))
 
 
+def _controls_message(source: str, controls: Expressivity) -> str:
+    return json.dumps({"type": "expressivity", "source": source, "controls": controls.as_dict(),
+                       "ranges": {name: list(bounds) for name, bounds in RANGES.items()}}, separators=(",", ":"))
+
+
 class _Client:
     def __init__(self, name: str) -> None:
         self.name = name
@@ -121,6 +134,7 @@ class _Client:
         self.told: set[str] = set()  # problems already reported for this client
         self.converter: LiveConverter | None = None
         self.decoder: PcmDecoder | None = None
+        self.expressivity = Expressivity()  # of the client's own audio
 
 
 class FrameServer:
@@ -136,14 +150,23 @@ class FrameServer:
         Called with one line for each event worth telling (a client joining or leaving, each problem once).
     allow_origins : iterable of str
         Web origins besides the server's own page allowed to open the WebSocket (``http://host:port``).
+    expressivity : Expressivity, optional
+        The controls the command started with: of its input, and of each client's own audio until it changes them.
+    on_expressivity : callable, optional
+        ``on_expressivity(controls)``, called from the server's thread when a client changes the controls of the
+        command's input (None: the server has no input of its own). The caller applies them to its converter.
     """
 
     def __init__(self, host: str, port: int, *, make_converter: Callable[[int], LiveConverter],
-                 report: Callable[[str], None], allow_origins: Iterable[str] = ()) -> None:
+                 report: Callable[[str], None], allow_origins: Iterable[str] = (),
+                 expressivity: Expressivity | None = None,
+                 on_expressivity: Callable[[Expressivity], None] | None = None) -> None:
         self.host, self.port = host, port
         self.make_converter = make_converter
         self.report = report
         self.allow_origins = frozenset(normalize_origin(origin) for origin in allow_origins)
+        self.expressivity = expressivity or Expressivity()  # of the command's input
+        self.on_expressivity = on_expressivity
         self._closed = False
         self._clients: set[_Client] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -292,9 +315,11 @@ class FrameServer:
             # frames are stale after a few seconds: the kernel holds a few seconds of them, not megabytes
             with contextlib.suppress(OSError):
                 sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
+        client.expressivity = self.expressivity
         self._clients.add(client)
         self.clients_served += 1
         self.report(f"client {client.name} connected ({len(self._clients)} connected)")
+        self._enqueue(client, _controls_message("input" if self.on_expressivity else "client", self.expressivity))
         sender = asyncio.create_task(self._send(websocket, client))
         try:
             async for message in websocket:
@@ -323,13 +348,14 @@ class FrameServer:
                 kind = request["type"]
             except (ValueError, KeyError, TypeError, RecursionError):  # RecursionError: JSON nested too deeply
                 await self._refuse(websocket, client, "text", "a text message must be JSON with a \"type\" "
-                                                              "(start or stop)")
+                                                              "(start, stop or expressivity)")
                 return
             if kind == "start":
                 try:
                     pcm = PcmFormat(int(request.get("sample_rate", 0)), str(request.get("encoding", "f32le")))
-                    client.converter = await loop.run_in_executor(None, self.make_converter, pcm.sample_rate_hz)
-                    client.decoder = PcmDecoder(pcm)
+                    converter = await loop.run_in_executor(None, self.make_converter, pcm.sample_rate_hz)
+                    converter.set_expressivity(client.expressivity)
+                    client.converter, client.decoder = converter, PcmDecoder(pcm)
                 except (VisualProsodyError, ValueError, TypeError, OverflowError) as error:  # 1e400: infinity
                     await self._refuse(websocket, client, "start", f"cannot start: {error}")
                     return
@@ -339,8 +365,11 @@ class FrameServer:
                 frames = await loop.run_in_executor(None, converter.finish)
                 for frame in frames:
                     self._enqueue(client, frame_message(frame, "client"))
+            elif kind == "expressivity":
+                await self._change_expressivity(websocket, client, request)
             else:
-                await self._refuse(websocket, client, "type", f"unknown message type {kind!r} (start or stop)")
+                await self._refuse(websocket, client, "type", f"unknown message type {kind!r} (start, stop or "
+                                                              "expressivity)")
             return
         if client.converter is None or client.decoder is None:
             await self._refuse(websocket, client, "early", "audio before a start message is ignored")
@@ -356,6 +385,33 @@ class FrameServer:
             return
         for frame in frames:
             self._enqueue(client, frame_message(frame, "client"))
+
+    async def _change_expressivity(self, websocket, client: _Client, request: dict) -> None:
+        """New controls for the client's own audio once it sends some, else for the command's input."""
+        own = client.converter is not None or self.on_expressivity is None
+        current = client.expressivity if own else self.expressivity
+        changes = {name: value for name, value in request.items() if name != "type"}
+        try:
+            controls = current.with_changes(**changes)
+        except (ConfigError, TypeError) as error:
+            await self._refuse(websocket, client, "expressivity", f"expressivity refused: {error}")
+            return
+        if own:
+            client.expressivity = controls
+            if client.converter is not None:  # no push of this client's runs meanwhile: its messages come in turn
+                client.converter.set_expressivity(controls)
+            self._enqueue(client, _controls_message("client", controls))
+            return
+        assert self.on_expressivity is not None
+        self.expressivity = controls
+        self.on_expressivity(controls)
+        for other in self._clients:  # a page that turns its microphone on later starts from what it was shown
+            if other.converter is None:
+                other.expressivity = controls
+        changed = ", ".join(f"{name} {value:g}" for name, value in controls.as_dict().items()
+                            if value != current.as_dict()[name]) or "nothing changed"
+        self.report(f"client {client.name} set the input's expressivity: {changed}")
+        self._enqueue_all([_controls_message("input", controls)])
 
     async def _refuse(self, websocket, client: _Client, key: str, problem: str) -> None:
         self._tell_once(client, key, f"client {client.name}: {problem}")
