@@ -25,7 +25,7 @@ import numpy as np
 from prosody.measures import average_head_metrics, head_metrics
 from prosody.motion.controls import shift_offsets, shifted_features
 from prosody.motion.head import ArxHeadModel, arx_inputs
-from prosody.motion.pad_head import PadHeadModel
+from prosody.motion.pad_head import PadHeadModel, arousal_amplitudes, fit_arousal
 from prosody.motion.perlin import perlin_curves
 from prosody.motion.speech_head import ProsodicHeadModel
 from prosody.motion.training import (
@@ -133,6 +133,21 @@ def main(argv: list[str]) -> int:
                 head_metrics(_array(model.generate(shifted_features(features, k), seed=seed)), recorded, fps=fps)
                 for seed in range(10) for k in shift_offsets(features.n_frames, fps=fps)]))
         print(_row(label, rows, controls))
+    # the same gestures with Eq. 2's arousal part (C4-C6) fitted on the other speakers' clips
+    amplitudes = [arousal_amplitudes(f, m) for f, m in zip(data.features, data.motion_au, strict=True)]
+    rows, controls = [], []
+    for held in range(len(names)):
+        keep = [i for i in range(len(names)) if i not in held_with[held]]
+        model = PadHeadModel(coefficients=fit_arousal(np.concatenate([amplitudes[i][0] for i in keep]),
+                                                      np.vstack([amplitudes[i][1] for i in keep])))
+        features, recorded = data.features[held], data.motion_au[held]
+        rows.append(average_head_metrics([head_metrics(_array(model.generate(features, seed=seed)), recorded,
+                                                       fps=fps) for seed in range(10)]))
+        controls.append(average_head_metrics([
+            head_metrics(_array(model.generate(shifted_features(features, k), seed=seed)), recorded, fps=fps)
+            for seed in range(10) for k in shift_offsets(features.n_frames, fps=fps)]))
+    print(_row("seed 000's PAD gestures, C4-C6 fitted on the other speakers (train --kind pad), 10 seeds", rows,
+               controls))
     perlin = []
     for recorded in data.motion_au:
         runs = [head_metrics(_array(perlin_curves(recorded.shape[0], fps=fps, seed=seed)), recorded, fps=fps)

@@ -1206,8 +1206,10 @@ def build_parser() -> argparse.ArgumentParser:
                             "track' writes them); repeat it to train on several. A speakers.csv (columns "
                             "recording,speaker) in a folder makes --cv hold out a speaker's recordings together")
     train.add_argument("-o", "--output", required=True, help="model file to write (.json)")
-    train.add_argument("--kind", default="prosodic", choices=["prosodic", "arx", "live", "mouth"],
-                       help="which model to fit (default prosodic; live: the causal form of the prosodic model "
+    train.add_argument("--kind", default="prosodic", choices=["prosodic", "arx", "pad", "live", "mouth"],
+                       help="which model to fit (default prosodic; pad: seed 000's gestures with Eq. 2's arousal "
+                            "coefficients fitted to the recordings' amplitude per prosodic word, for --model FILE; "
+                            "live: the causal form of the prosodic model "
                             "that 'prosody stream' uses, trained on the audio analysed as a stream; mouth: the "
                             "acoustic mouth model of --lips acoustic, on <name>.wav + <name>.mouth.csv pairs)")
     train.add_argument("--lookahead-ms", type=_lookahead, default=None, metavar="MS",

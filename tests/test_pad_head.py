@@ -177,3 +177,53 @@ def test_pad_state_drives_the_gestures():
     # the same seed draws the same poses: the difference is the accent's sinusoid, Amp(1, A) = C3 = 1 degree
     nod = (pleased.generate(features, seed=0)[48] - neutral.generate(features, seed=0)[48]) / AU_PER_DEGREE
     assert 0.8 < np.ptp(nod) <= 1.0 + 1e-9
+
+
+def test_eq2_arousal_coefficients_are_recovered_from_motion_made_with_them(shared_data):
+    # a simulated system with known coefficients: motion generated with C4-C6 = (2, 3, 4) on real speech, where
+    # the pose drawn per PW and the boundary smoothing blur each stretch's peak-to-peak
+    from audio_features import extract_features
+    from prosody.motion.pad_head import arousal_amplitudes, fit_arousal
+
+    features = extract_features(shared_data / "talking-heads" / "Obama_clip1.wav")
+    true = [(2.0, 3.0, 4.0, 2.0, 3.0, 4.0)] * 3
+    levels = (-0.5, 0.0, 0.5, 1.0)
+    found = []
+    for seed in range(3):
+        head = PadHeadModel(coefficients=true).generate(features, seed=seed)
+        arousal, sizes = arousal_amplitudes(features, np.column_stack([head[fap] for fap in (48, 49, 50)]))
+        assert set(arousal.tolist()) == set(levels) and sizes.shape == (arousal.size, 3)
+        fitted = fit_arousal(arousal, sizes)
+        assert all(axis[:3] == axis[3:] for axis in fitted)  # no pleasure in the data: C1-C3 = C4-C6
+        found.append([[amplitude(0, a, axis) for a in levels] for axis in fitted])
+    expected = [amplitude(0, a, true[0]) for a in levels]  # 3, 4, 6, 9 degrees
+    for axis in np.mean(found, axis=0):
+        np.testing.assert_allclose(axis, expected, rtol=0.2)
+        assert np.all(np.diff(axis) > 0)
+    with pytest.raises(ConfigError, match="at least three arousal levels"):
+        fit_arousal(np.array([0.0, 1.0, 1.0]), np.ones((3, 3)))
+
+
+def test_train_kind_pad_writes_a_model_that_model_file_reads(shared_data, tmp_path, capsys):
+    import json
+
+    from prosody.cli import main
+    from prosody.motion.pad_head import arousal_amplitudes, fit_arousal
+    from prosody.motion.training import find_pairs, load_training_set
+
+    out = tmp_path / "pad.json"
+    folder = shared_data / "talking-heads"
+    assert main(["train", "--data", str(folder), "--kind", "pad", "--cv", "-o", str(out)]) == 0
+    assert "PAD gesture model fitted on 7 recordings" in capsys.readouterr().err
+    payload = json.loads(out.read_text())
+    assert payload["format"] == "visual-prosody-pad" and len(payload["training"]) == 7
+    held = payload["cross_validation"]  # no speakers.csv there: each recording is held out alone
+    assert held["folds"] == 7 and {"r", "chance_r", "chance_spread", "mae_fitted"} <= set(held["pitch"])
+    # the file's coefficients are the fit of every recording's stretches
+    data = load_training_set(find_pairs(folder), report=lambda line: None)
+    pieces = [arousal_amplitudes(f, m) for f, m in zip(data.features, data.motion_au, strict=True)]
+    expected = fit_arousal(np.concatenate([a for a, _ in pieces]), np.vstack([y for _, y in pieces]))
+    np.testing.assert_allclose(payload["coefficients"], expected, rtol=1e-12)
+    model = load_head_model(out)
+    assert isinstance(model, PadHeadModel) and model.coefficients_ == expected and len(model.training_) == 7
+    assert main(["convert", str(folder / "reagan_clip1.wav"), "--model", str(out), "-o", str(tmp_path / "r.fap")]) == 0

@@ -25,6 +25,10 @@ What this port adds, because the paper works from Mandarin text and this project
 - C1-C6 (:data:`DEFAULT_COEFFICIENTS`, replaceable by a file): ``Amp(0, 0.5)`` is Table 3's mean, ``Amp(P, 0)``
   half of it, ``Amp(P, 1)`` one and a half times it, ``Amp(P, -0.5)`` 0; pleasure changes nothing until
   coefficients fitted on emotional speech are given;
+- fitting (:func:`fit_arousal`, ``prosody train --kind pad``): recordings with head motion but no emotion
+  labels fix the arousal part only. Each PW and pause of at least :data:`FIT_MIN_FRAMES` frames gives its A and
+  the recorded head's peak-to-peak per axis; C4-C6 are the least-squares fit of Eq. 2 at P = 0 to them, and
+  C1-C3 are set equal (pleasure changes nothing);
 - the mean pose ``Avg`` of each PW is drawn from Table 3's spread about this project's rest pose (0, since
   recordings have their median pose removed); yaw and roll, whose direction the audio cannot tell, turn to a
   side drawn per PW. Seeded: the same seed gives the same motion.
@@ -36,6 +40,7 @@ and twice Table 3's mean, the pose as above, and the peak anywhere in the PW.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -45,6 +50,7 @@ from audio_features import Features
 
 from ..errors import ConfigError
 from ..fap.table import HEAD_FAPS
+from .model_files import TrainingClip
 
 #: Table 3 of seed 000: amplitude means, in degrees, per axis (pitch, yaw, roll).
 TABLE3_AMPLITUDE_DEG = (9.83, 3.41, 3.35)
@@ -60,6 +66,8 @@ PAUSE_S, MAX_WORD_S, MAX_NUCLEI, NUCLEUS_SPACING_S, RESET_SEMITONES = 0.15, 1.2,
 SPEECH_BELOW_LOUD_DB = 25.0
 AU_PER_DEGREE = math.pi / 180 * 1e5
 MODEL_FORMAT = "visual-prosody-pad"
+#: PWs and pauses shorter than this are left out of a fit: a peak-to-peak over a few frames says little.
+FIT_MIN_FRAMES = 12
 
 
 def sinusoid(n_frames: int, *, peak: float, amplitude: float, average: float) -> np.ndarray:
@@ -220,6 +228,105 @@ def prosodic_words(features: Features) -> list[ProsodicWord]:
     return words
 
 
+def stretches(features: Features) -> list[tuple[int, int, ProsodicWord | None]]:
+    """(first frame, end frame, PW) of every PW and of every pause between them (PW None), covering the
+    recording in order."""
+    pieces: list[tuple[int, int, ProsodicWord | None]] = []
+    cursor = 0
+    for word in prosodic_words(features):
+        if word.start > cursor:
+            pieces.append((cursor, word.start, None))
+        pieces.append((word.start, word.end, word))
+        cursor = word.end
+    if cursor < features.n_frames:
+        pieces.append((cursor, features.n_frames, None))
+    return pieces
+
+
+def arousal_amplitudes(features: Features, motion_au: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A of every PW and pause of at least :data:`FIT_MIN_FRAMES` frames (pauses -0.5), and the recorded head's
+    peak-to-peak over it per axis (pitch, yaw, roll; degrees): what :func:`fit_arousal` fits."""
+    degrees = np.asarray(motion_au, dtype=float) / AU_PER_DEGREE
+    chosen = [(lo, hi, -0.5 if word is None else word.arousal) for lo, hi, word in stretches(features)
+              if hi - lo >= FIT_MIN_FRAMES]
+    arousal = np.array([a for _, _, a in chosen], dtype=float)
+    sizes = np.array([np.ptp(degrees[lo:hi], axis=0) for lo, hi, _ in chosen]).reshape(-1, 3)
+    return arousal, sizes
+
+
+def _arousal_design(arousal: np.ndarray) -> np.ndarray:
+    return np.column_stack([arousal ** 2, arousal, np.ones_like(arousal)])
+
+
+def fit_arousal(arousal: np.ndarray, amplitudes: np.ndarray) -> tuple[tuple[float, ...], ...]:
+    """C1..C6 per axis from stretches' A and recorded amplitudes (degrees): C4-C6 fitted by least squares to
+    Eq. 2 at P = 0, C1-C3 the same (recordings without emotion labels cannot tell pleasure's part).
+
+    Examples
+    --------
+    >>> a = np.array([-0.5, 0.0, 0.5, 1.0, 1.0])
+    >>> sizes = np.column_stack([2 * a ** 2 + 3 * a + 4] * 3)
+    >>> [round(c, 6) for c in fit_arousal(a, sizes)[0]]
+    [2.0, 3.0, 4.0, 2.0, 3.0, 4.0]
+    """
+    arousal = np.asarray(arousal, dtype=float)
+    if len(set(arousal.tolist())) < 3:
+        raise ConfigError(f"fitting C4-C6 needs stretches of at least three arousal levels; found "
+                          f"{sorted(set(arousal.tolist()))}")
+    solution = np.linalg.lstsq(_arousal_design(arousal), np.asarray(amplitudes, dtype=float), rcond=None)[0]
+    return tuple(tuple(float(c) for c in (*solution[:, axis], *solution[:, axis])) for axis in range(3))
+
+
+def held_out_arousal(per_recording: Sequence[tuple[np.ndarray, np.ndarray]], folds: Sequence[Sequence[int]], *,
+                     shuffles: int = 200, seed: int = 0) -> dict:
+    """Eq. 2's arousal part held out by speaker: for each fold, C4-C6 fitted on the other folds' stretches
+    predict this fold's amplitudes from their A.
+
+    Returns, per axis (pitch, yaw, roll): ``r`` of the predictions with the recorded amplitudes over every
+    held-out stretch, the chance level of that r (``chance_r`` mean and ``chance_spread``: each fold's A
+    shuffled among its own stretches, ``shuffles`` times), and the mean absolute errors (degrees) of the fitted
+    coefficients (``mae_fitted``), of :data:`DEFAULT_COEFFICIENTS` (``mae_default``) and of one constant for
+    speech and one for pauses fitted the same way (``mae_constant``, which ignores A); ``stretches`` counts them.
+    """
+    held: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # A, amplitudes, the fold's C4-C6 (3 x 3)
+    errors: dict[str, list[np.ndarray]] = {key: [] for key in ("fitted", "default", "constant")}
+    for fold in folds:
+        train = [per_recording[i] for i in range(len(per_recording)) if i not in fold]
+        a_test = np.concatenate([per_recording[i][0] for i in fold])
+        if a_test.size == 0 or not train:
+            continue
+        y_test = np.vstack([per_recording[i][1] for i in fold])
+        a_train = np.concatenate([a for a, _ in train])
+        y_train = np.vstack([y for _, y in train])
+        coef = np.array(fit_arousal(a_train, y_train))[:, 3:].T  # rows C4, C5, C6; a column per axis
+        predicted = np.maximum(_arousal_design(a_test) @ coef, 0.0)
+        default = np.array([[amplitude(0.0, a, DEFAULT_COEFFICIENTS[axis]) for axis in range(3)] for a in a_test])
+        speech = a_train >= 0
+        constant = np.where((a_test >= 0)[:, None], y_train[speech].mean(axis=0), y_train[~speech].mean(axis=0))
+        errors["fitted"].append(np.abs(predicted - y_test))
+        errors["default"].append(np.abs(default - y_test))
+        errors["constant"].append(np.abs(constant - y_test))
+        held.append((a_test, y_test, coef))
+    if not held:
+        raise ConfigError("no fold has stretches to hold out")
+    recorded = np.vstack([y for _, y, _ in held])
+
+    def pooled_r(arousals: list[np.ndarray]) -> np.ndarray:
+        predicted = np.vstack([np.maximum(_arousal_design(a) @ c, 0.0)
+                               for a, (_, _, c) in zip(arousals, held, strict=True)])
+        return np.array([np.corrcoef(predicted[:, axis], recorded[:, axis])[0, 1] for axis in range(3)])
+
+    rng = np.random.default_rng(seed)
+    observed = pooled_r([a for a, _, _ in held])
+    chance = np.array([pooled_r([rng.permutation(a) for a, _, _ in held]) for _ in range(shuffles)])
+    mae = {key: np.vstack(value).mean(axis=0) for key, value in errors.items()}
+    return {"stretches": int(recorded.shape[0]), "folds": len(held), **{
+        name: {"r": float(observed[axis]), "chance_r": float(chance[:, axis].mean()),
+               "chance_spread": float(chance[:, axis].std()),
+               **{f"mae_{key}": float(value[axis]) for key, value in mae.items()}}
+        for axis, name in enumerate(("pitch", "yaw", "roll"))}}
+
+
 class PadHeadModel:
     """Seed 000's head gestures as a head model (``--model pad``; ``pad-random`` for its random baseline).
 
@@ -257,19 +364,9 @@ class PadHeadModel:
         """Head pitch, yaw and roll (FAP 48-50, AU) of a recording."""
         rng = np.random.default_rng(seed)
         fps, n = features.fps, features.n_frames
-        words = prosodic_words(features)
         curves = np.zeros((3, n))
         boundaries: list[int] = []
-        cursor = 0
-        pieces: list[tuple[int, int, ProsodicWord | None]] = []
-        for found in words:
-            if found.start > cursor:
-                pieces.append((cursor, found.start, None))
-            pieces.append((found.start, found.end, found))
-            cursor = found.end
-        if cursor < n:
-            pieces.append((cursor, n, None))
-        for lo, hi, word in pieces:
+        for lo, hi, word in stretches(features):
             length = hi - lo
             if length <= 0:
                 continue
@@ -298,11 +395,22 @@ class PadHeadModel:
 
     def with_states(self, states: Sequence) -> PadHeadModel:
         """The same model driven by a PAD state over time (see ``states``)."""
-        return PadHeadModel(self.pleasure, self.coefficients_, self.randomized, states)
+        model = PadHeadModel(self.pleasure, self.coefficients_, self.randomized, states)
+        model.training_ = self.training_
+        return model
 
     def to_dict(self) -> dict:
         return {"format": MODEL_FORMAT, "version": 1, "kind": self.kind, "pleasure": self.pleasure,
                 "randomized": self.randomized, "coefficients": [list(axis) for axis in self.coefficients_]}
+
+    def save(self, path: str | os.PathLike[str], *, extra: dict | None = None) -> None:
+        """Write the model as JSON (``--model FILE`` reads it), with ``extra`` fields such as held-out figures."""
+        from .model_files import write_model_json
+
+        payload = self.to_dict()
+        if self.training_:
+            payload["training"] = [clip.__dict__ for clip in self.training_]
+        write_model_json(payload, path, extra=extra)
 
     @classmethod
     def from_dict(cls, payload: object, *, source: str = "<dict>") -> PadHeadModel:
@@ -313,7 +421,9 @@ class PadHeadModel:
                 raise ValueError("not a JSON object")
             if payload.get("version") != 1:
                 raise ValueError(f"version {payload.get('version')!r}; this release reads version 1")
-            return cls(float(payload.get("pleasure", 0.0)), payload.get("coefficients"),
-                       bool(payload.get("randomized", False)))
-        except (ValueError, TypeError, ConfigError) as error:
+            model = cls(float(payload.get("pleasure", 0.0)), payload.get("coefficients"),
+                        bool(payload.get("randomized", False)))
+            model.training_ = [TrainingClip.from_dict(c) for c in payload.get("training", [])]
+            return model
+        except (ValueError, TypeError, KeyError, OverflowError, ConfigError) as error:
             raise ModelError(f"{source}: not a PAD head model ({error})") from None

@@ -31,7 +31,7 @@ from .speech_head import ProsodicHeadModel
 #: Where training reports its progress when no ``report`` callable is given (the library never prints).
 _LOG = logging.getLogger("prosody.training")
 #: Kinds of head model ``train`` fits.
-MODEL_KINDS = ("prosodic", "arx")
+MODEL_KINDS = ("prosodic", "arx", "pad")
 #: Settings of the prosodic generator tried by cross-validation (the rest keep their defaults).
 PROSODIC_GRID = {"pitch_share": (0.9, 0.95), "speed_iterations": (2, 3)}
 #: Seeds over which a stochastic model's held-out measures are averaged.
@@ -346,13 +346,15 @@ def train(directory: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], 
 
     Parameters
     ----------
-    kind : {"prosodic", "arx"}
+    kind : {"prosodic", "arx", "pad"}
         ``prosodic``: the default generator; with ``cv`` its settings are chosen from
         :data:`PROSODIC_GRID` by leave-one-recording-out speed-envelope and pitch r above the
         mismatched-audio control, and the chosen setting's held-out measures (over :data:`CV_SEEDS` seeds)
         are stored in the model file. ``arx``: the thesis's model; with ``cv`` the orders and the ridge
         penalty are chosen over :data:`DEFAULT_ORDER_GRID` by free-run error, otherwise ``na``, ``nb``,
-        ``nk``, ``ridge`` are used as given.
+        ``nk``, ``ridge`` are used as given. ``pad``: seed 000's gestures with Eq. 2's arousal coefficients
+        fitted to the recordings (:func:`prosody.motion.pad_head.fit_arousal`); with ``cv`` their held-out
+        figures (:func:`prosody.motion.pad_head.held_out_arousal`) are stored in the model file.
     """
     if kind not in MODEL_KINDS:
         raise ConfigError(f"kind must be one of {', '.join(MODEL_KINDS)}, got {kind!r}")
@@ -402,6 +404,8 @@ def _train_loaded(data: TrainingSet, directory: str | os.PathLike[str], output: 
         report(f"{output}: prosodic head model trained on {len(data.names)} recordings "
                f"({sum(c.duration_s for c in model.training_):.1f} s)")
         return model
+    if kind == "pad":
+        return _train_pad(data, output, cv=cv, fps=fps, extra=extra, report=report)
     if cv:
         ranking_arx = select_orders(data, report=report)
         best = ranking_arx[0]
@@ -416,4 +420,33 @@ def _train_loaded(data: TrainingSet, directory: str | os.PathLike[str], output: 
     model.save(output, extra=extra)
     report(f"{output}: trained on {len(data.names)} recordings "
            f"({sum(c.duration_s for c in model.training_):.1f} s), spectral radius {model.spectral_radius_:.3f}")
+    return model
+
+
+def _train_pad(data: TrainingSet, output: str | os.PathLike[str], *, cv: bool, fps: float, extra: dict,
+               report: Callable[[str], None]):
+    """Seed 000's gestures with C1-C6 fitted to the recordings' amplitude per PW and pause (see ``train``)."""
+    from .model_files import TrainingClip
+    from .pad_head import PadHeadModel, arousal_amplitudes, fit_arousal, held_out_arousal
+
+    per_recording = [arousal_amplitudes(f, m) for f, m in zip(data.features, data.motion_au, strict=True)]
+    arousal = np.concatenate([a for a, _ in per_recording])
+    if arousal.size < 12:
+        raise ConfigError(f"only {arousal.size} prosodic words and pauses long enough to measure; fitting Eq. 2 "
+                          "needs at least 12")
+    model = PadHeadModel(coefficients=fit_arousal(arousal, np.vstack([y for _, y in per_recording])))
+    model.training_ = [TrainingClip.of(name, f.n_frames, fps, f.source)
+                       for name, f in zip(data.names, data.features, strict=True)]
+    if cv:
+        held = held_out_arousal(per_recording, data.folds())
+        extra["cross_validation"] = held
+        report(f"held out by speaker ({held['folds']} folds, {held['stretches']} stretches): r of Amp(0, A) with the "
+               "recorded amplitude " + ", ".join(
+                   f"{axis} {held[axis]['r']:+.2f} (chance {held[axis]['chance_r']:+.2f} ± "
+                   f"{held[axis]['chance_spread']:.2f})" for axis in ("pitch", "yaw", "roll")))
+    model.save(output, extra=extra)
+    neutral = ", ".join(f"{name} {amp:.2f}" for name, amp in zip(
+        ("pitch", "yaw", "roll"), (c[3] * 0.25 + c[4] * 0.5 + c[5] for c in model.coefficients_), strict=True))
+    report(f"{output}: PAD gesture model fitted on {len(data.names)} recordings ({arousal.size} PWs and pauses); "
+           f"Amp(0, 0.5) {neutral} deg")
     return model
