@@ -1,14 +1,16 @@
-"""Leave-one-recording-out table of the live (causal) head beside the offline one, and the live brows'
+"""Leave-one-speaker-out table of the live (causal) head beside the offline one, and the live brows'
 agreement with the offline rule (part of ``make evaluate``).
 
-For each look-ahead, the live head model is fitted on all recordings but one (their audio analysed as a
-stream) and measured on the one left out over 10 seeds, beside the mismatched-audio control (the same model
-driven by the recording's own frames circularly shifted by 5 s or more) and its chance spread (the standard
-deviation over recordings). The row "nested" chooses the presence window inside each fold, on the other
-recordings only. The brows: raise onsets of the live rule within 3 frames (100 ms) of the offline rule's,
-over the talking-head clips and the speech recordings.
+For each look-ahead, the live head model is fitted on every other speaker's recordings (their audio analysed
+as a stream; ``benchmarks/speakers.csv``) and measured on this speaker's over 10 seeds, beside the
+mismatched-audio control (the same model driven by the recording's own frames circularly shifted by 5 s or
+more) and its chance spread (the standard deviation over recordings). The row "nested" chooses the presence
+window inside each fold, on the other speakers' recordings only. The brows: raise onsets of the live rule
+within 3 frames (100 ms) of the offline rule's, over the talking-head clips and the speech recordings.
 
-Usage: python benchmarks/live_loco.py [DIR]  (default ../shared/data/talking-heads)
+A second table adds the talking-videos clips tracked by ``benchmarks/head_loso.py`` (when it has run).
+
+Usage: python benchmarks/live_loco.py [DIR] [--no-tracked]  (default ../shared/data/talking-heads)
 """
 
 from __future__ import annotations
@@ -21,11 +23,12 @@ from audio_features import extract_features
 from audio_features.streaming import stream_file
 from prosody.motion.eyebrows import AccentRule, EyebrowRule, brow_raises
 from prosody.motion.live import live_brows
-from prosody.motion.live_training import held_out_live, load_streamed, nested_held_out_live
+from prosody.motion.live_training import held_out_live, load_streamed, nested_held_out_live, speaker_folds
 from prosody.motion.training import find_pairs
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from head_loco import _row, default_data  # noqa: E402
+from head_loso import TRACKED, speakers  # noqa: E402
 
 LOOKAHEADS_MS = (0, 100, 200, 300, 500)
 
@@ -49,10 +52,12 @@ def brow_agreement(paths: list[Path], lookahead: int) -> dict[str, tuple[int, in
 
 
 def main(argv: list[str]) -> int:
-    directory = Path(argv[0]) if argv else default_data()
+    directory = Path(argv[0]) if argv and not argv[0].startswith("--") else default_data()
     warnings.simplefilter("ignore")
-    recordings = load_streamed(find_pairs(directory), report=lambda message: None)
-    print(f"{len(recordings)} recordings analysed as streams, leave-one-recording-out, 10 seeds")
+    table = speakers()
+    recordings = load_streamed(find_pairs(directory), report=lambda message: None, speakers=table)
+    print(f"{len(recordings)} recordings of {len(speaker_folds(recordings))} speakers analysed as streams, "
+          "leave-one-speaker-out, 10 seeds")
     print()
     print("| live head | speed-envelope r | pitch r | std ratio pitch / yaw / roll | velocity-spectrum distance (dB) "
           "| control: speed-envelope r (chance spread) | control: pitch r (chance spread) |")
@@ -63,6 +68,26 @@ def main(argv: list[str]) -> int:
     nested = nested_held_out_live(recordings, lookahead_s=0.1)
     print(_row("100 ms, presence window chosen per fold (nested)", list(nested.per_recording.values()),
                list(nested.controls.values())))
+    if "--no-tracked" not in argv and TRACKED.is_dir():
+        # every speaker at hand: the talking-videos clips tracked by benchmarks/head_loso.py as well
+        tracked = load_streamed(find_pairs(TRACKED), report=lambda message: None, speakers=table)
+        everyone = recordings + tracked
+        print()
+        print(f"With the tracked talking-videos clips: {len(everyone)} recordings of "
+              f"{len(speaker_folds(everyone))} speakers, leave-one-speaker-out, 10 seeds")
+        print()
+        print("| live head | clips | speed-envelope r | pitch r | std ratio pitch / yaw / roll "
+              "| velocity-spectrum distance (dB) | control: speed-envelope r (chance spread) "
+              "| control: pitch r (chance spread) |")
+        print("|---|---|---|---|---|---|---|---|")
+        names = {r.name for r in recordings}
+        for ms in (0, 100):
+            result = held_out_live(everyone, lookahead_s=ms / 1000)
+            for label, chosen in (("all", [r.name for r in everyone]), ("talking-heads", sorted(names)),
+                                  ("talking-videos", [r.name for r in tracked])):
+                cells = _row(f"{ms} ms look-ahead", [result.per_recording[n] for n in chosen],
+                             [result.controls[n] for n in chosen])
+                print(cells.replace(" look-ahead |", f" look-ahead | {label} |", 1))
     print()
     speech = sorted(directory.glob("*.wav")) + sorted((directory.parent / "speech").glob("*.wav"))
     print("Live brows against the offline rule (onsets within 3 frames / offline onsets):")

@@ -1216,7 +1216,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="--kind live: audio after each frame the model reads, in ms (default 100); stream "
                             "with at least this --lookahead-ms")
     train.add_argument("--cv", action="store_true",
-                       help="leave-one-recording-out cross-validation: for prosodic, choose its settings by the "
+                       help="leave-one-speaker-out cross-validation (a folder's speakers.csv names the speakers; "
+                            "without one, each recording is its own): for prosodic, choose its settings by the "
                             "held-out speed-envelope and pitch correlations above the mismatched-audio control "
                             "and store those figures in the model file; for arx, choose na, nb, nk and the "
                             "ridge penalty by free-run error (the head measures are reported beside it)")

@@ -295,3 +295,41 @@ def test_a_stream_never_reads_more_future_than_asked(lookahead_ms, frames):
     converter = LiveConverter(16000, lookahead_ms=lookahead_ms, condition="none")
     assert converter.lookahead_frames == frames
     assert converter.lookahead_frames / converter.fps <= lookahead_ms / 1000 + 1e-9
+
+
+def test_live_cross_validation_holds_out_a_speakers_recordings_together(monkeypatch, tmp_path):
+    import soundfile
+
+    from prosody.motion import live_training
+    from prosody.motion.live_training import StreamedRecording, held_out_live, load_streamed, speaker_folds
+
+    def recording(name: str, speaker: str) -> StreamedRecording:
+        return StreamedRecording(name, np.full(90, 120.0), np.full(90, 60.0), np.zeros((90, 3)), speaker)
+
+    recordings = [recording("obama_1", "Obama"), recording("noem", "Noem"), recording("obama_2", "Obama")]
+    assert speaker_folds(recordings) == [[0, 2], [1]]
+    trained_on: list[list[str]] = []
+
+    def fake_fit(chosen, **settings):
+        trained_on.append([r.name for r in chosen])
+        raise _Stop
+
+    class _Stop(Exception):
+        pass
+
+    monkeypatch.setattr(live_training, "fit_live", fake_fit)
+    with pytest.raises(_Stop):
+        held_out_live(recordings)
+    assert trained_on == [["noem"]]  # Obama's first clip is held out with his second, not trained on it
+    with pytest.raises(ConfigError, match="at least two speakers"):
+        held_out_live(recordings[::2])
+    # a folder's speakers.csv names them when the recordings are loaded
+    for name in ("obama_1", "obama_2"):
+        soundfile.write(tmp_path / f"{name}.wav", 0.3 * np.sin(np.arange(16000) * 2 * np.pi * 150 / 16000), 16000)
+        rows = "\n".join(f"{k},{k / 30:.4f},0,0,0" for k in range(30))
+        (tmp_path / f"{name}.head.csv").write_text("frame,time_s,rx_rad,ry_rad,rz_rad\n" + rows + "\n")
+    (tmp_path / "speakers.csv").write_text("recording,speaker\nobama_1,Obama\nobama_2,Obama\n")
+    from prosody.motion.training import find_pairs
+
+    loaded = load_streamed(find_pairs(tmp_path), report=lambda line: None)
+    assert [r.speaker for r in loaded] == ["Obama", "Obama"] and speaker_folds(loaded) == [[0, 1]]

@@ -1,4 +1,4 @@
-"""Training and leave-one-recording-out measurement of the live head (:class:`prosody.motion.live.LiveHeadModel`).
+"""Training and leave-one-speaker-out measurement of the live head (:class:`prosody.motion.live.LiveHeadModel`).
 
 The live model is trained on the acoustic frames the live analysis gives
 (:func:`audio_features.streaming.stream_file`), the same ones it will see when streaming.
@@ -37,14 +37,30 @@ class StreamedRecording:
     f0_hz: np.ndarray
     energy_db: np.ndarray
     motion_au: np.ndarray
+    #: Whose voice it is: cross-validation holds out a speaker's recordings together ("" : its own speaker).
+    speaker: str = ""
+
+
+def speaker_folds(recordings: Sequence[StreamedRecording]) -> list[list[int]]:
+    """Recording indices grouped by speaker, in order of first appearance: the held-out folds."""
+    groups: dict[str, list[int]] = {}
+    for index, recording in enumerate(recordings):
+        groups.setdefault(recording.speaker or recording.name, []).append(index)
+    return list(groups.values())
 
 
 def load_streamed(pairs: Iterable[tuple[Path, Path]], *, fps: float = DEFAULT_FPS,
-                  report: Callable[[str], None] | None = None) -> list[StreamedRecording]:
-    """Analyse each pair's audio as a stream and read its motion; a pair that fails is reported and skipped."""
+                  report: Callable[[str], None] | None = None,
+                  speakers: dict[str, str] | None = None) -> list[StreamedRecording]:
+    """Analyse each pair's audio as a stream and read its motion; a pair that fails is reported and skipped.
+    ``speakers`` names the speaker of each recording stem (default: the ``speakers.csv`` of each pair's folder;
+    a recording not named there is its own speaker)."""
+    from .training import read_speakers
+
     report = report or _LOG.info
     pairs = list(pairs)
     recordings = []
+    folder_speakers: dict[Path, dict[str, str]] = {}
     for index, (audio, motion_path) in enumerate(pairs, start=1):
         try:
             f0, energy = stream_file(str(audio), fps=fps)
@@ -54,7 +70,10 @@ def load_streamed(pairs: Iterable[tuple[Path, Path]], *, fps: float = DEFAULT_FP
         except (ProsodyError, ValueError) as error:  # audio errors derive from ValueError
             report(f"[{index}/{len(pairs)}] skipped {audio.stem}: {error}")
             continue
-        recordings.append(StreamedRecording(audio.stem, f0, energy, head_matrix(motion)))
+        table = speakers if speakers is not None else folder_speakers.setdefault(
+            audio.parent, read_speakers(audio.parent))
+        recordings.append(StreamedRecording(audio.stem, f0, energy, head_matrix(motion),
+                                            table.get(audio.stem, audio.stem)))
         report(f"[{index}/{len(pairs)}] {audio.stem}: {f0.size} frames")
     return recordings
 
@@ -67,14 +86,19 @@ def fit_live(recordings: Sequence[StreamedRecording], *, fps: float = DEFAULT_FP
 
 def held_out_live(recordings: Sequence[StreamedRecording], *, fps: float = DEFAULT_FPS, seeds: int = CV_SEEDS,
                   **settings) -> HeldOut:
-    """Fit on all recordings but one, measure on the one left out (``seeds`` seeds), for each recording;
-    the control is the same model driven by the held-out recording's own frames circularly shifted."""
-    if len(recordings) < 2:
-        raise ConfigError("cross-validation needs at least two recordings")
+    """Fit on every other speaker's recordings, measure on this speaker's (``seeds`` seeds), for each speaker
+    (:func:`speaker_folds`); the control is the same model driven by the held-out recording's own frames
+    circularly shifted."""
+    folds = speaker_folds(recordings)
+    if len(folds) < 2:
+        raise ConfigError("cross-validation needs recordings of at least two speakers")
     per_recording, controls = {}, {}
-    for held, recording in enumerate(recordings):
-        model = fit_live([r for i, r in enumerate(recordings) if i != held], fps=fps, **settings)
-        per_recording[recording.name], controls[recording.name] = _measure(model, recording, fps=fps, seeds=seeds)
+    for fold in folds:
+        model = fit_live([r for i, r in enumerate(recordings) if i not in fold], fps=fps, **settings)
+        for held in fold:
+            recording = recordings[held]
+            per_recording[recording.name], controls[recording.name] = _measure(model, recording, fps=fps,
+                                                                                seeds=seeds)
     return HeldOut(dict(settings), seeds, per_recording, controls)
 
 
@@ -100,15 +124,17 @@ def select_live(recordings: Sequence[StreamedRecording], *, fps: float = DEFAULT
 
 def nested_held_out_live(recordings: Sequence[StreamedRecording], *, fps: float = DEFAULT_FPS,
                          seeds: int = CV_SEEDS, **fixed) -> HeldOut:
-    """Leave-one-recording-out where each fold chooses its settings by :func:`select_live` on its other
-    recordings only: figures that the choice of settings cannot have inflated."""
+    """Leave-one-speaker-out where each fold chooses its settings by :func:`select_live` on the other
+    speakers' recordings only: figures that the choice of settings cannot have inflated."""
     per_recording, controls = {}, {}
-    for held, recording in enumerate(recordings):
-        others = [r for i, r in enumerate(recordings) if i != held]
+    for fold in speaker_folds(recordings):
+        others = [r for i, r in enumerate(recordings) if i not in fold]
         chosen = select_live(others, fps=fps, **fixed)[0].settings
         model = fit_live(others, fps=fps, **chosen)
-        result = _measure(model, recording, fps=fps, seeds=seeds)
-        per_recording[recording.name], controls[recording.name] = result
+        for held in fold:
+            recording = recordings[held]
+            per_recording[recording.name], controls[recording.name] = _measure(model, recording, fps=fps,
+                                                                                seeds=seeds)
     return HeldOut({"nested": True, **fixed}, seeds, per_recording, controls)
 
 
@@ -129,7 +155,8 @@ def train_live(directory: str | os.PathLike[str], output: str | os.PathLike[str]
                cv: bool = False, fps: float = DEFAULT_FPS,
                report: Callable[[str], None] | None = None) -> LiveHeadModel:
     """Train a live head model reading ``lookahead_ms`` ahead on every pair in ``directory`` and save it;
-    with ``cv`` its settings are chosen from :data:`LIVE_GRID` by leave-one-recording-out, and the chosen
+    with ``cv`` its settings are chosen from :data:`LIVE_GRID` by leave-one-speaker-out (the folder's
+    ``speakers.csv``; without one each recording is its own speaker), and the chosen
     setting's held-out measures and their control are stored in the file."""
     report = report or _LOG.info
     pairs = find_pairs(directory)
