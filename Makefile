@@ -38,6 +38,7 @@ evaluate: $(STAMP)
 	$(BIN)/python benchmarks/head_loco.py
 	$(BIN)/python benchmarks/head_loso.py
 	$(BIN)/python benchmarks/pad_fit.py
+	$(BIN)/python benchmarks/av_offset.py
 	$(BIN)/python benchmarks/expressivity_loso.py
 	$(BIN)/python benchmarks/live_loco.py
 	$(BIN)/python benchmarks/mouth_loco.py
