@@ -39,6 +39,7 @@ evaluate: $(STAMP)
 	$(BIN)/python benchmarks/head_loso.py
 	$(BIN)/python benchmarks/pad_fit.py
 	$(BIN)/python benchmarks/av_offset.py
+	$(BIN)/python benchmarks/animation_level.py
 	$(BIN)/python benchmarks/expressivity_loso.py
 	$(BIN)/python benchmarks/live_loco.py
 	$(BIN)/python benchmarks/mouth_loco.py
