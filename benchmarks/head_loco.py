@@ -56,6 +56,17 @@ def _array(curves: dict) -> np.ndarray:
     return np.column_stack([curves[fap] for fap in (48, 49, 50)])
 
 
+def seeded_measures(model, features, recorded: np.ndarray, fps: float, seeds: int = 10) -> tuple[dict, dict]:
+    """A stochastic model's head measures on a clip averaged over ``seeds`` seeds, and those of its control
+    (the clip's own audio shifted by 5 s or more)."""
+    own = average_head_metrics([head_metrics(_array(model.generate(features, seed=seed)), recorded, fps=fps)
+                                for seed in range(seeds)])
+    control = average_head_metrics([
+        head_metrics(_array(model.generate(shifted_features(features, k), seed=seed)), recorded, fps=fps)
+        for seed in range(seeds) for k in shift_offsets(features.n_frames, fps=fps)])
+    return own, control
+
+
 def _row(label: str, per_recording: list[dict], control: list[dict] | None = None) -> str:
     def mean(rows: list[dict], key: str) -> str:
         values = [row[key] for row in rows if row[key] is not None]
@@ -103,12 +114,9 @@ def main(argv: list[str]) -> int:
         inner = data.subset(keep)
         settings = select_prosodic(inner)[0].settings
         model = ProsodicHeadModel(**settings).fit(inner.features, inner.motion_au)
-        features, recorded = data.features[held], data.motion_au[held]
-        nested.append(average_head_metrics([head_metrics(_array(model.generate(features, seed=seed)), recorded,
-                                                         fps=fps) for seed in range(10)]))
-        nested_control.append(average_head_metrics([
-            head_metrics(_array(model.generate(shifted_features(features, k), seed=seed)), recorded, fps=fps)
-            for seed in range(10) for k in shift_offsets(features.n_frames, fps=fps)]))
+        own, control = seeded_measures(model, data.features[held], data.motion_au[held], fps)
+        nested.append(own)
+        nested_control.append(control)
     print(_row("prosodic, settings chosen per fold (nested), 10 seeds", nested, nested_control))
     arx_rows, arx_control = [], []
     for held in range(len(names)):
@@ -127,11 +135,9 @@ def main(argv: list[str]) -> int:
                          ("seed 000's random baseline (pad-random), 10 seeds", PadHeadModel(randomized=True))):
         rows, controls = [], []
         for features, recorded in zip(data.features, data.motion_au, strict=True):
-            rows.append(average_head_metrics([head_metrics(_array(model.generate(features, seed=seed)), recorded,
-                                                           fps=fps) for seed in range(10)]))
-            controls.append(average_head_metrics([
-                head_metrics(_array(model.generate(shifted_features(features, k), seed=seed)), recorded, fps=fps)
-                for seed in range(10) for k in shift_offsets(features.n_frames, fps=fps)]))
+            own, control = seeded_measures(model, features, recorded, fps)
+            rows.append(own)
+            controls.append(control)
         print(_row(label, rows, controls))
     # the same gestures with Eq. 2's arousal part (C4-C6) fitted on the other speakers' clips
     amplitudes = [arousal_amplitudes(f, m) for f, m in zip(data.features, data.motion_au, strict=True)]
@@ -140,12 +146,9 @@ def main(argv: list[str]) -> int:
         keep = [i for i in range(len(names)) if i not in held_with[held]]
         model = PadHeadModel(coefficients=fit_arousal(np.concatenate([amplitudes[i][0] for i in keep]),
                                                       np.vstack([amplitudes[i][1] for i in keep])))
-        features, recorded = data.features[held], data.motion_au[held]
-        rows.append(average_head_metrics([head_metrics(_array(model.generate(features, seed=seed)), recorded,
-                                                       fps=fps) for seed in range(10)]))
-        controls.append(average_head_metrics([
-            head_metrics(_array(model.generate(shifted_features(features, k), seed=seed)), recorded, fps=fps)
-            for seed in range(10) for k in shift_offsets(features.n_frames, fps=fps)]))
+        own, control = seeded_measures(model, data.features[held], data.motion_au[held], fps)
+        rows.append(own)
+        controls.append(control)
     print(_row("seed 000's PAD gestures, C4-C6 fitted on the other speakers (train --kind pad), 10 seeds", rows,
                controls))
     perlin = []

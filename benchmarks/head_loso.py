@@ -29,11 +29,11 @@ from pathlib import Path
 import numpy as np
 
 from prosody.measures import average_head_metrics, head_metrics
-from prosody.motion.controls import shift_offsets, shifted_features
 from prosody.motion.perlin import perlin_curves
 from prosody.motion.training import find_pairs, held_out_prosodic, load_training_set
 
 sys.path.insert(0, str(Path(__file__).parent))
+from head_loco import seeded_measures  # noqa: E402
 from shared import REPO, data_folder, talking_heads  # noqa: E402
 
 SEEDS = 5
@@ -78,12 +78,7 @@ def row(label: str, rows: list[dict], control: list[dict] | None = None) -> str:
 
 
 def measured(model, features, recorded, fps: float) -> tuple[dict, dict]:
-    own = average_head_metrics([head_metrics(_array(model.generate(features, seed=seed)), recorded, fps=fps)
-                                for seed in range(SEEDS)])
-    control = average_head_metrics([
-        head_metrics(_array(model.generate(shifted_features(features, k), seed=seed)), recorded, fps=fps)
-        for seed in range(SEEDS) for k in shift_offsets(features.n_frames, fps=fps)])
-    return own, control
+    return seeded_measures(model, features, recorded, fps, SEEDS)
 
 
 def main(argv: list[str]) -> int:
