@@ -427,7 +427,7 @@ def _train_pad(data: TrainingSet, output: str | os.PathLike[str], *, cv: bool, f
                report: Callable[[str], None]):
     """Seed 000's gestures with C1-C6 fitted to the recordings' amplitude per PW and pause (see ``train``)."""
     from .model_files import TrainingClip
-    from .pad_head import PadHeadModel, arousal_amplitudes, fit_arousal, held_out_arousal
+    from .pad_head import PadHeadModel, amplitude, arousal_amplitudes, fit_arousal, held_out_arousal
 
     per_recording = [arousal_amplitudes(f, m) for f, m in zip(data.features, data.motion_au, strict=True)]
     arousal = np.concatenate([a for a, _ in per_recording])
@@ -445,8 +445,8 @@ def _train_pad(data: TrainingSet, output: str | os.PathLike[str], *, cv: bool, f
                    f"{axis} {held[axis]['r']:+.2f} (chance {held[axis]['chance_r']:+.2f} ± "
                    f"{held[axis]['chance_spread']:.2f})" for axis in ("pitch", "yaw", "roll")))
     model.save(output, extra=extra)
-    neutral = ", ".join(f"{name} {amp:.2f}" for name, amp in zip(
-        ("pitch", "yaw", "roll"), (c[3] * 0.25 + c[4] * 0.5 + c[5] for c in model.coefficients_), strict=True))
+    neutral = ", ".join(f"{name} {amplitude(0.0, 0.5, c):.2f}" for name, c in zip(
+        ("pitch", "yaw", "roll"), model.coefficients_, strict=True))
     report(f"{output}: PAD gesture model fitted on {len(data.names)} recordings ({arousal.size} PWs and pauses); "
            f"Amp(0, 0.5) {neutral} deg")
     return model
