@@ -36,7 +36,7 @@ from .analysis import (
 from .audio import MAX_SAMPLE_RATE_HZ, MIN_SAMPLE_RATE_HZ
 from .defaults import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS, MIN_F0_FLOOR_HZ
 from .errors import AudioLoadError, ParameterError
-from .features import MAX_FPS, natural_cubic_spline
+from .features import MAX_FPS, shape_preserving_spline
 
 #: Audio before each frame given to Praat's pitch path finder, in s.
 DEFAULT_CONTEXT_S = 0.25
@@ -306,11 +306,13 @@ class CausalF0Bridge:
     look-ahead only.
 
     A voiced frame keeps its F0. An unvoiced frame inside a gap whose end lies within the look-ahead is
-    bridged by a natural cubic spline through the voiced frames around the gap (up to
-    :attr:`KNOTS` on each side) and the value given to the frame before, so the curve never jumps; an
-    unvoiced frame whose gap ends beyond the look-ahead holds the value given to the frame before (the last
-    voiced F0, or the spline's last value). Before the first voiced frame the value is the first voiced F0
-    within the look-ahead, or 0. Values are clipped to ``[0, highest voiced F0 so far]``.
+    bridged by the shape-preserving spline of :func:`audio_features.condition_f0` through the voiced frames
+    around the gap (up to :attr:`KNOTS` on each side). Where the whole gap was in sight from its start, that
+    is the offline bridge exactly, once the look-ahead also reaches the voiced frame after the gap's end (the
+    spline's slope there depends on it). An unvoiced frame whose gap ends beyond the look-ahead holds the
+    value given to the frame before (the last voiced F0); once the end comes in sight the rest of the gap is
+    bridged from that held value, so the curve never jumps. Before the first voiced frame the value is the
+    first voiced F0 within the look-ahead, or 0. Values are clipped to ``[0, highest voiced F0 so far]``.
 
     Examples
     --------
@@ -321,7 +323,7 @@ class CausalF0Bridge:
     >>> raw = [100.0, np.nan, np.nan, 130.0, np.nan, np.nan, np.nan, np.nan, 100.0, 100.0]
     >>> out = [bridge.push(value) for value in raw] + bridge.finish()
     >>> [round(v) for v in out if v is not None]
-    [100, 110, 120, 130, 130, 130, 123, 110, 100, 100]
+    [100, 110, 120, 130, 130, 130, 126, 112, 100, 100]
     """
 
     KNOTS = 4
@@ -334,6 +336,7 @@ class CausalF0Bridge:
         self._next = 0  # index of the next frame to give out
         self._voiced_before: deque[tuple[int, float]] = deque(maxlen=self.KNOTS)
         self._last: float | None = None
+        self._bridging = False  # the frame before was voiced or bridged from the voiced frames alone
         self._highest = 0.0
 
     def push(self, f0_hz: float) -> float | None:
@@ -357,19 +360,22 @@ class CausalF0Bridge:
         if not math.isnan(raw):
             value = raw
             self._voiced_before.append((k, raw))
+            self._bridging = True
         else:
             ahead = [(k + 1 + i, v) for i, v in enumerate(self._pending) if not math.isnan(v)][: self.KNOTS]
             if not ahead:
                 value = self._last if self._last is not None else 0.0
+                self._bridging = False
             elif self._last is None:
                 value = ahead[0][1]
             else:
-                knots = [(i, v) for i, v in self._voiced_before if i < k - 1]
-                knots.append((k - 1, self._last))
+                knots = list(self._voiced_before)
+                if not self._bridging:  # the gap was held so far: go on from the value given last
+                    knots = [(i, v) for i, v in knots if i < k - 1] + [(k - 1, self._last)]
                 knots.extend(ahead)
                 x = np.array([i for i, _ in knots], dtype=float)
                 y = np.array([v for _, v in knots])
-                value = float(natural_cubic_spline(x, y, np.array([float(k)]))[0])
+                value = float(shape_preserving_spline(x, y, np.array([float(k)]))[0])
             value = min(max(value, 0.0), self._highest)
         self._last = value
         return value

@@ -117,17 +117,30 @@ def test_condition_f0_clips_overshoot_to_voiced_maximum() -> None:
 
 
 @pytest.mark.parametrize("n_knots", [2, 3, 7, 400])
-def test_natural_spline_equals_scipys(n_knots: int, rng: np.random.Generator) -> None:
-    from scipy.interpolate import CubicSpline
+def test_shape_preserving_spline_equals_scipys_pchip(n_knots: int, rng: np.random.Generator) -> None:
+    from scipy.interpolate import PchipInterpolator
 
-    from audio_features.features import natural_cubic_spline
+    from audio_features.features import shape_preserving_spline
 
     x = np.sort(rng.choice(np.arange(4 * n_knots), size=n_knots, replace=False)).astype(float)
-    y = rng.normal(200.0, 40.0, size=n_knots)
+    y = np.round(rng.normal(200.0, 40.0, size=n_knots) / 20.0) * 20.0  # repeated values: flat stretches too
     at = np.linspace(x[0], x[-1], 5 * n_knots)
-    expected = CubicSpline(x, y, bc_type="natural")(at)
-    np.testing.assert_allclose(natural_cubic_spline(x, y, at), expected, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(natural_cubic_spline(x, y, x), y, atol=1e-9)
+    expected = PchipInterpolator(x, y)(at)
+    np.testing.assert_allclose(shape_preserving_spline(x, y, at), expected, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(shape_preserving_spline(x, y, x), y, atol=1e-9)
+
+
+def test_a_gap_is_bridged_between_its_ends_without_overshoot() -> None:
+    # a falling then rising contour with a long gap: a natural cubic spline swings far outside 100-220 Hz
+    # here; the bridge stays between the values at the gap's ends and is monotone across it
+    raw = np.full(60, np.nan)
+    raw[:10] = np.linspace(220.0, 180.0, 10)
+    raw[40:50] = np.linspace(100.0, 160.0, 10)
+    raw[55:] = 150.0
+    conditioned = condition_f0(F0Track(raw, 30.0, "Hz", "f0", ~np.isnan(raw))).values
+    gap = conditioned[9:41]
+    assert np.all(np.diff(gap) <= 1e-9) and gap[0] == 180.0 and gap[-1] == 100.0
+    assert np.all((conditioned[50:56] >= 150.0) & (conditioned[50:56] <= 160.0))
 
 
 def test_condition_f0_single_voiced_frame_holds_it() -> None:

@@ -132,8 +132,23 @@ def test_bridge_without_gaps_and_with_short_gaps_matches_condition_f0():
     assert len(live) == raw.size
     voiced = ~np.isnan(raw)
     np.testing.assert_array_equal(np.array(live)[voiced], raw[voiced])
-    # the gaps are bridged by a spline through the neighbouring points: close to the whole-file spline
+    # the last gap's end is at the look-ahead's edge, so the voiced frame after it is not in sight: close
     np.testing.assert_allclose(live, offline, atol=3.0)
+
+
+def test_bridge_equals_condition_f0_exactly_when_the_look_ahead_sees_past_every_gap(rng):
+    raw = 120.0 + 60.0 * rng.random(400)
+    starts = rng.choice(np.arange(5, 380), size=40, replace=False)
+    for start in starts:  # gaps of 1 to 15 frames, some touching
+        raw[start:start + rng.integers(1, 16)] = np.nan
+    raw[:3] = np.nan
+    raw[-4:] = np.nan
+    offline = condition_f0(F0Track(raw, 30.0, "Hz", "f0", ~np.isnan(raw))).values
+    voiced = np.flatnonzero(~np.isnan(raw))
+    assert np.diff(voiced).max() == 42  # merged gaps: the look-ahead must reach two voiced frames past each
+    bridge = CausalF0Bridge(lookahead_frames=60)
+    live = [v for v in (bridge.push(value) for value in raw) if v is not None] + bridge.finish()
+    np.testing.assert_allclose(live, offline, rtol=0, atol=1e-9)
 
 
 def test_bridge_is_causal_and_continuous():

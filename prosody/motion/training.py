@@ -33,7 +33,7 @@ _LOG = logging.getLogger("prosody.training")
 #: Kinds of head model ``train`` fits.
 MODEL_KINDS = ("prosodic", "arx", "pad")
 #: Settings of the prosodic generator tried by cross-validation (the rest keep their defaults).
-PROSODIC_GRID = {"pitch_share": (0.9, 0.95), "speed_iterations": (2, 3)}
+PROSODIC_GRID = {"pitch_share": (0.9, 0.95), "speed_iterations": (2, 3), "envelope_power": (1.0, 2.0, 3.0)}
 #: Seeds over which a stochastic model's held-out measures are averaged.
 CV_SEEDS = 10
 
