@@ -135,6 +135,7 @@ class _Client:
         self.converter: LiveConverter | None = None
         self.decoder: PcmDecoder | None = None
         self.expressivity = Expressivity()  # of the client's own audio
+        self.transport: asyncio.Transport | None = None  # its connection, to drop it when closing
 
 
 class FrameServer:
@@ -243,8 +244,10 @@ class FrameServer:
             try:
                 await asyncio.wait_for(server.wait_closed(), CLOSE_TIMEOUT_S + 0.5)
             except asyncio.TimeoutError:  # TimeoutError's own name only from Python 3.11
-                for connection in list(server.connections):
-                    connection.transport.abort()
+                # a connection in its closing handshake has left server.connections: drop every client's
+                for transport in [c.transport for c in self._clients] + [c.transport for c in server.connections]:
+                    if transport is not None:
+                        transport.abort()
 
     # frames of the command's input ----------------------------------------------------------------------
     def publish(self, frames: list[LiveFrame]) -> None:
@@ -316,6 +319,7 @@ class FrameServer:
             with contextlib.suppress(OSError):
                 sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
         client.expressivity = self.expressivity
+        client.transport = websocket.transport
         self._clients.add(client)
         self.clients_served += 1
         self.report(f"client {client.name} connected ({len(self._clients)} connected)")
