@@ -163,3 +163,24 @@ def test_the_accent_rule_counts_seconds_not_frames():
         spans.append((start / fps, end / fps))
     for start_s, end_s in spans:
         assert start_s == pytest.approx(1.0, abs=0.05) and end_s == pytest.approx(1.6, abs=0.05)
+
+
+def test_a_raise_that_starts_during_the_ramp_down_continues_the_one_before() -> None:
+    # 207 Hz crossed at frame 15, silence from frame 18: held 9 frames, ramp down from frame 24; a second
+    # crossing at frame 25, while the brows are still up, is the same raise to a viewer and to the measures
+    from prosody.measures import generated_brow_events
+
+    f0 = np.full(60, 150.0)
+    f0[15:18] = 250.0
+    f0[25:28] = 250.0
+    energy = np.full(60, 30.0)
+    energy[:18] = 60.0
+    result = eyebrow_raises(make_features(f0, energy), EyebrowRule())
+    assert result.displacement_ens[24] > 0 and result.displacement_ens[25] > 0
+    assert result.events == ((15, 34),)  # the second raise's own 9-frame hold ends at 34
+    assert len(generated_brow_events(result.displacement_ens)) == len(result.events)
+    f0[25:28] = 150.0
+    f0[30:33] = 250.0  # after the brows are back at rest: two raises
+    apart = eyebrow_raises(make_features(f0, energy), EyebrowRule())
+    assert apart.events == ((15, 24), (30, 39))
+    assert len(generated_brow_events(apart.displacement_ens)) == 2

@@ -116,8 +116,9 @@ def test_live_accent_rule_raises_near_the_offline_raises_on_real_speech(shared_d
         onsets = [start for start, _ in live.events]
         matched += sum(any(abs(s - t) <= 3 for t in onsets) for s in offline)
         total += len(offline)
-    # the speaker's median is learnt as the stream goes: most, not all, raises coincide (measured 21 of 26)
-    assert total > 20 and matched / total > 0.6
+    # the speaker's median is learnt as the stream goes: most, not all, raises coincide (measured 16 of 18; a
+    # raise that starts while the brows are still coming down from the one before is part of it)
+    assert total > 15 and matched / total > 0.6
 
 
 # head -------------------------------------------------------------------------------------------------------

@@ -120,6 +120,18 @@ class EyebrowRule:
         return level + self.energy_relative_db
 
 
+def _merge_touching(events: list[tuple[int, int]], displacement: np.ndarray) -> tuple[tuple[int, int], ...]:
+    """Raises as a viewer counts them: one that starts before the brows are back at rest from the one before
+    (during its ramp down) continues it, so reports, plots and the measures count the same raises."""
+    merged: list[tuple[int, int]] = []
+    for onset, release in events:
+        if merged and np.all(displacement[merged[-1][1]:onset] > 1e-9):
+            merged[-1] = (merged[-1][0], release)
+        else:
+            merged.append((onset, release))
+    return tuple(merged)
+
+
 # arrays inside: equality is identity (numpy's == is elementwise), so it stays hashable
 @dataclass(frozen=True, eq=False)
 class EyebrowRaises:
@@ -210,7 +222,7 @@ def eyebrow_raises(features: Features, rule: EyebrowRule | None = None) -> Eyebr
             out[k] = ramp_from * (1 - ramp_step / rule.ramp_frames)
     if raised:
         events.append((onset, n))
-    return EyebrowRaises(out, tuple(events), threshold_hz, threshold_db)
+    return EyebrowRaises(out, _merge_touching(events, out), threshold_hz, threshold_db)
 
 
 @dataclass(frozen=True)
@@ -365,7 +377,7 @@ def accent_raises(features: Features, rule: AccentRule | None = None) -> Eyebrow
         events.append((start, end))
         k = end
     threshold_hz = median_hz * 2 ** (rule.threshold_semitones / 12)
-    return EyebrowRaises(out, tuple(events), threshold_hz, level_db, rule="accent")
+    return EyebrowRaises(out, _merge_touching(events, out), threshold_hz, level_db, rule="accent")
 
 
 BrowRule = EyebrowRule | AccentRule

@@ -399,8 +399,9 @@ class LiveHeadModel:
     ----------
     lookahead_s : float in [0, 2], in s
         Audio after each frame the model reads: the smallest look-ahead a stream needs to use it.
-    lookbehind_s, step_s, ridge, pitch_share, leak_s, pitch_leak_s, idle_ratio
-        As :class:`prosody.motion.speech_head.ProsodicHeadModel`.
+    lookbehind_s, step_s, ridge, pitch_share, leak_s, pitch_leak_s, idle_ratio, envelope_power
+        As :class:`prosody.motion.speech_head.ProsodicHeadModel` (files written before ``envelope_power``
+        existed read as 1).
     presence_window_s : float in [0.05, 10], in s
         Speech presence is the voiced share of this much audio up to the look-ahead (0.25 s: live, a short
         window lets the head settle soon after the voice stops, where the offline generator's centred 2 s
@@ -409,12 +410,14 @@ class LiveHeadModel:
 
     kind = MODEL_KIND
     SETTINGS = ("lookahead_s", "lookbehind_s", "step_s", "ridge", "pitch_share", "leak_s", "pitch_leak_s",
-                "idle_ratio", "presence_window_s")
+                "idle_ratio", "presence_window_s", "envelope_power")
+    OPTIONAL_SETTINGS = {"envelope_power": 1.0}
 
     def __init__(self, lookahead_s: float = 0.1, lookbehind_s: float = 0.5, step_s: float = 0.1,
                  ridge: float = 1e4, pitch_share: float = 0.95, leak_s: float = 2.0, pitch_leak_s: float = 0.15,
-                 idle_ratio: float = 0.15, presence_window_s: float = 0.25):
+                 idle_ratio: float = 0.15, presence_window_s: float = 0.25, envelope_power: float = 3.0):
         self.presence_window_s = presence_window_s
+        self.envelope_power = envelope_power
         self.lookahead_s = lookahead_s
         self.lookbehind_s = lookbehind_s
         self.step_s = step_s
@@ -427,7 +430,8 @@ class LiveHeadModel:
     def _check_settings(self) -> None:
         checks = (("lookahead_s", 0.0, 2.0), ("lookbehind_s", 0.0, 5.0), ("step_s", 1e-3, 5.0),
                   ("ridge", 0.0, 1e12), ("pitch_share", 0.0, 1.0), ("leak_s", 1e-2, 1e3),
-                  ("pitch_leak_s", 1e-2, 1e3), ("idle_ratio", 0.0, 1.0), ("presence_window_s", 0.05, 10.0))
+                  ("pitch_leak_s", 1e-2, 1e3), ("idle_ratio", 0.0, 1.0), ("presence_window_s", 0.05, 10.0),
+                  ("envelope_power", 1.0, 4.0))
         for name, low, high in checks:
             value = getattr(self, name)
             if not (_finite_number(value) and low <= value <= high):
@@ -529,6 +533,7 @@ class LiveHeadModel:
         self._check_fitted()
         envelope = self._regression(per_frame, ENVELOPE_FEATURES, self.envelope_weights_, self.envelope_mean_,
                                     self.envelope_std_)
+        envelope = np.maximum(envelope, self.idle_ratio) ** self.envelope_power
         envelope = self.idle_ratio + (np.maximum(envelope, self.idle_ratio) - self.idle_ratio) * presence
         pitch = self._regression(per_frame, PITCH_FEATURES, self.pitch_weights_, self.pitch_mean_, self.pitch_std_)
         return envelope, pitch * presence
@@ -780,7 +785,8 @@ class LiveHead:
             smoothed = [self._smoothed(k + offset) for offset in self._offsets]
             envelope = self._linear(smoothed, ENVELOPE_FEATURES, model.envelope_weights_, model.envelope_mean_,
                                     model.envelope_std_)
-            envelope = model.idle_ratio + (max(envelope, model.idle_ratio) - model.idle_ratio) * presence
+            envelope = max(max(envelope, model.idle_ratio) ** model.envelope_power, model.idle_ratio)
+            envelope = model.idle_ratio + (envelope - model.idle_ratio) * presence
             pitch = self._linear(smoothed, PITCH_FEATURES, model.pitch_weights_, model.pitch_mean_,
                                  model.pitch_std_) * presence
         return self._synthesis.step(envelope, pitch)
