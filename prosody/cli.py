@@ -1251,7 +1251,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_seeds_option(compare)
     compare.add_argument("--also-model", action="append", default=[], metavar="NAME|FILE",
                          help="measure another head model beside the speech-driven one, with its own control "
-                              "(e.g. --also-model arx: the thesis's model next to the default; repeatable)")
+                              "(e.g. --also-model arx: the thesis's model next to the default; repeatable); its "
+                              "speech-driven stream is written as speech_driven.<NAME>.fap and gets a panel in "
+                              "--video")
     compare.add_argument("--normalize", action="store_true",
                          help="scale and offset RANDOM, SPEECH_DRIVEN and GROUND_TRUTH to the same mean and "
                               "standard deviation per FAP (the ground truth's where it has the FAP), as the "

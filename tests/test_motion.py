@@ -505,6 +505,20 @@ def test_compare_measures_the_thesis_model_beside_the_default(tmp_path, rng) -> 
     recorded = result.streams[Condition.GROUND_TRUTH].curves((48, 49, 50))
     assert other["head"]["pitch_r"] == pytest.approx(head_metrics(generated, recorded, fps=FPS)["pitch_r"])
     assert other["mismatched_audio"]["speed_envelope_r"] is not None
+    # its stream: the speech-driven face with the ARX head, written beside the conditions' files
+    from prosody.evaluation.compare import write_comparison
+    from prosody.fap.fapfile import read_fap
+
+    speech = result.streams[Condition.SPEECH_DRIVEN]
+    np.testing.assert_allclose(result.other_models["thesis"].curves((48, 49, 50)), generated)
+    np.testing.assert_array_equal(result.other_models["thesis"].curves((31, 33)), speech.curves((31, 33)))
+    folder = tmp_path / "out"
+    write_comparison(result, folder, plots=False)
+    written = read_fap(folder / "speech_driven.thesis.fap").stream
+    np.testing.assert_allclose(written.curves((48, 49, 50)), generated, atol=0.5)  # .fap holds whole numbers
+    result.other_models.clear()
+    write_comparison(result, folder, plots=False)  # written again without it: no stale file is left
+    assert not (folder / "speech_driven.thesis.fap").exists() and (folder / "speech_driven.fap").exists()
 
 
 @pytest.mark.parametrize("fps", [25.0, 29.97, 60.0])

@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -82,6 +83,9 @@ class Comparison:
         recorded motion was given.
     metrics : dict
         The content of ``metrics.json`` (see :func:`comparison_metrics`).
+    other_models : dict
+        Label -> the speech-driven stream with another head model's head (``other_head_models``; its first
+        seed), for the files and the video.
     """
 
     source: str
@@ -89,6 +93,7 @@ class Comparison:
     eyebrows: EyebrowRaises
     streams: dict[Condition, FapStream]
     metrics: dict = field(repr=False)
+    other_models: dict[str, FapStream] = field(default_factory=dict, repr=False)
 
     @property
     def ground_truth(self) -> FapStream | None:
@@ -379,6 +384,7 @@ def compare(
 
     # other head models beside the speech-driven one (e.g. the thesis's ARX next to the default)
     others: dict[str, dict] = {}
+    other_streams: dict[str, FapStream] = {}
     for label, other in (other_head_models or {}).items():
         other_model = resolve_head_model(other)
         run_seeds = list(range(seed, seed + seeds)) if is_stochastic(other_model) else [seed]
@@ -400,9 +406,20 @@ def compare(
                              measured=truth_measured)
                 for s in run_seeds for offset in shift_offsets(features.n_frames, fps=features.fps)])
         others[str(label)] = entry
+        if Condition.SPEECH_DRIVEN in streams:
+            head = head_of(features, run_seeds[0])
+            other_streams[str(label)] = streams[Condition.SPEECH_DRIVEN].with_curves(
+                {fap: head[:, axis] for axis, fap in enumerate(HEAD_FAPS)})
     if others:
         metrics["other_head_models"] = others
-    return Comparison(str(audio), features, eyebrows, streams, metrics)
+    return Comparison(str(audio), features, eyebrows, streams, metrics, other_streams)
+
+
+def other_model_file_name(label: str) -> str:
+    """File name of another head model's speech-driven stream in an output folder, e.g.
+    ``speech_driven.arx.fap`` (a model file's label is its file name without the ending)."""
+    stem = Path(label).name.removesuffix(".json")
+    return f"speech_driven.{re.sub(r'[^A-Za-z0-9_-]+', '_', stem) or 'model'}.fap"
 
 
 def condition_file_name(condition: Condition) -> str:
@@ -442,6 +459,10 @@ def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, 
         path = folder / condition_file_name(condition)
         write_fap(stream, path, name=stream.name)
         written.append(path)
+    for label, stream in comparison.other_models.items():
+        path = folder / other_model_file_name(label)
+        write_fap(stream, path, name=stream.name)
+        written.append(path)
     figures: dict[str, str] = {}
     if plots:
         from .plots import plot_features, plot_head
@@ -455,8 +476,10 @@ def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, 
         from .preview import write_side_by_side
 
         path = folder / VIDEO_FILE
-        write_side_by_side({condition.value: stream for condition, stream in comparison.streams.items()}, path,
-                           audio=comparison.source, exaggerate=exaggerate, progress=progress)
+        panels = {condition.value: stream for condition, stream in comparison.streams.items()}
+        panels.update({f"SPEECH_DRIVEN ({Path(label).name.removesuffix('.json')})": stream
+                       for label, stream in comparison.other_models.items()})
+        write_side_by_side(panels, path, audio=comparison.source, exaggerate=exaggerate, progress=progress)
         written.append(path)
     if report:
         from .report import comparison_markdown
@@ -474,7 +497,8 @@ def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, 
         handle.write("\n")
     written.append(path)
     kept = {path.name for path in written}
-    for name in OUTPUT_NAMES:
+    stale_others = [p.name for p in folder.glob("speech_driven.*.fap")]
+    for name in (*OUTPUT_NAMES, *stale_others):
         if name not in kept:
             with contextlib.suppress(FileNotFoundError):
                 (folder / name).unlink()
