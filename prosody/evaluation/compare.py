@@ -415,10 +415,16 @@ def compare(
     return Comparison(str(audio), features, eyebrows, streams, metrics, other_streams)
 
 
+def other_model_name(label: str) -> str:
+    """How another head model is named in files and video panels: a shipped name as it is, a model file by
+    its name without the ending."""
+    return Path(label).name.removesuffix(".json")
+
+
 def other_model_file_name(label: str) -> str:
     """File name of another head model's speech-driven stream in an output folder, e.g.
-    ``speech_driven.arx.fap`` (a model file's label is its file name without the ending)."""
-    stem = Path(label).name.removesuffix(".json")
+    ``speech_driven.arx.fap``."""
+    stem = other_model_name(label)
     return f"speech_driven.{re.sub(r'[^A-Za-z0-9_-]+', '_', stem) or 'model'}.fap"
 
 
@@ -477,7 +483,7 @@ def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, 
 
         path = folder / VIDEO_FILE
         panels = {condition.value: stream for condition, stream in comparison.streams.items()}
-        panels.update({f"SPEECH_DRIVEN ({Path(label).name.removesuffix('.json')})": stream
+        panels.update({f"SPEECH_DRIVEN ({other_model_name(label)})": stream
                        for label, stream in comparison.other_models.items()})
         write_side_by_side(panels, path, audio=comparison.source, exaggerate=exaggerate, progress=progress)
         written.append(path)
