@@ -522,8 +522,16 @@ def _cmd_stream(args: argparse.Namespace) -> int:
     if args.input is None and not args.mic and args.listen is None:
         raise ConfigError("give an input (a file, or - for standard input), --mic, or --listen to serve the page "
                           "for browsers' microphones")
-    if args.output is None and args.listen is None:
-        raise ConfigError("give -o OUT (- for one JSON line per frame on standard output), or --listen")
+    sending = bool(args.livelink or args.vmc)
+    if args.output is None and args.listen is None and not sending:
+        raise ConfigError("give -o OUT (- for one JSON line per frame on standard output), --listen, --livelink "
+                          "or --vmc")
+    if sending and args.input is None and not args.mic:
+        raise ConfigError("--livelink and --vmc send the frames of an input: give a file, - or --mic")
+    if args.vmc_perfect_sync and not args.vmc:
+        raise ConfigError("--vmc-perfect-sync chooses what --vmc sends; give --vmc too")
+    if args.livelink_subject != "prosody" and not args.livelink:
+        raise ConfigError("--livelink-subject names the stream of --livelink; give --livelink too")
     if args.realtime and (args.input in (None, "-")):
         raise ConfigError("--realtime paces a file; standard input and microphones arrive at their own pace")
     raw = args.raw_rate is not None or args.raw_format is not None or args.raw_channels is not None
@@ -557,6 +565,7 @@ def _cmd_stream(args: argparse.Namespace) -> int:
         converter = make_converter(rate)
     else:
         make_converter(16000)
+    senders = _link_senders(args, converter.fps) if sending else []
     server = None
     requested: list = []  # expressivity a page asked for, applied between two chunks (on this thread)
     if args.listen is not None:
@@ -591,6 +600,8 @@ def _cmd_stream(args: argparse.Namespace) -> int:
     with contextlib.ExitStack() as outputs:
         if server is not None:
             outputs.callback(server.close)
+        for sender in senders:
+            outputs.callback(sender.close)
         # JSON lines go to a file as they come (renamed over OUT only when the stream ends well)
         lines = outputs.enter_context(atomic_write(args.output, newline="\n")) if lines_to_file else None
 
@@ -601,6 +612,8 @@ def _cmd_stream(args: argparse.Namespace) -> int:
             count += len(new)
             if server is not None:
                 server.publish(new)
+            for sender in senders:
+                sender.send(new)
             text = "".join(frame.to_json() + "\n" for frame in new) if to_stdout or lines is not None else ""
             if to_stdout:
                 sys.stdout.write(text)
@@ -622,14 +635,33 @@ def _cmd_stream(args: argparse.Namespace) -> int:
 
             name = Path(args.input).stem if args.input not in (None, "-") else "stream"
             write_stream(recorder.stream(fps=converter.fps, name=name), args.output, args.format)
-    where = "standard output" if to_stdout else (args.output or "the clients")
+    where = "standard output" if to_stdout else (args.output or ("the clients" if server else "the links"))
     ended = "stopped by Ctrl-C or SIGTERM, the last frames flushed" if interrupted else "end of input"
     # said once: a first sentence without a raise would otherwise look like a fault
     learning = ("; the brows rise only after the first half second of voice, which teaches them the speaker's "
                 "pitch" if args.condition == "speech" and 31 in converter.faps else "")
     _say(f"prosody stream: {where}: {count} frames at {converter.fps:g} fps ({ended}; look-ahead "
          f"{converter.lookahead_frames / converter.fps * 1000:.0f} ms{learning})")
+    for sender in senders:
+        _say(f"prosody stream: {sender.protocol}: {sender.sent} datagram(s) sent to "
+             f"{', '.join(f'{a[0]}:{a[1]}' for _, a in sender.addresses)}"
+             + (f", {sender.failed} failed" if sender.failed else ""))
     return EXIT_OK
+
+
+def _link_senders(args: argparse.Namespace, fps: float) -> list:
+    """The stream command's UDP senders (--livelink, --vmc), their targets resolved before anything starts."""
+    from .jobs.senders import LinkSender
+
+    def report(line: str) -> None:
+        _MESSAGES.emit("warning", f"prosody stream: warning: {line}")
+
+    senders = []
+    if args.livelink:
+        senders.append(LinkSender("livelink", args.livelink, fps=fps, subject=args.livelink_subject, report=report))
+    if args.vmc:
+        senders.append(LinkSender("vmc", args.vmc, fps=fps, perfect_sync=args.vmc_perfect_sync, report=report))
+    return senders
 
 
 def _read_until_stopped(chunks, consume: Callable) -> bool:
@@ -1186,6 +1218,22 @@ def build_parser() -> argparse.ArgumentParser:
     stream.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
                         help="with --listen: also let pages from ORIGIN (http(s)://HOST[:PORT]) open the stream; "
                              "by default only the page served at --listen's own address may (repeatable)")
+    links = stream.add_argument_group(
+        "sending to animation tools", "each frame of the input is sent over UDP as soon as it is ready; a tool "
+        "that is not listening loses those frames (said once)")
+    links.add_argument("--livelink", action="append", default=[], metavar="HOST[:PORT]",
+                       help="send Live Link Face packets, as the iPhone app does, to Unreal's Live Link at "
+                            "HOST (port 11111 unless given; repeatable): 52 ARKit blendshapes and the head's "
+                            "yaw, pitch and roll in radians")
+    links.add_argument("--livelink-subject", default="prosody", metavar="NAME",
+                       help="the subject name Unreal lists the stream under (default prosody)")
+    links.add_argument("--vmc", action="append", default=[], metavar="HOST[:PORT]",
+                       help="send the VMC protocol (OSC) to a marionette such as VSeeFace, VMagicMirror or "
+                            "Warudo at HOST (port 39539 unless given; repeatable): the Head bone's rotation and "
+                            "VRM's A I U E O and blink presets")
+    links.add_argument("--vmc-perfect-sync", action="store_true",
+                       help="send the 52 ARKit blendshapes of 'perfect sync' avatars instead of VRM's presets "
+                            "(VRM's presets have no brows: this is how the brows reach such an avatar)")
     _add_motion_options(stream, live=True)
     _add_analysis_options(stream)
     _add_eyebrow_options(stream)

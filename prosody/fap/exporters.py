@@ -193,6 +193,18 @@ def livelink_timecode(frame: int, fps: float) -> str:
 
 def write_livelink(stream: FapStream, path: str | os.PathLike[str]) -> None:
     """Live Link Face style CSV (see the module docstring for the mapping)."""
+    columns = livelink_columns(stream)
+    with atomic_write(path) as handle:
+        writer = csv.writer(handle, lineterminator="\n")
+        writer.writerow(["Timecode", "BlendShapeCount", *columns])
+        for k in range(stream.n_frames):
+            writer.writerow([livelink_timecode(k, stream.fps), len(columns),
+                             *(_number(values[k]) for values in columns.values())])
+
+
+def livelink_columns(stream: FapStream) -> dict[str, np.ndarray]:
+    """The 52 ARKit blendshape weights and 9 Live Link rotations (radians) of every frame, in the order of
+    Live Link Face's CSV (see the module docstring for the mapping)."""
     n = stream.n_frames
     columns = {name: np.zeros(n) for name in (*ARKIT_BLENDSHAPES, *LIVELINK_ROTATIONS)}
 
@@ -208,12 +220,7 @@ def write_livelink(stream: FapStream, path: str | os.PathLike[str]) -> None:
     for name, fap in (("HeadYaw", 49), ("HeadPitch", 48), ("HeadRoll", 50)):
         columns[name] = stream.curve(fap) * RADIANS_PER_AU
     columns.update(_livelink_face(stream))
-    with atomic_write(path) as handle:
-        writer = csv.writer(handle, lineterminator="\n")
-        writer.writerow(["Timecode", "BlendShapeCount", *columns])
-        for k in range(n):
-            writer.writerow([livelink_timecode(k, stream.fps), len(columns),
-                             *(_number(values[k]) for values in columns.values())])
+    return columns
 
 
 def _livelink_face(stream: FapStream) -> dict[str, np.ndarray]:
