@@ -532,8 +532,12 @@ def _cmd_stream(args: argparse.Namespace) -> int:
         raise ConfigError("--vmc-perfect-sync chooses what --vmc sends; give --vmc too")
     if args.livelink_subject != "prosody" and not args.livelink:
         raise ConfigError("--livelink-subject names the stream of --livelink; give --livelink too")
-    if args.realtime and (args.input in (None, "-")):
-        raise ConfigError("--realtime paces a file; standard input and microphones arrive at their own pace")
+    if (args.realtime or args.loop) and (args.input in (None, "-")):
+        flag = "--loop plays a file again" if args.loop else "--realtime paces a file"
+        raise ConfigError(f"{flag}; standard input and microphones arrive at their own pace")
+    if args.loop and args.output not in (None, "-"):
+        raise ConfigError("--loop never ends, so -o would never be written: watch it with --listen, or send it "
+                          "with --livelink or --vmc")
     raw = args.raw_rate is not None or args.raw_format is not None or args.raw_channels is not None
     if raw and args.input != "-":
         raise ConfigError("--raw-rate, --raw-format and --raw-channels describe standard input (-): a file says "
@@ -578,6 +582,16 @@ def _cmd_stream(args: argparse.Namespace) -> int:
                              on_expressivity=requested.append if reading else None)
         server.start()
         _say(f"prosody stream: serving the face at {server.url} (frames over a WebSocket on the same address)")
+        if reading and not args.mic and args.input != "-" and (args.realtime or args.loop):
+            # a file played at its own pace is for watching: it starts when the first page is there to see it
+            _say("prosody stream: the file starts when the first page connects (Ctrl-C to stop)")
+            try:
+                while not server.first_client.wait(0.2):
+                    pass
+            except KeyboardInterrupt:
+                server.close()
+                _say("prosody stream: stopped before any page connected")
+                return EXIT_OK
 
     if not reading:
         try:
@@ -626,10 +640,22 @@ def _cmd_stream(args: argparse.Namespace) -> int:
         def consume(samples) -> None:
             while requested:
                 converter.set_expressivity(requested.pop(0))
+            if server is not None:
+                server.publish_audio(samples, rate)
             emit(converter.push(samples))
 
-        interrupted = _read_until_stopped(chunks, consume)
-        emit(converter.finish())
+        passes = 0
+        while True:
+            interrupted = _read_until_stopped(chunks, consume)
+            emit(converter.finish())
+            passes += 1
+            if interrupted or not args.loop:
+                break
+            rate, chunks = _stream_source(args)  # the file again, from a fresh start
+            converter = make_converter(rate)
+            if server is not None:  # the controls a page may have changed meanwhile
+                converter.set_expressivity(server.expressivity)
+                server.restart_audio()
         if recorder is not None:
             from .fap.exporters import write_stream
 
@@ -637,6 +663,8 @@ def _cmd_stream(args: argparse.Namespace) -> int:
             write_stream(recorder.stream(fps=converter.fps, name=name), args.output, args.format)
     where = "standard output" if to_stdout else (args.output or ("the clients" if server else "the links"))
     ended = "stopped by Ctrl-C or SIGTERM, the last frames flushed" if interrupted else "end of input"
+    if args.loop:
+        ended += f" after {passes} pass(es) of the file"
     # said once: a first sentence without a raise would otherwise look like a fault
     learning = ("; the brows rise only after the first half second of voice, which teaches them the speaker's "
                 "pitch" if args.condition == "speech" and 31 in converter.faps else "")
@@ -718,7 +746,7 @@ def _stream_source(args: argparse.Namespace):
                 raise ConfigError("raw samples on standard input need --raw-rate HZ")
             raw = PcmFormat(args.raw_rate, args.raw_format or "s16le", args.raw_channels or 1)
         return byte_chunks(sys.stdin.buffer, raw=raw, source="<stdin>")
-    return file_chunks(args.input, realtime=args.realtime)
+    return file_chunks(args.input, realtime=args.realtime or args.loop)
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
@@ -1202,6 +1230,9 @@ def build_parser() -> argparse.ArgumentParser:
                              "pip install 'visual-prosody[mic]')")
     source.add_argument("--mic-rate", type=_sample_rate, default=16000, metavar="HZ",
                         help="sample rate asked of the microphone (default 16000)")
+    source.add_argument("--loop", action="store_true",
+                        help="play the file again and again at its own pace until Ctrl-C (a demo for --listen, "
+                             "--livelink or --vmc); with --listen it starts when the first page connects")
     source.add_argument("--realtime", action="store_true",
                         help="read a file no faster than it plays (a demo of live input)")
     source.add_argument("--raw-rate", type=_sample_rate, default=None, metavar="HZ",

@@ -72,6 +72,7 @@ def test_microphone_audio_reaches_the_server_and_moves_the_face(frame_server, br
     stats = browser.execute_script("return window.prosodyStats")
     assert stats["errors"] == []
     assert stats["last"]["source"] == "client"
+    assert stats["micNode"] == "AudioWorklet"  # not the deprecated ScriptProcessorNode
     # the speech keeps the head moving: two moments a second apart differ
     assert np.any(np.abs(first.astype(int) - second.astype(int)) > 30, axis=2).mean() > 0.001
 
@@ -163,3 +164,30 @@ def test_page_closes_the_eyelids_by_fap_19_to_22(frame_server, browser, tmp_path
     changed = np.any(np.abs(opened.astype(int) - closed.astype(int)) > 30, axis=2)
     rows = np.flatnonzero(changed.any(axis=1))
     assert rows.min() > cy - scale * 0.21 and rows.max() < cy + 1  # only the eyes (y 0 to 0.2) changed
+
+
+def test_the_input_sound_plays_and_the_face_moves_in_step_with_it(frame_server, browser):
+    browser.get(frame_server.url)
+    _wait_for(browser, "return window.prosodyStats && window.prosodyStats.connected")
+    browser.find_element("id", "sound").click()
+    time.sleep(0.5)  # the page asks the server for the sound
+    rate, seconds = 16000, 2.0
+    t = np.arange(int(rate * seconds)) / rate
+    tone = 0.3 * np.sin(2 * np.pi * 220 * t)
+    for k in range(20):  # the sound and its frames arrive together, faster than they play
+        frame_server.publish_audio(tone[k * 1600:(k + 1) * 1600], rate)
+        frame_server.publish([LiveFrame(j, j / 30, {49: 1000.0 * j}) for j in range(3 * k, 3 * k + 3)])
+    _wait_for(browser, "return window.prosodyStats.inputFrames >= 60 && window.prosodyStats.soundPieces >= 19")
+    samples = []
+    for _ in range(8):  # while the sound plays, the face shows the frame of what is heard
+        shown, heard = browser.execute_script(
+            "return [window.prosodyStats.shownFrame, window.prosodySoundTime()]")
+        samples.append((shown, heard))
+        time.sleep(0.15)
+    stats = browser.execute_script("return window.prosodyStats")
+    assert stats["errors"] == []
+    during = [(shown, heard) for shown, heard in samples if heard is not None and 0.1 < heard < 1.9]
+    assert len(during) >= 4, samples
+    for shown, heard in during:
+        assert shown is not None and abs(shown / 30 - heard) < 0.1, samples  # in step, not all at once
+    _wait_for(browser, "return window.prosodyStats.shownFrame === 59", 10)

@@ -3,6 +3,7 @@ frames and the page over a WebSocket to several clients, some of them misbehavin
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -128,6 +129,8 @@ def test_ctrl_c_flushes_the_last_frames_and_writes_the_file_whole(tmp_path, stop
     (["stream", "x.wav", "-o", "-", "--format", "fap"], "--format names"),
     (["stream", "x.wav", "-o", "-", "--lookahead-ms", "-3"], "milliseconds"),
     (["stream", "x.wav", "-o", "-", "--listen", "here:port"], "HOST:PORT"),
+    (["stream", "x.wav", "-o", "x.fap", "--loop"], "never be written"),
+    (["stream", "-", "-o", "-", "--loop"], "--loop plays a file"),
     (["stream", "-", "-o", "-", "--raw-rate", "4000"], "8000 to 768000"),
     (["stream", "-", "-o", "-", "--raw-rate", "16000", "--raw-channels", "0"], "1 to 64"),
     (["train", "--data", ".", "-o", "m.json", "--lookahead-ms", "100"], "add --kind live"),
@@ -447,3 +450,67 @@ def test_stream_command_applies_a_pages_expressivity_from_the_next_chunk(tmp_pat
             if abs(b[str(fap)]) > 100]
     assert len(late) > 30
     np.testing.assert_allclose([a for _, a in late], [b / 2 for b, _ in late], rtol=0.02, atol=2)
+
+
+def test_the_input_sound_goes_to_the_clients_that_ask_for_it():
+    from websockets.exceptions import ConnectionClosed
+    from websockets.sync.client import connect
+
+    from prosody.jobs.server import AUDIO_HEADER, FrameServer
+    from prosody.jobs.stream import LiveConverter
+
+    server = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lambda _: None)
+    server.start()
+    rate = 16000
+    sound = np.random.default_rng(0).uniform(-1.2, 1.2, int(1.05 * rate))  # beyond full scale: clipped
+    url = f"ws://127.0.0.1:{server.port}/stream"
+    with connect(url) as listener, connect(url) as watcher:
+        listener.send(json.dumps({"type": "audio", "on": True}))
+        time.sleep(0.2)
+        for start in range(0, sound.size, 160):  # 10 ms at a time, as a file is read
+            server.publish_audio(sound[start:start + 160], rate)
+        server.publish(_frames(0, 3))
+        server.close(drain_s=0.5)  # sends the last 0.05 s too
+        received: dict[str, list] = {"listener": [], "watcher": []}
+        for name, connection in (("listener", listener), ("watcher", watcher)):
+            with contextlib.suppress(TimeoutError, ConnectionClosed):
+                while True:
+                    received[name].append(connection.recv(timeout=1.0))
+    binary = [m for m in received["listener"] if isinstance(m, bytes)]
+    assert len(binary) == 11  # ten of 0.1 s and the rest, flushed at the end
+    assert not any(isinstance(m, bytes) for m in received["watcher"])  # none to the one that did not ask
+    assert sum('"frame"' in m for m in received["watcher"]) == 3  # who still gets the frames
+    starts, got = [], []
+    for piece in binary:
+        start, piece_rate = AUDIO_HEADER.unpack_from(piece)
+        assert piece_rate == rate
+        starts.append(start)
+        got.append(np.frombuffer(piece[AUDIO_HEADER.size:], dtype="<i2"))
+    assert starts == pytest.approx(np.cumsum([0] + [len(g) for g in got[:-1]]) / rate)
+    expected = (np.clip(sound, -1, 1) * 32767).round()
+    assert np.array_equal(np.concatenate(got), expected)
+
+
+def test_loop_starts_with_the_first_page_and_plays_the_file_again(tmp_path):
+    from websockets.sync.client import connect
+
+    with subprocess.Popen([*PROSODY, "stream", str(SAMPLE), "--loop", "--listen", "127.0.0.1:0"],
+                          stderr=subprocess.PIPE, env=ENV) as process:
+        line = process.stderr.readline().decode()
+        port = int(line.split("http://127.0.0.1:")[1].split("/")[0])
+        assert "starts when the first page connects" in process.stderr.readline().decode()
+        time.sleep(1.0)  # nothing is played to no one
+        with connect(f"ws://127.0.0.1:{port}/stream") as client:
+            messages: list[int] = []
+            deadline = time.monotonic() + 4.5
+            while time.monotonic() < deadline:
+                message = json.loads(client.recv(timeout=5))
+                if message["type"] == "frame":
+                    messages.append(message["frame"])
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=30)
+    assert process.returncode == 0
+    assert messages[0] == 0  # the file waited for the page
+    restart = messages.index(0, 1)
+    assert messages[:restart] == list(range(93)) and messages[restart:] == list(range(len(messages) - restart))
+    assert "pass(es) of the file" in err.decode()

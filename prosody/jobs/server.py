@@ -9,6 +9,10 @@ client gets:
 - if it sends audio of its own (the page's microphone button), frames of that audio, ``"source": "client"``,
   to it alone. It first sends ``{"type": "start", "sample_rate": HZ, "encoding": "f32le"|"s16le"}`` and then
   binary messages of mono samples; ``{"type": "stop"}`` flushes its last frames;
+- the sound of the command's input, if it asks with ``{"type": "audio", "on": true}`` (``false`` stops it):
+  binary messages of about 0.1 s each, a 12-byte little-endian header (float64 start time in s, uint32
+  sample rate in Hz) then the mono samples as int16 little-endian, so that a page can play the sound in step
+  with the frames;
 - the expressivity controls of what it is shown, and a way to change them: on joining it gets
   ``{"type": "expressivity", "source": "input" | "client", "controls": {"activation": 1.0, ...}}``, and it may
   send ``{"type": "expressivity", "activation": 0.5, ...}`` (any of the six controls of
@@ -37,10 +41,13 @@ import contextlib
 import ipaddress
 import json
 import socket
+import struct
 import threading
 import urllib.parse
 from collections.abc import Callable, Iterable
 from importlib import resources
+
+import numpy as np
 
 from audio_features.errors import VisualProsodyError
 from audio_features.pcm import PcmDecoder, PcmFormat
@@ -57,6 +64,10 @@ SEND_BUFFER_BYTES = 16 << 10
 MAX_MESSAGE_BYTES = 1 << 20
 #: Longest wait for a client's closing handshake when the server closes, in s.
 CLOSE_TIMEOUT_S = 1.0
+#: The input's sound is sent to the clients that ask for it in pieces of about this length, in s.
+AUDIO_PIECE_S = 0.1
+#: Header of each piece of sound: start time (s, float64) and sample rate (Hz, uint32), little-endian.
+AUDIO_HEADER = struct.Struct("<dI")
 
 
 class ServerClosedError(ConfigError, RuntimeError):
@@ -130,7 +141,8 @@ def _controls_message(source: str, controls: Expressivity) -> str:
 class _Client:
     def __init__(self, name: str) -> None:
         self.name = name
-        self.queue: asyncio.Queue[str] = asyncio.Queue(maxsize=CLIENT_QUEUE_FRAMES)
+        self.queue: asyncio.Queue[str | bytes] = asyncio.Queue(maxsize=CLIENT_QUEUE_FRAMES)
+        self.wants_audio = False  # the input's sound, as binary messages
         self.told: set[str] = set()  # problems already reported for this client
         self.converter: LiveConverter | None = None
         self.decoder: PcmDecoder | None = None
@@ -178,6 +190,11 @@ class FrameServer:
         self._page = page_html()
         self.clients_served = 0
         self.audio_messages = 0
+        self._sound: list[np.ndarray] = []  # the input's sound not yet sent, and where it starts
+        self._sound_start = 0
+        self._sound_sent = 0
+        self._sound_rate = 0
+        self.first_client = threading.Event()  # set when the first client joins
 
     # lifecycle ------------------------------------------------------------------------------------------
     def start(self) -> FrameServer:
@@ -202,7 +219,8 @@ class FrameServer:
 
         # every page is told the stream has ended, before its connection closes
         with contextlib.suppress(RuntimeError):  # the loop has already ended
-            self._loop.call_soon_threadsafe(self._enqueue_all, [json.dumps({"type": "end"})])
+            self._loop.call_soon_threadsafe(self._enqueue_all, [*self._sound_pieces(flush=True),
+                                                                json.dumps({"type": "end"})])
 
         async def drained() -> None:
             deadline = asyncio.get_running_loop().time() + drain_s
@@ -256,15 +274,48 @@ class FrameServer:
             raise ServerClosedError("the frame server is closed: start a new one to publish frames")
         if self._loop is None or not frames:
             return
-        messages = [frame_message(frame, "input") for frame in frames]
+        messages: list[str | bytes] = [frame_message(frame, "input") for frame in frames]
         self._loop.call_soon_threadsafe(self._enqueue_all, messages)
 
-    def _enqueue_all(self, messages: list[str]) -> None:
+    def publish_audio(self, samples: np.ndarray, sample_rate_hz: int) -> None:
+        """The command's input's sound (mono, full scale +-1), sent in pieces to the clients that asked for it
+        (callable from any thread, in the order of the sound). :meth:`restart_audio` begins a new timeline."""
+        if self._closed:
+            raise ServerClosedError("the frame server is closed: start a new one to publish sound")
+        self._sound_rate = int(sample_rate_hz)
+        self._sound.append(np.asarray(samples, dtype=float).ravel())
+        pieces = self._sound_pieces(flush=False)
+        if pieces and self._loop is not None:
+            self._loop.call_soon_threadsafe(self._enqueue_all, pieces, True)
+
+    def restart_audio(self) -> None:
+        """The input starts again (a new pass of ``--loop``): what is pending is sent, and time restarts at 0."""
+        pieces = self._sound_pieces(flush=True)
+        if pieces and self._loop is not None:
+            self._loop.call_soon_threadsafe(self._enqueue_all, pieces, True)
+        self._sound_start = self._sound_sent = 0
+
+    def _sound_pieces(self, *, flush: bool) -> list[str | bytes]:
+        pending = sum(len(part) for part in self._sound)
+        if not pending or (not flush and pending < AUDIO_PIECE_S * self._sound_rate):
+            return []
+        sound = np.concatenate(self._sound)
+        self._sound = []
+        pcm = (np.clip(sound, -1.0, 1.0) * 32767).round().astype("<i2")
+        header = AUDIO_HEADER.pack(self._sound_sent / self._sound_rate, self._sound_rate)
+        self._sound_sent += len(sound)
+        return [header + pcm.tobytes()]
+
+    def _enqueue_all(self, messages: list[str | bytes], audio: bool = False) -> None:
         for client in list(self._clients):
+            if audio and not client.wants_audio:
+                continue
             for message in messages:
+                if isinstance(message, bytes) and not client.wants_audio:
+                    continue
                 self._enqueue(client, message)
 
-    def _enqueue(self, client: _Client, message: str) -> None:
+    def _enqueue(self, client: _Client, message: str | bytes) -> None:
         if client.queue.full():
             client.queue.get_nowait()  # a stalled reader loses its oldest frames, not the others' frames
             self._tell_once(client, "stalled", f"client {client.name} is not reading; its oldest frames are "
@@ -322,6 +373,7 @@ class FrameServer:
         client.transport = websocket.transport
         self._clients.add(client)
         self.clients_served += 1
+        self.first_client.set()
         self.report(f"client {client.name} connected ({len(self._clients)} connected)")
         self._enqueue(client, _controls_message("input" if self.on_expressivity else "client", self.expressivity))
         sender = asyncio.create_task(self._send(websocket, client))
@@ -352,7 +404,7 @@ class FrameServer:
                 kind = request["type"]
             except (ValueError, KeyError, TypeError, RecursionError):  # RecursionError: JSON nested too deeply
                 await self._refuse(websocket, client, "text", "a text message must be JSON with a \"type\" "
-                                                              "(start, stop or expressivity)")
+                                                              "(start, stop, audio or expressivity)")
                 return
             if kind == "start":
                 try:
@@ -371,9 +423,11 @@ class FrameServer:
                     self._enqueue(client, frame_message(frame, "client"))
             elif kind == "expressivity":
                 await self._change_expressivity(websocket, client, request)
+            elif kind == "audio":
+                client.wants_audio = request.get("on") is True
             else:
-                await self._refuse(websocket, client, "type", f"unknown message type {kind!r} (start, stop or "
-                                                              "expressivity)")
+                await self._refuse(websocket, client, "type", f"unknown message type {kind!r} (start, stop, "
+                                                              "audio or expressivity)")
             return
         if client.converter is None or client.decoder is None:
             await self._refuse(websocket, client, "early", "audio before a start message is ignored")
