@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 from prosody.cli import main
 from prosody.fap.exporters import BROW_FULL_SCALE_ENS, LIVELINK_FULL_SCALE
-from prosody.fap.live_links import LIVELINK_PACKET_BLENDSHAPES, unity_head_rotation
+from prosody.fap.live_links import LIVELINK_PACKET_BLENDSHAPES, livelink_packet, unity_head_rotation
 from prosody.fap.table import RADIANS_PER_AU
 
 SAMPLE = REPO / "samples" / "arctic_a0009.wav"
@@ -47,6 +47,19 @@ class _Receiver(threading.Thread):
 
 
 # Live Link Face, as Unreal's receiver reads it -------------------------------------------------------------
+#: Unreal's EARFaceBlendShape, the order of a packet's 61 values.
+UNREAL_CURVES = """
+    EyeBlinkLeft EyeLookDownLeft EyeLookInLeft EyeLookOutLeft EyeLookUpLeft EyeSquintLeft EyeWideLeft
+    EyeBlinkRight EyeLookDownRight EyeLookInRight EyeLookOutRight EyeLookUpRight EyeSquintRight EyeWideRight
+    JawForward JawLeft JawRight JawOpen MouthClose MouthFunnel MouthPucker MouthLeft MouthRight
+    MouthSmileLeft MouthSmileRight MouthFrownLeft MouthFrownRight MouthDimpleLeft MouthDimpleRight
+    MouthStretchLeft MouthStretchRight MouthRollLower MouthRollUpper MouthShrugLower MouthShrugUpper
+    MouthPressLeft MouthPressRight MouthLowerDownLeft MouthLowerDownRight MouthUpperUpLeft MouthUpperUpRight
+    BrowDownLeft BrowDownRight BrowInnerUp BrowOuterUpLeft BrowOuterUpRight CheekPuff CheekSquintLeft
+    CheekSquintRight NoseSneerLeft NoseSneerRight TongueOut
+    HeadYaw HeadPitch HeadRoll LeftEyeYaw LeftEyePitch LeftEyeRoll RightEyeYaw RightEyePitch RightEyeRoll
+""".split()
+
 def _read_livelink(packet: bytes) -> dict:
     offset = 0
 
@@ -87,12 +100,11 @@ def test_livelink_packets_carry_every_frame_with_its_head_brows_and_jaw(tmp_path
     receiver.join()
     packets = [_read_livelink(d) for d in receiver.datagrams]
     assert len(packets) == len(frames) == 93
-    names = (*LIVELINK_PACKET_BLENDSHAPES, "HeadYaw", "HeadPitch", "HeadRoll")
     for packet, frame in zip(packets, frames, strict=True):
         assert packet["version"] == 6 and packet["subject"] == "Talker 1" and packet["device"]
         assert packet["frame"] == frame["frame"] and packet["rate"] == (30, 1) and packet["sub_frame"] == 0
         assert len(packet["values"]) == 61
-        value = dict(zip(names, packet["values"], strict=False))
+        value = dict(zip(UNREAL_CURVES, packet["values"], strict=True))
         faps = {int(k): v for k, v in frame["faps"].items()}
         for name, fap in (("HeadYaw", 49), ("HeadPitch", 48), ("HeadRoll", 50)):
             assert value[name] == pytest.approx(faps[fap] * RADIANS_PER_AU, abs=1e-5)
@@ -100,8 +112,15 @@ def test_livelink_packets_carry_every_frame_with_its_head_brows_and_jaw(tmp_path
         assert value["BrowInnerUp"] == pytest.approx(brows, abs=1e-3)
         assert value["JawOpen"] == pytest.approx(np.clip(faps[3] / LIVELINK_FULL_SCALE["jaw"], 0, 1), abs=1e-3)
     # the stream moves: the head turns and the jaw opens while the sample speaks
-    assert np.ptp([p["values"][52] for p in packets]) > 0.01
-    assert max(p["values"][LIVELINK_PACKET_BLENDSHAPES.index("JawOpen")] for p in packets) > 0.1
+    assert np.ptp([p["values"][UNREAL_CURVES.index("HeadYaw")] for p in packets]) > 0.01
+    assert max(p["values"][UNREAL_CURVES.index("JawOpen")] for p in packets) > 0.1
+
+
+def test_each_named_value_lands_where_unreal_reads_that_curve():
+    values = {name: (k + 1) / 64 for k, name in enumerate(UNREAL_CURVES)}
+    packet = _read_livelink(livelink_packet(values, frame=7, fps=29.97, subject="s", device_id="d"))
+    assert packet["values"] == pytest.approx([values[name] for name in UNREAL_CURVES])
+    assert packet["rate"] == (2997, 100) and packet["frame"] == 7
 
 
 # OSC 1.0 and the VMC protocol ---------------------------------------------------------------------------------
@@ -226,8 +245,9 @@ def test_ipv6_targets_are_sent_to():
     (["--vmc-perfect-sync", "-o", "-"], "give --vmc too"),
     (["--livelink-subject", "x", "-o", "-"], "give --livelink too"),
     (["--livelink", "127.0.0.1", "--livelink-subject", "caf\u00e9"], "printable ASCII"),
-    (["--livelink", "127.0.0.1:99999"], "1-65535"),
-    (["--vmc", "127.0.0.1:port"], "HOST[:PORT]"),
+    (["--livelink", "127.0.0.1:99999"], "must be in 0-65535"),
+    (["--livelink", "127.0.0.1:0"], "no port to send to"),
+    (["--vmc", "127.0.0.1:port"], "must be HOST:PORT"),
     (["--vmc", "no-such-host.invalid"], "cannot resolve"),
 ])
 def test_link_usage_errors_exit_2_with_one_line(argv, message, capsys):

@@ -35,24 +35,16 @@ from fractions import Fraction
 import numpy as np
 
 from ..errors import ConfigError
+from .exporters import ARKIT_BLENDSHAPES, LIVELINK_ROTATIONS
 
 LIVELINK_PORT = 11111
 VMC_PORT = 39539
 LIVELINK_PACKET_VERSION = 6
-#: The 52 blendshapes in the order of Unreal's EARFaceBlendShape, the order of the packet's values.
-LIVELINK_PACKET_BLENDSHAPES = (
-    "EyeBlinkLeft", "EyeLookDownLeft", "EyeLookInLeft", "EyeLookOutLeft", "EyeLookUpLeft", "EyeSquintLeft",
-    "EyeWideLeft", "EyeBlinkRight", "EyeLookDownRight", "EyeLookInRight", "EyeLookOutRight", "EyeLookUpRight",
-    "EyeSquintRight", "EyeWideRight", "JawForward", "JawLeft", "JawRight", "JawOpen", "MouthClose",
-    "MouthFunnel", "MouthPucker", "MouthLeft", "MouthRight", "MouthSmileLeft", "MouthSmileRight",
-    "MouthFrownLeft", "MouthFrownRight", "MouthDimpleLeft", "MouthDimpleRight", "MouthStretchLeft",
-    "MouthStretchRight", "MouthRollLower", "MouthRollUpper", "MouthShrugLower", "MouthShrugUpper",
-    "MouthPressLeft", "MouthPressRight", "MouthLowerDownLeft", "MouthLowerDownRight", "MouthUpperUpLeft",
-    "MouthUpperUpRight", "BrowDownLeft", "BrowDownRight", "BrowInnerUp", "BrowOuterUpLeft", "BrowOuterUpRight",
-    "CheekPuff", "CheekSquintLeft", "CheekSquintRight", "NoseSneerLeft", "NoseSneerRight", "TongueOut",
-)
-LIVELINK_PACKET_ROTATIONS = ("HeadYaw", "HeadPitch", "HeadRoll", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll",
-                             "RightEyeYaw", "RightEyePitch", "RightEyeRoll")
+#: The 52 blendshapes in the order of Unreal's EARFaceBlendShape, the order of the packet's values: the CSV's
+#: order, but for JawLeft before JawRight and MouthLeft before MouthRight.
+_UNREAL_SWAPS = {"JawRight": "JawLeft", "JawLeft": "JawRight", "MouthRight": "MouthLeft", "MouthLeft": "MouthRight"}
+LIVELINK_PACKET_BLENDSHAPES = tuple(_UNREAL_SWAPS.get(name, name) for name in ARKIT_BLENDSHAPES)
+LIVELINK_PACKET_ROTATIONS = LIVELINK_ROTATIONS
 #: Names the packet's strings may hold: printable ASCII, at most this long.
 MAX_NAME_LENGTH = 255
 

@@ -16,6 +16,7 @@ from ..errors import ConfigError
 from ..fap.exporters import livelink_columns
 from ..fap.live_links import LIVELINK_PORT, VMC_PORT, check_link_name, livelink_packet, vmc_bundle
 from ..fap.stream import FapStream
+from .server import parse_address
 from .stream import LiveFrame
 
 PROTOCOLS = {"livelink": LIVELINK_PORT, "vmc": VMC_PORT}
@@ -29,22 +30,10 @@ def parse_target(text: str, default_port: int) -> tuple[str, int]:
     >>> parse_target("192.168.1.20", 11111), parse_target(":9000", 11111), parse_target("[::1]:5", 1)
     (('192.168.1.20', 11111), ('127.0.0.1', 9000), ('::1', 5))
     """
-    if text.startswith("["):
-        host, _, rest = text[1:].partition("]")
-        port_text = rest[1:] if rest.startswith(":") else rest
-    elif text.count(":") == 1:
-        host, _, port_text = text.partition(":")
-    else:
-        host, port_text = text, ""
-    host = host or "127.0.0.1"
-    if not port_text:
-        return host, default_port
-    try:
-        port = int(port_text)
-    except ValueError:
-        raise ConfigError(f"target {text!r} must be HOST[:PORT], e.g. 192.168.1.20:{default_port}") from None
-    if not 1 <= port <= 65535:
-        raise ConfigError(f"target {text!r}: port {port} must be in 1-65535")
+    has_port = "]:" in text if text.startswith("[") else text.count(":") == 1
+    host, port = parse_address(text if has_port else f"{text}:{default_port}", what="target")
+    if port == 0:
+        raise ConfigError(f"target {text!r}: port 0 is no port to send to (1-65535)")
     return host, port
 
 
