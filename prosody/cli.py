@@ -564,12 +564,13 @@ def _cmd_stream(args: argparse.Namespace) -> int:
 
     # the input and the options are checked before anything listens
     reading = args.input is not None or args.mic
+    senders = []
     if reading:
         rate, chunks = _stream_source(args)
         converter = make_converter(rate)
+        senders = _link_senders(args, converter.fps)
     else:
         make_converter(16000)
-    senders = _link_senders(args, converter.fps) if sending else []
     server = None
     requested: list = []  # expressivity a page asked for, applied between two chunks (on this thread)
     if args.listen is not None:
@@ -684,7 +685,7 @@ def _link_senders(args: argparse.Namespace, fps: float) -> list:
     def report(line: str) -> None:
         _MESSAGES.emit("warning", f"prosody stream: warning: {line}")
 
-    senders = []
+    senders: list[LinkSender] = []
     if args.livelink:
         senders.append(LinkSender("livelink", args.livelink, fps=fps, subject=args.livelink_subject, report=report))
     if args.vmc:

@@ -108,7 +108,7 @@ def page_html() -> bytes:
     return resources.files("prosody.jobs").joinpath("face.html").read_bytes()
 
 
-def parse_address(text: str, what: str = "listen address") -> tuple[str, int]:
+def parse_address(text: str, address_of: str = "listen address") -> tuple[str, int]:
     """``HOST:PORT``, ``:PORT`` or ``PORT`` (host 127.0.0.1); ``[::1]:PORT`` for IPv6.
 
     Examples
@@ -121,9 +121,9 @@ def parse_address(text: str, what: str = "listen address") -> tuple[str, int]:
     try:
         number = int(port)
     except ValueError:
-        raise ConfigError(f"{what} {text!r} must be HOST:PORT, e.g. 127.0.0.1:8765") from None
+        raise ConfigError(f"{address_of} {text!r} must be HOST:PORT, e.g. 127.0.0.1:8765") from None
     if not 0 <= number <= 65535:
-        raise ConfigError(f"{what} {text!r}: port {number} must be in 0-65535")
+        raise ConfigError(f"{address_of} {text!r}: port {number} must be in 0-65535")
     return host, number
 
 
