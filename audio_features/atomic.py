@@ -15,8 +15,10 @@ import contextlib
 import errno
 import os
 import re
+import signal
 import stat
 import tempfile
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
@@ -80,6 +82,29 @@ def _not_regular(target: Path) -> str | None:
 
 
 @contextlib.contextmanager
+def interrupts_held() -> Iterator[None]:
+    """Ctrl-C and SIGTERM that arrive inside the block act when it ends (only the main thread sets handlers;
+    elsewhere the block runs as it is)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+    previous = {sig: signal.signal(sig, lambda signum, frame: held.append(signum))
+                for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        for signum in held[:1]:
+            handler = previous[signal.Signals(signum)]
+            if callable(handler):
+                handler(signum, None)
+            elif handler == signal.SIG_DFL:
+                signal.raise_signal(signum)  # what it would have done (SIG_IGN: nothing)
+
+
+@contextlib.contextmanager
 def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """A temporary path beside ``path`` (with the same ending, for tools that go by it) that replaces ``path``
     only if the block succeeds; a failure (or an interrupt) removes it.
@@ -101,17 +126,26 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     suffix = target.suffix if len(target.suffix) <= _SUFFIX_CHARACTERS else ""
     prefix = f".{_short_stem(target.stem)}."
     _remove_stale(directory, prefix)
+    tmp_name = ""
     try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f"{prefix}{os.getpid()}.", suffix=f".part{suffix}", dir=directory)
+        # an interrupt between the file's creation and the block below would leave it behind
+        with interrupts_held():
+            fd, tmp_name = tempfile.mkstemp(prefix=f"{prefix}{os.getpid()}.", suffix=f".part{suffix}",
+                                            dir=directory)
+            os.close(fd)
     except OSError as error:
         # name the file the user asked for, not the temporary one
         raise OSError(error.errno, error.strerror, str(target)) from None
-    os.close(fd)
+    except BaseException:  # the interrupt held while the file was made
+        if tmp_name:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp_name)
+        raise
     try:
-        permissions = stat.S_IMODE(os.stat(target).st_mode)
-    except OSError:
-        permissions = 0o666 & ~_read_umask()
-    try:
+        try:
+            permissions = stat.S_IMODE(os.stat(target).st_mode)
+        except OSError:
+            permissions = 0o666 & ~_read_umask()
         yield Path(tmp_name)
         os.chmod(tmp_name, permissions)
         os.replace(tmp_name, target)

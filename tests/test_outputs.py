@@ -13,7 +13,7 @@ import threading
 import numpy as np
 import pytest
 
-from audio_features.atomic import atomic_write
+from audio_features.atomic import atomic_write, interrupts_held
 from prosody.cli import main
 
 SR = 16000
@@ -93,3 +93,35 @@ def test_a_regular_file_is_still_replaced_atomically(tmp_path, speech) -> None:
     out.write_text("old")
     assert main(["convert", str(speech), "-o", str(out)]) == 0
     assert np.loadtxt(out, delimiter=",", skiprows=1).shape[0] == 51
+
+
+def test_an_interrupt_while_the_temporary_file_is_made_leaves_nothing(tmp_path, monkeypatch) -> None:
+    import signal
+    import tempfile
+
+    from audio_features.atomic import atomic_path
+
+    made = tempfile.mkstemp
+
+    def interrupted_mkstemp(*args, **kwargs):
+        result = made(*args, **kwargs)
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C right after the file exists, before its name is returned
+        return result
+
+    monkeypatch.setattr(tempfile, "mkstemp", interrupted_mkstemp)
+    with pytest.raises(KeyboardInterrupt):
+        with atomic_path(tmp_path / "out.fap"):
+            pytest.fail("the block must not start after an interrupt")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_interrupts_held_act_when_the_block_ends() -> None:
+    import signal
+
+    reached = []
+    with pytest.raises(KeyboardInterrupt):
+        with interrupts_held():
+            os.kill(os.getpid(), signal.SIGINT)
+            reached.append("the rest of the block")
+    assert reached == ["the rest of the block"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from audio_features.atomic import atomic_path, atomic_write
+from audio_features.atomic import atomic_path, atomic_write, interrupts_held
 
 from ..errors import ConfigError, PreviewError
 from ..fap.stream import FapStream
@@ -511,21 +511,28 @@ def _write_mp4(frames: Iterator[np.ndarray], path: Path, *, fps: float, width: i
     command += ["-c:v", "libx264", "-preset", "veryfast", "-crf", "20", "-pix_fmt", "yuv420p",
                 "-movflags", "+faststart", "-f", "mp4"]
     with atomic_path(path) as partial, tempfile.TemporaryFile() as errors:
-        process = subprocess.Popen([*command, str(partial)], stdin=subprocess.PIPE, stderr=errors)
-        assert process.stdin is not None
+        process: subprocess.Popen | None = None
         try:
+            # an interrupt while ffmpeg starts would leave it running, and writing the file: it waits until
+            # the process is known, to be killed
+            with interrupts_held():
+                process = subprocess.Popen([*command, str(partial)], stdin=subprocess.PIPE, stderr=errors)
+            assert process.stdin is not None
             for frame in frames:
                 process.stdin.write(np.ascontiguousarray(frame).tobytes())
             process.stdin.close()
         except BrokenPipeError:
             pass  # ffmpeg stopped reading: its exit code and message say why
         except BaseException:
-            process.kill()
-            process.wait()
+            if process is not None:
+                process.kill()
+                process.wait()
             raise
         finally:
-            with contextlib.suppress(BrokenPipeError):
-                process.stdin.close()
+            if process is not None and process.stdin is not None:
+                with contextlib.suppress(BrokenPipeError):
+                    process.stdin.close()
+        assert process is not None
         if process.wait() != 0:
             errors.seek(0)
             detail = errors.read().decode("utf-8", "replace").strip().splitlines()
