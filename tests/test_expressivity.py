@@ -190,6 +190,23 @@ def test_activation_zero_on_a_moving_head_leaves_a_slow_sway(rng):
     assert np.mean(_speeds(still)) < 0.2 * np.mean(_speeds(motion))
 
 
+@pytest.mark.parametrize("controls", [Expressivity(power=1), Expressivity(power=0.5),
+                                      Expressivity(activation=0.5), Expressivity(power=-1)])
+def test_reshaping_keeps_the_pose_where_the_generator_has_it(rng, controls):
+    # nods that rise slowly (0.8 s) and fall quickly (0.2 s), of random heights: a gain that follows the speed
+    # scales the falls more than the rises, and without balancing the two the pose drifts by about one spread
+    pieces = []
+    for height in rng.uniform(500, 4000, 60):
+        pieces += [np.linspace(0, height, 24, endpoint=False), np.linspace(height, 0, 6, endpoint=False)]
+    pitch = np.concatenate(pieces)
+    motion = np.column_stack([pitch, 0.3 * pitch, np.zeros_like(pitch)])
+    shaped = shape_head(motion, fps=FPS, expressivity=controls)
+    offset = (shaped - motion)[len(pitch) // 4:, :2].mean(axis=0)
+    assert np.all(np.abs(offset) < 0.15 * motion[:, :2].std(axis=0))
+    # and the reshaping still happened: the fastest moments are faster or slower than generated
+    assert not np.allclose(_speeds(shaped), _speeds(motion), rtol=0.05)
+
+
 # head: each control's measure on real speech -------------------------------------------------------------------
 @pytest.mark.shared_data
 def test_activation_makes_the_head_hold_still(real_head):

@@ -19,6 +19,7 @@ from prosody.measures import (
     brow_events,
     brow_metrics,
     head_metrics,
+    head_speed,
     lowpass_head,
     speed_envelope,
     velocity_spectrum_distance_db,
@@ -170,6 +171,35 @@ def test_generated_speed_follows_the_talking(simulated) -> None:
     # the same generator with the audio shifted by half a cycle moves out of step
     shifted = np.column_stack(list(model.generate(shifted_features(features, 60), seed=3).values()))
     assert head_metrics(shifted, recorded, fps=FPS)["speed_envelope_r"] < 0
+
+
+def test_burst_power_makes_the_head_move_in_bursts_and_hold(simulated, tmp_path) -> None:
+    # the same fitted generator with the reshaping off (as files written before it read): the bursts make the
+    # quick moments quicker and the slow ones slower, at about the same average speed
+    import copy
+
+    model, (features, _) = simulated
+    assert model.burst_power == 0.5
+    plain = copy.copy(model)
+    plain.burst_power = 0.0
+
+    def speeds(m) -> np.ndarray:
+        motion = np.column_stack(list(m.generate(features, seed=3).values()))
+        return np.degrees(head_speed(motion * 1e-5, fps=FPS))
+
+    bursty, even = speeds(model), speeds(plain)
+
+    def contrast(speed: np.ndarray) -> float:
+        return float(np.percentile(speed, 90) / np.percentile(speed, 10))
+
+    assert contrast(bursty) > 1.3 * contrast(even)
+    assert 0.75 < bursty.mean() / even.mean() < 1.25
+    payload = model.to_dict()
+    del payload["settings"]["burst_power"]
+    (tmp_path / "old.json").write_text(json.dumps(payload))
+    old = load_head_model(tmp_path / "old.json")
+    assert old.burst_power == 0.0
+    np.testing.assert_array_equal(speeds(old), even)
 
 
 def test_same_seed_same_motion_other_seed_other_motion(simulated) -> None:

@@ -83,6 +83,8 @@ JITTER_S = 0.03
 JITTER_BOOST = 2.0
 POWER_GAIN_RANGE = (0.25, 4.0)
 POWER_SHARPENING = 2.0
+#: Limits of the correction that balances each axis's rises against its falls.
+BALANCE_RANGE = (0.5, 2.0)
 ACCENT_RATIO = 1.8
 ACCENT_REFRACTORY_S = 1.5
 #: Accents count once the running average has this much motion behind it (s).
@@ -202,6 +204,9 @@ class HeadShaper:
         self._nod_height = 0.0
         self._ratio = 0.0
         self._threshold = 1.0  # the held share's running quantile of the speed ratio
+        # running means of each axis's rises and falls, as generated and as scaled by the gain
+        self._distance = np.zeros((2, 3))
+        self._shaped_distance = np.zeros((2, 3))
         self.set(expressivity)
 
     def set(self, expressivity: Expressivity) -> None:
@@ -258,7 +263,8 @@ class HeadShaper:
             self._power_reference += weight * (boost * instant - self._power_reference)
             norm = self._power_reference / self._instant_reference if self._power_reference > 0 else 1.0
             gain *= min(max(boost / norm, POWER_GAIN_RANGE[0]), POWER_GAIN_RANGE[1])
-        velocity = velocity * gain
+        if gain != 1.0:
+            velocity = self._balanced(velocity, gain, weight)
         if e.temporal != 0.0:
             self._slow = self._tempo_pole * self._slow + (1 - self._tempo_pole) * velocity
             velocity = (self._slow.copy() if e.temporal > 0
@@ -279,6 +285,21 @@ class HeadShaper:
             shaped[0] += self._nod(x[0], ratio)
         self._ratio = ratio
         return shaped * self._scale
+
+    def _balanced(self, velocity: np.ndarray, gain: float, weight: float) -> np.ndarray:
+        """The velocity times the gain, each axis's rises and falls rescaled so that, on average, they stand in
+        the proportion the generator's do (their total kept as the gain makes it): a gain that follows the speed
+        would otherwise favour the direction in which the generator moves faster (a nod's quick fall) and carry
+        the pose away from the generator's, by more than the motion's spread within the pull's 4 s."""
+        rising = np.maximum(velocity, 0.0)
+        falling = np.minimum(velocity, 0.0)
+        self._distance += weight * (np.stack([rising, -falling]) - self._distance)
+        self._shaped_distance += weight * (gain * np.stack([rising, -falling]) - self._shaped_distance)
+        generated, shaped = self._distance, self._shaped_distance
+        scale = shaped.sum(axis=0) / np.maximum(generated.sum(axis=0), 1e-300)
+        correction = np.divide(generated * scale, shaped, out=np.ones_like(shaped), where=shaped > 0)
+        correction = np.clip(correction, *BALANCE_RANGE)
+        return gain * (rising * correction[0] + falling * correction[1])
 
     def _nod(self, pitch: float, ratio: float) -> float:
         """The repeated nod's part of the pitch axis at this frame (AU)."""
