@@ -10,7 +10,9 @@ Head (pitch, yaw and roll, about the rest pose). The head's own visible angular 
 two one-pole filters of 0.04 s, about 4 Hz), smoothed over 0.25 s and divided by its running average (20 s),
 says how strongly it moves at each moment (``r``, 1 on average). The generator's frame-to-frame motion (its
 velocity) is then scaled, filtered and integrated again, with a pull of 4 s back towards the generator's own
-pose so that the two never drift apart:
+pose so that the two never drift apart. A gain that follows the speed would scale an axis's quick movements
+(a nod's fall) more than its slow ones (the rise) and carry the pose away in one direction, so each axis's
+rises and falls are rescaled to keep the generator's proportion (running means over 20 s):
 
 - activation (OAC, 0..1): how often gestures happen. The head holds during its weakest moments, about
   ``1 - activation`` of the time: a threshold follows the running ``1 - activation`` quantile of ``r``, and a
