@@ -23,7 +23,7 @@ from prosody.motion.training import find_pairs, held_out_prosodic, load_training
 
 sys.path.insert(0, str(Path(__file__).parent))
 from head_loso import TRACKED, speakers  # noqa: E402
-from shared import talking_heads  # noqa: E402
+from shared import shipped_settings, talking_heads  # noqa: E402
 
 SEEDS = 5
 
@@ -67,7 +67,7 @@ def main(argv: list[str]) -> int:
     print("| recorded motion | clips | speed-envelope r | pitch r | control: speed-envelope r | control: pitch r |")
     print("|---|---|---|---|---|---|")
     for label, chosen in (("as tracked", data), ("offsets corrected", corrected)):
-        result = held_out_prosodic(chosen, seeds=SEEDS)
+        result = held_out_prosodic(chosen, shipped_settings(), seeds=SEEDS)
         for clips, names in (("all", data.names), ("the corrected ones", list(shifts))):
             cells = [_mean(table, names, key) for key in ("speed_envelope_r", "pitch_r")
                      for table in (result.per_recording, result.controls)]

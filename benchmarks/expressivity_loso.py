@@ -21,11 +21,11 @@ import numpy as np
 from prosody.measures import average_head_metrics, head_metrics
 from prosody.motion.controls import shift_offsets, shifted_features
 from prosody.motion.expressivity import Expressivity, shape_head
-from prosody.motion.head_models import default_head_model
 from prosody.motion.speech_head import ProsodicHeadModel
 from prosody.motion.training import find_pairs, load_training_set
 
 sys.path.insert(0, str(Path(__file__).parent))
+from shared import shipped_settings  # noqa: E402
 from shared import talking_heads as default_data  # noqa: E402
 
 SEEDS = 5
@@ -56,7 +56,7 @@ def main(argv: list[str]) -> int:
 
     data = load_training_set(find_pairs(directory), speakers=speakers(), report=lambda message: None)
     fps = data.fps
-    settings = {name: getattr(default_head_model(), name) for name in ProsodicHeadModel.SETTINGS}
+    settings = shipped_settings()
     rows: dict[str, list[dict]] = {label: [] for label, _ in SETTINGS}
     controls: dict[str, list[dict]] = {label: [] for label, _ in SETTINGS}
     for fold in data.folds():

@@ -36,6 +36,7 @@ from prosody.motion.training import (
 )
 
 sys.path.insert(0, str(Path(__file__).parent))
+from shared import shipped_settings  # noqa: E402
 from shared import talking_heads as default_data  # noqa: E402
 
 
@@ -104,7 +105,7 @@ def main(argv: list[str]) -> int:
     print("| head | speed-envelope r | pitch r | std ratio pitch / yaw / roll | velocity-spectrum distance (dB) "
           "| control: speed-envelope r (chance spread) | control: pitch r (chance spread) |")
     print("|---|---|---|---|---|---|---|")
-    prosodic = held_out_prosodic(data, seeds=10)
+    prosodic = held_out_prosodic(data, shipped_settings(), seeds=10)
     print(_row("prosodic (default), 10 seeds", list(prosodic.per_recording.values()),
                list(prosodic.controls.values())))
     # nested: the settings for each held-out recording are chosen by cross-validation on the others only

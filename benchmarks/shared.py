@@ -25,3 +25,13 @@ def data_folder(name: str, *, needs: str) -> Path:
         raise SystemExit(f"{folder}: not found. This benchmark needs {needs}: the project's shared data folder "
                          "beside the checkout (../shared/data), or set PROSODY_SHARED_DATA=/path/to/data")
     return folder
+
+
+def shipped_settings() -> dict:
+    """The settings of the shipped default head (``prosody/motion/models/default_head.json``), which
+    cross-validation chose: the benchmarks fit the prosodic generator with them."""
+    from prosody.motion.head_models import default_head_model
+    from prosody.motion.speech_head import ProsodicHeadModel
+
+    model = default_head_model()
+    return {name: getattr(model, name) for name in ProsodicHeadModel.SETTINGS}

@@ -20,6 +20,8 @@ DIFFERENT_MEANINGS = {
     "name": "a stream's or file's label",
     "lookahead_s": "the offline head reads 0.5 s of the recording ahead; a live head only what a stream's delay "
                    "allows (0.1 s)",
+    "envelope_power": "the offline head also sharpens its motion itself (burst_power), and cross-validation chose 2 "
+                      "with it; the live head has no bursts and keeps the 3 chosen without them",
 }
 
 

@@ -288,9 +288,10 @@ class ProsodicHeadModel:
     speed_iterations : int in [0, 10]
         Passes that correct the noise so that the whole head's speed follows the prediction.
     envelope_power : float in [1, 4]
-        The predicted speed envelope is raised to this power (1: as predicted; 2, the shipped model's, was
-        chosen by cross-validation): above 1 the head moves faster on strong moments and slower on weak ones,
-        at the same overall size (bursts and holds). Files written before this setting existed read as 1.
+        The predicted speed envelope is raised to this power (1: as predicted; 2, the default and the
+        shipped model's, was chosen by cross-validation among 1, 2 and 3): above 1 the head moves faster on
+        strong moments and slower on weak ones, at the same overall size (bursts and holds). Files written
+        before this setting existed read as 1.
     burst_power : float in [0, 1]
         The generated motion goes through the expressivity controls' power reshaping at this value
         (:class:`prosody.motion.expressivity.HeadShaper`): the velocity times the moment's relative speed to
