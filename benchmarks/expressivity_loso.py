@@ -49,6 +49,12 @@ def _mean(rows: list[dict], key: str) -> float:
     return float(np.mean(values)) if values else float("nan")
 
 
+def _spread(rows: list[dict], key: str) -> float:
+    """The standard deviation over recordings: the chance spread of a control's mean."""
+    values = [row[key] for row in rows if row[key] is not None]
+    return float(np.std(values)) if values else float("nan")
+
+
 def main(argv: list[str]) -> int:
     directory = Path(argv[0]) if argv else default_data()
     warnings.simplefilter("ignore")
@@ -77,7 +83,7 @@ def main(argv: list[str]) -> int:
     print(f"{len(data.names)} recordings, {len(data.folds())} speakers, leave-one-speaker-out, {SEEDS} seeds")
     print()
     print("| controls | speed-envelope r | pitch r | std ratio (mean of axes) | speed p10 / p50 / p90 ratio | "
-          "still share (recorded) | control: speed-envelope r / pitch r |")
+          "still share (recorded) | control: speed-envelope r / pitch r (chance spread) |")
     print("|---|---|---|---|---|---|---|")
     for label, _ in SETTINGS:
         own, control = rows[label], controls[label]
@@ -85,8 +91,9 @@ def main(argv: list[str]) -> int:
         print(f"| {label} | {_mean(own, 'speed_envelope_r'):+.3f} | {_mean(own, 'pitch_r'):+.3f} | {spread:.2f} | "
               f"{_mean(own, 'speed_p10_ratio'):.2f} / {_mean(own, 'speed_p50_ratio'):.2f} / "
               f"{_mean(own, 'speed_p90_ratio'):.2f} | {_mean(own, 'still_fraction'):.2f} "
-              f"({_mean(own, 'recorded_still_fraction'):.2f}) | {_mean(control, 'speed_envelope_r'):+.3f} / "
-              f"{_mean(control, 'pitch_r'):+.3f} |")
+              f"({_mean(own, 'recorded_still_fraction'):.2f}) | {_mean(control, 'speed_envelope_r'):+.3f} "
+              f"± {_spread(control, 'speed_envelope_r'):.2f} / {_mean(control, 'pitch_r'):+.3f} "
+              f"± {_spread(control, 'pitch_r'):.2f} |")
     return 0
 
 

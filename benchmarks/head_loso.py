@@ -112,13 +112,14 @@ def main(argv: list[str]) -> int:
     pairs_unseen = [measured(shipped, data.features[i], data.motion_au[i], fps) for i in unseen]
     print(row("shipped default (trained on talking-heads), on the tracked clips", [p[0] for p in pairs_unseen],
               [p[1] for p in pairs_unseen]))
-    everyone = held_out_prosodic(data, shipped_settings(), seeds=SEEDS)
+    settings = shipped_settings()
+    everyone = held_out_prosodic(data, settings, seeds=SEEDS)
     by_source = {kind: [n for n in data.names if source[n] == kind] for kind in ("talking-heads", "talking-videos")}
     for label, chosen in (("all", data.names), *by_source.items()):
         print(row(f"prosodic fitted on every other speaker: {label} clips",
                   [everyone.per_recording[n] for n in chosen], [everyone.controls[n] for n in chosen]))
     heads_only = [i for i, name in enumerate(data.names) if source[name] == "talking-heads"]
-    small = held_out_prosodic(data.subset(heads_only), shipped_settings(), seeds=SEEDS)
+    small = held_out_prosodic(data.subset(heads_only), settings, seeds=SEEDS)
     print(row("prosodic fitted on the other talking-heads speakers only: talking-heads clips",
               list(small.per_recording.values()), list(small.controls.values())))
     perlin = [average_head_metrics([head_metrics(_array(perlin_curves(m.shape[0], fps=fps, seed=seed)), m, fps=fps)

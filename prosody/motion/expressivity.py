@@ -295,8 +295,9 @@ class HeadShaper:
         the pose away from the generator's, by more than the motion's spread within the pull's 4 s."""
         rising = np.maximum(velocity, 0.0)
         falling = np.minimum(velocity, 0.0)
-        self._distance += weight * (np.stack([rising, -falling]) - self._distance)
-        self._shaped_distance += weight * (gain * np.stack([rising, -falling]) - self._shaped_distance)
+        moved = np.stack([rising, -falling])
+        self._distance += weight * (moved - self._distance)
+        self._shaped_distance += weight * (gain * moved - self._shaped_distance)
         generated, shaped = self._distance, self._shaped_distance
         scale = shaped.sum(axis=0) / np.maximum(generated.sum(axis=0), 1e-300)
         correction = np.divide(generated * scale, shaped, out=np.ones_like(shaped), where=shaped > 0)
