@@ -4,9 +4,11 @@ agreement with the offline rule (part of ``make evaluate``).
 For each look-ahead, the live head model is fitted on every other speaker's recordings (their audio analysed
 as a stream; ``benchmarks/speakers.csv``) and measured on this speaker's over 10 seeds, beside the
 mismatched-audio control (the same model driven by the recording's own frames circularly shifted by 5 s or
-more) and its chance spread (the standard deviation over recordings). The row "nested" chooses the presence
-window inside each fold, on the other speakers' recordings only. The brows: raise onsets of the live rule
-within 3 frames (100 ms) of the offline rule's, over the talking-head clips and the speech recordings.
+more) and its chance spread (the standard deviation over recordings). The row "nested" chooses the settings
+(presence window, pitch follow) inside each fold, on the other speakers' recordings only; the row "pitch
+taken at once" is the head without its pitch follower, as before it existed. The brows: raise onsets of the
+live rule within 3 frames (100 ms) of the offline rule's, over the talking-head clips and the speech
+recordings.
 
 A second table adds the talking-videos clips tracked by ``benchmarks/head_loso.py`` (when it has run).
 
@@ -27,8 +29,8 @@ from prosody.motion.live_training import held_out_live, load_streamed, nested_he
 from prosody.motion.training import find_pairs
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from head_loco import _row, default_data  # noqa: E402
-from head_loso import TRACKED, speakers  # noqa: E402
+from head_loco import default_data  # noqa: E402
+from head_loso import TRACKED, row, speakers  # noqa: E402
 
 LOOKAHEADS_MS = (0, 100, 200, 300, 500)
 
@@ -58,16 +60,21 @@ def main(argv: list[str]) -> int:
     recordings = load_streamed(find_pairs(directory), report=lambda message: None, speakers=table)
     print(f"{len(recordings)} recordings of {len(speaker_folds(recordings))} speakers analysed as streams, "
           "leave-one-speaker-out, 10 seeds")
+    header = ("| live head | clips | speed-envelope r | pitch r | std ratio pitch / yaw / roll "
+              "| velocity-spectrum distance (dB) | speed p10 / p50 / p90 ratio | still: generated vs recorded "
+              "| control: speed-envelope r (chance spread) | control: pitch r (chance spread) |\n"
+              "|---|---|---|---|---|---|---|---|---|---|")
     print()
-    print("| live head | speed-envelope r | pitch r | std ratio pitch / yaw / roll | velocity-spectrum distance (dB) "
-          "| control: speed-envelope r (chance spread) | control: pitch r (chance spread) |")
-    print("|---|---|---|---|---|---|---|")
+    print(header)
     for ms in LOOKAHEADS_MS:
         result = held_out_live(recordings, lookahead_s=ms / 1000)
-        print(_row(f"{ms} ms look-ahead", list(result.per_recording.values()), list(result.controls.values())))
+        print(row(f"{ms} ms look-ahead", list(result.per_recording.values()), list(result.controls.values())))
+    result = held_out_live(recordings, lookahead_s=0.1, pitch_follow_s=0.0)
+    print(row("100 ms, pitch taken at once (pitch_follow_s 0)", list(result.per_recording.values()),
+              list(result.controls.values())))
     nested = nested_held_out_live(recordings, lookahead_s=0.1)
-    print(_row("100 ms, presence window chosen per fold (nested)", list(nested.per_recording.values()),
-               list(nested.controls.values())))
+    print(row("100 ms, settings chosen per fold (nested)", list(nested.per_recording.values()),
+              list(nested.controls.values())))
     if "--no-tracked" not in argv and TRACKED.is_dir():
         # every speaker at hand: the talking-videos clips tracked by benchmarks/head_loso.py as well
         tracked = load_streamed(find_pairs(TRACKED), report=lambda message: None, speakers=table)
@@ -76,18 +83,15 @@ def main(argv: list[str]) -> int:
         print(f"With the tracked talking-videos clips: {len(everyone)} recordings of "
               f"{len(speaker_folds(everyone))} speakers, leave-one-speaker-out, 10 seeds")
         print()
-        print("| live head | clips | speed-envelope r | pitch r | std ratio pitch / yaw / roll "
-              "| velocity-spectrum distance (dB) | control: speed-envelope r (chance spread) "
-              "| control: pitch r (chance spread) |")
-        print("|---|---|---|---|---|---|---|---|")
+        print(header)
         names = {r.name for r in recordings}
-        for ms in (0, 100):
-            result = held_out_live(everyone, lookahead_s=ms / 1000)
-            for label, chosen in (("all", [r.name for r in everyone]), ("talking-heads", sorted(names)),
+        for label, settings in (("0 ms", {"lookahead_s": 0.0}), ("100 ms", {"lookahead_s": 0.1}),
+                                ("100 ms, pitch_follow_s 0", {"lookahead_s": 0.1, "pitch_follow_s": 0.0})):
+            result = held_out_live(everyone, **settings)
+            for clips, chosen in (("all", [r.name for r in everyone]), ("talking-heads", sorted(names)),
                                   ("talking-videos", [r.name for r in tracked])):
-                cells = _row(f"{ms} ms look-ahead", [result.per_recording[n] for n in chosen],
-                             [result.controls[n] for n in chosen])
-                print(cells.replace(" look-ahead |", f" look-ahead | {label} |", 1))
+                print(row(f"{label}: {clips}", [result.per_recording[n] for n in chosen],
+                          [result.controls[n] for n in chosen]))
     print()
     speech = sorted(directory.glob("*.wav")) + sorted((directory.parent / "speech").glob("*.wav"))
     print("Live brows against the offline rule (onsets within 3 frames / offline onsets):")

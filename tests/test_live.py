@@ -179,6 +179,29 @@ def test_live_head_follows_the_drive_it_was_trained_on(rng):
     assert all(0.5 < ratio < 2.0 for run in runs for ratio in run["std_ratio"].values())
 
 
+def test_live_head_pitch_follows_the_prediction_as_fast_as_the_predicted_speed_lets_it(rng):
+    from prosody.motion.live import _Synthesis
+
+    f0s, energies, motions = _simulated_training(rng)
+    # the pitch axis all prediction (no noise on it): it is the followed prediction times a fixed scale
+    model = LiveHeadModel(lookahead_s=0.1, pitch_share=1.0, pitch_follow_s=0.2).fit(f0s, energies, motions,
+                                                                                     fps=30.0)
+    scale = model.spread_au_[0] * model.output_scale_[0] / model.pitch_prediction_spread_
+    for envelope in (0.5, 1.0, 2.0):
+        synthesis = _Synthesis(model, seed=0)
+        pitch = np.array([synthesis.step(envelope, 1.0)[0] for _ in range(30)]) / scale
+        # a step of the prediction, followed with the time constant 0.2 s / relative speed: 6 frames at 1
+        expected = 1.0 - np.exp(-envelope * np.arange(1, 31) / 6.0)
+        np.testing.assert_allclose(pitch, expected, rtol=1e-9)
+    # without it (and in files written before it, which read as 0) the head takes the prediction at once
+    payload = model.to_dict()
+    del payload["settings"]["pitch_follow_s"]
+    old = LiveHeadModel.from_dict(payload)
+    assert old.pitch_follow_s == 0.0
+    synthesis = _Synthesis(old, seed=0)
+    assert synthesis.step(0.5, 1.0)[0] / scale == pytest.approx(1.0, rel=1e-9)
+
+
 def test_live_features_match_the_offline_definition_once_the_medians_settle():
     samples = segments(16000, (1.0, 150, 0.5), (0.4, 200, 0.3), (0.3, 0, 0.0), (1.0, 170, 0.5))
     f0, energy = stream_file_from(samples, 16000)

@@ -102,8 +102,8 @@ def held_out_live(recordings: Sequence[StreamedRecording], *, fps: float = DEFAU
     return HeldOut(dict(settings), seeds, per_recording, controls)
 
 
-#: Settings of the live head tried by cross-validation (the rest keep their defaults).
-LIVE_GRID = {"presence_window_s": (2.0, 1.0, 0.5, 0.25)}
+#: Settings of the live head tried by cross-validation, one at a time (the rest keep their defaults).
+LIVE_GRID = {"presence_window_s": (2.0, 1.0, 0.5, 0.25), "pitch_follow_s": (0.0, 0.2)}
 
 
 def select_live(recordings: Sequence[StreamedRecording], *, fps: float = DEFAULT_FPS, seeds: int = 3,
