@@ -14,7 +14,8 @@ speech-driven row):
 - Perlin noise and a still head.
 
 Speed columns: generated / recorded 10th, 50th and 90th percentiles of the angular speed, and the time
-nearly still (under 2 deg/s) generated vs recorded.
+nearly still (under 2 deg/s) and how far from its median pose the head holds while nearly still (deg), generated
+vs recorded.
 
 Usage: python benchmarks/head_loso.py [--no-track]
 """
@@ -63,8 +64,10 @@ def row(label: str, rows: list[dict], control: list[dict] | None = None) -> str:
     ratios = " / ".join(_cell(_mean(rows, axis, "std_ratio"), ".2f") for axis in ("48", "49", "50"))
     speeds = " / ".join(_cell(_mean(rows, f"speed_p{p}_ratio"), ".2f") for p in (10, 50, 90))
     still = f"{_cell(_mean(rows, 'still_fraction'), '.2f')} vs {_cell(_mean(rows, 'recorded_still_fraction'), '.2f')}"
+    held = (f"{_cell(_mean(rows, 'still_offset_deg'), '.1f')} vs "
+            f"{_cell(_mean(rows, 'recorded_still_offset_deg'), '.1f')}")
     cells = [label, str(len(rows)), _cell(_mean(rows, "speed_envelope_r")), _cell(_mean(rows, "pitch_r")), ratios,
-             _cell(_mean(rows, "velocity_spectrum_distance_db"), ".1f"), speeds, still]
+             _cell(_mean(rows, "velocity_spectrum_distance_db"), ".1f"), speeds, still, held]
     if control:
         def spread(key: str) -> str:
             values = [r[key] for r in control if r[key] is not None]
@@ -102,9 +105,10 @@ def main(argv: list[str]) -> int:
     print()
     print("| head | clips | speed-envelope r | pitch r | std ratio pitch / yaw / roll "
           "| velocity-spectrum distance (dB) "
-          "| speed p10 / p50 / p90 ratio | still: generated vs recorded | control: speed-envelope r (chance spread) "
+          "| speed p10 / p50 / p90 ratio | still: generated vs recorded | held pose from median (deg): generated vs "
+          "recorded | control: speed-envelope r (chance spread) "
           "| control: pitch r (chance spread) |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     from prosody.motion.head_models import load_head_model
 
     shipped = load_head_model("prosodic")

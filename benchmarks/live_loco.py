@@ -62,8 +62,9 @@ def main(argv: list[str]) -> int:
           "leave-one-speaker-out, 10 seeds")
     header = ("| live head | clips | speed-envelope r | pitch r | std ratio pitch / yaw / roll "
               "| velocity-spectrum distance (dB) | speed p10 / p50 / p90 ratio | still: generated vs recorded "
+              "| held pose from median (deg): generated vs recorded "
               "| control: speed-envelope r (chance spread) | control: pitch r (chance spread) |\n"
-              "|---|---|---|---|---|---|---|---|---|---|")
+              "|---|---|---|---|---|---|---|---|---|---|---|")
     print()
     print(header)
     for ms in LOOKAHEADS_MS:

@@ -260,7 +260,10 @@ STILL_DEG_S = 2.0
 
 def speed_distribution(angles_rad: np.ndarray, *, fps: float, measured: np.ndarray | None = None) -> dict:
     """How the head moves in bursts and holds: the 10th, 50th and 90th percentiles of its angular speed
-    (deg/s, of the 4 Hz low-passed angles) and the fraction of time it is nearly still (under 2 deg/s).
+    (deg/s, of the 4 Hz low-passed angles), the fraction of time it is nearly still (under 2 deg/s), and
+    where it holds: the median, over the nearly still frames, of the angle between the head and its median
+    pose (deg, the three axes together; None without a still frame). People hold the head turned or tilted
+    as often as straight; a head that only holds at its rest pose scores near 0.
 
     Examples
     --------
@@ -270,15 +273,30 @@ def speed_distribution(angles_rad: np.ndarray, *, fps: float, measured: np.ndarr
     >>> d = speed_distribution(still_then_turning, fps=fps)
     >>> round(d["still_fraction"], 1), round(d["p90_deg_s"], 1)
     (0.5, 10.0)
+
+    Held turned 10 degrees left, a turn of 1 s, held 10 degrees right: still 89 % of the time, 10 degrees
+    from the median pose (straight ahead) while still, less the turn's ends softened by the low-pass:
+
+    >>> left_then_right = np.column_stack([0 * t, np.radians(np.clip(20 * (t - 5), -10, 10)), 0 * t])
+    >>> d = speed_distribution(left_then_right, fps=fps)
+    >>> round(d["still_fraction"], 2), round(d["still_offset_deg"], 1)
+    (0.89, 9.8)
     """
+    smooth = lowpass_head(np.asarray(angles_rad, float), fps=fps)
     speed = np.degrees(head_speed(np.asarray(angles_rad, float), fps=fps))
-    if measured is not None:
-        speed = speed[np.asarray(measured, bool)]
+    keep = np.ones(speed.size, bool) if measured is None else np.asarray(measured, bool)
+    speed, smooth = speed[keep], smooth[keep]
     if speed.size == 0:
-        return {**{f"p{p}_deg_s": None for p in SPEED_PERCENTILES}, "still_fraction": None}
+        return {**{f"p{p}_deg_s": None for p in SPEED_PERCENTILES}, "still_fraction": None,
+                "still_offset_deg": None}
     values = np.percentile(speed, SPEED_PERCENTILES)
+    still = speed < STILL_DEG_S
+    offset = None
+    if still.any():
+        away = smooth[still] - np.median(smooth, axis=0)
+        offset = float(np.degrees(np.median(np.sqrt((away.reshape(away.shape[0], -1) ** 2).sum(axis=1)))))
     return {**{f"p{p}_deg_s": float(v) for p, v in zip(SPEED_PERCENTILES, values, strict=True)},
-            "still_fraction": float(np.mean(speed < STILL_DEG_S))}
+            "still_fraction": float(np.mean(still)), "still_offset_deg": offset}
 
 
 def head_metrics(generated_au: np.ndarray, recorded_au: np.ndarray, *, fps: float,
@@ -295,9 +313,10 @@ def head_metrics(generated_au: np.ndarray, recorded_au: np.ndarray, *, fps: floa
     dict
         ``{"speed_envelope_r", "pitch_r", "std_ratio": {"48", "49", "50"}, "velocity_spectrum_distance_db",
         "yaw_r", "roll_r", "speed_p10_ratio", "speed_p50_ratio", "speed_p90_ratio", "still_fraction",
-        "recorded_still_fraction"}``: the ratios are generated / recorded percentiles of the angular speed,
-        the fractions the time each is nearly still (:func:`speed_distribution`); None where undefined (a
-        still head has no correlation).
+        "recorded_still_fraction", "still_offset_deg", "recorded_still_offset_deg"}``: the ratios are
+        generated / recorded percentiles of the angular speed, the fractions the time each is nearly still, the
+        offsets how far from its median pose each holds (deg; :func:`speed_distribution`); None where
+        undefined (a still head has no correlation).
     """
     generated = np.asarray(generated_au, float) * 1e-5
     recorded = np.asarray(recorded_au, float) * 1e-5
@@ -328,6 +347,8 @@ def head_metrics(generated_au: np.ndarray, recorded_au: np.ndarray, *, fps: floa
         **{f"speed_p{p}_ratio": ratio(f"p{p}_deg_s") for p in SPEED_PERCENTILES},
         "still_fraction": own["still_fraction"],
         "recorded_still_fraction": theirs["still_fraction"],
+        "still_offset_deg": own["still_offset_deg"],
+        "recorded_still_offset_deg": theirs["still_offset_deg"],
     }
 
 
@@ -424,7 +445,8 @@ def brow_metrics(generated_ens: np.ndarray, recorded_ens: np.ndarray, *, fps: fl
 
 # averaging measures over runs (seeds, control offsets, recordings) ------------------------------------------
 HEAD_MEASURES = ("speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db", "yaw_r", "roll_r",
-                 "speed_p10_ratio", "speed_p50_ratio", "speed_p90_ratio", "still_fraction", "recorded_still_fraction")
+                 "speed_p10_ratio", "speed_p50_ratio", "speed_p90_ratio", "still_fraction", "recorded_still_fraction",
+                 "still_offset_deg", "recorded_still_offset_deg")
 BROW_MEASURES = ("raise_r", "raises", "recorded_raises", "median_raise_s", "recorded_median_raise_s")
 
 

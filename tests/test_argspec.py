@@ -22,6 +22,9 @@ DIFFERENT_MEANINGS = {
                    "allows (0.1 s)",
     "envelope_power": "the offline head also sharpens its motion itself (burst_power), and cross-validation chose 2 "
                       "with it; the live head has no bursts and keeps the 3 chosen without them",
+    "pitch_follow_s": "each head's cross-validation chose its own: the offline head's speed is relative to the "
+                      "recording's average, the live head's to its training average, and the live head has no "
+                      "bursts",
 }
 
 

@@ -107,7 +107,8 @@ def test_compare_cli_writes_everything_with_the_documented_shape(tmp_path, rng) 
     metrics = json.loads((out / "metrics.json").read_text())
     assert list(metrics["conditions"]) == ["NO_PROSODY", "RANDOM", "SPEECH_DRIVEN", "GROUND_TRUTH"]
     head_keys = {"speed_envelope_r", "pitch_r", "std_ratio", "velocity_spectrum_distance_db", "yaw_r", "roll_r",
-                 "speed_p10_ratio", "speed_p50_ratio", "speed_p90_ratio", "still_fraction", "recorded_still_fraction"}
+                 "speed_p10_ratio", "speed_p50_ratio", "speed_p90_ratio", "still_fraction", "recorded_still_fraction",
+                 "still_offset_deg", "recorded_still_offset_deg"}
     for _condition, per_fap in metrics["conditions"].items():
         assert list(per_fap) == ["31", "32", "33", "34", "48", "49", "50", "head", "brows", "mouth"]
         for fap, entry in per_fap.items():

@@ -29,7 +29,7 @@ from prosody.motion.controls import fitted_features, shift_offsets, shifted_feat
 from prosody.motion.eyebrows import AccentRule, EyebrowRule, NoRaiseWarning, accent_raises, brow_raises
 from prosody.motion.ground_truth import ENS_PER_EYE_WIDTH, read_brows_csv, read_motion
 from prosody.motion.head_models import SHIPPED_MODELS, default_head_model, load_head_model, rest_pose
-from prosody.motion.speech_head import ProsodicHeadModel, speech_presence
+from prosody.motion.speech_head import ProsodicHeadModel, follow, speech_presence
 
 SR = 16000
 FPS = 30.0
@@ -200,6 +200,30 @@ def test_burst_power_makes_the_head_move_in_bursts_and_hold(simulated, tmp_path)
     old = load_head_model(tmp_path / "old.json")
     assert old.burst_power == 0.0
     np.testing.assert_array_equal(speeds(old), even)
+
+
+def test_pitch_follows_the_prediction_quickly_when_talking_and_holds_in_pauses(simulated, tmp_path) -> None:
+    model, (features, _) = simulated
+    assert model.pitch_follow_s == 0.2
+    raw, speed = model.predicted_pitch(features), model.predicted_envelope(features)
+    followed = model._followed_pitch(features)
+    # the lag's time constant is 0.2 s (6 frames) at the average predicted speed, shorter when faster
+    np.testing.assert_allclose(followed, follow(raw, speed / speed.mean(), frames=6.0), rtol=1e-12)
+    # where the speech says the head is quiet it keeps much less of the prediction's changes than where it
+    # says the head moves
+    quiet, busy = speed[1:] <= np.percentile(speed, 25), speed[1:] >= np.percentile(speed, 75)
+
+    def kept(where: np.ndarray) -> float:
+        return float(np.abs(np.diff(followed))[where].mean() / np.abs(np.diff(raw))[where].mean())
+
+    assert kept(quiet) < 0.5 * kept(busy)
+    # files written before the setting read as 0: the prediction taken as it is
+    payload = model.to_dict()
+    del payload["settings"]["pitch_follow_s"]
+    (tmp_path / "old.json").write_text(json.dumps(payload))
+    old = load_head_model(tmp_path / "old.json")
+    assert old.pitch_follow_s == 0.0
+    np.testing.assert_array_equal(old._followed_pitch(features), raw)
 
 
 def test_same_seed_same_motion_other_seed_other_motion(simulated) -> None:

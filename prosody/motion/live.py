@@ -10,8 +10,9 @@ the F0 bridge, an accent's peak), these use what has been heard so far:
   (:class:`SpeakerLevels`, forgetting with a half-life of five minutes of voice);
 - the F0 bridge over unvoiced gaps sees the look-ahead only (:class:`audio_features.streaming.CausalF0Bridge`);
 - an accent's brow raise grows with the accent's peak so far instead of taking the whole accent's peak;
-- the head (:class:`LiveHeadModel`) reads prosody from 0.5 s before each frame to its look-ahead, and its
-  noise speed is matched frame by frame.
+- the head (:class:`LiveHeadModel`) reads prosody from 0.5 s before each frame to its look-ahead, its
+  noise speed is matched frame by frame, and its pitch follows the predicted pitch only as fast as the
+  predicted speed lets it (the offline generator corrects the whole head's speed over the recording instead).
 
 ``finish()`` gives out the frames still waiting for their look-ahead when the audio ends.
 """

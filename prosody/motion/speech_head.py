@@ -102,6 +102,32 @@ def speech_presence(features: Features) -> np.ndarray:
     return np.clip(share / PRESENCE_FULL_SHARE, 0.0, 1.0)
 
 
+def follow(target: np.ndarray, speed: np.ndarray, *, frames: float) -> np.ndarray:
+    """``target`` followed by a first-order lag whose time constant is ``frames`` divided by ``speed``, frame
+    by frame: ``y[k] = y[k-1] + (target[k] - y[k-1]) * (1 - exp(-speed[k] / frames))``, from 0 (the rest
+    pose).
+
+    The head's pitch follows its predicted pitch this way (``speed`` the predicted relative speed): quick
+    where the speech says the head moves, holding where it says the head is quiet. ``frames`` 0 gives the
+    target itself.
+
+    Examples
+    --------
+    >>> np.round(follow(np.ones(4), np.array([1.0, 1.0, 0.0, 2.0]), frames=1.0), 3)
+    array([0.632, 0.865, 0.865, 0.982])
+    """
+    target = np.asarray(target, float)
+    if frames <= 0:
+        return target.copy()
+    gains = -np.expm1(-np.maximum(np.asarray(speed, float), 0.0) / frames)
+    out = np.empty_like(target)
+    value = 0.0
+    for k, (aim, gain) in enumerate(zip(target.tolist(), gains.tolist(), strict=True)):
+        value += (aim - value) * gain
+        out[k] = value
+    return out
+
+
 # The generator runs inside `prosody convert`, whose speed aim leaves no room for importing scipy.signal
 # (about 0.9 s): its filters are done here with numpy's FFT.
 def _fft_size(n: int) -> int:
@@ -286,7 +312,8 @@ class ProsodicHeadModel:
     idle_ratio : float in [0, 1]
         Speed of a head at rest, as a share of its average speed while speaking.
     speed_iterations : int in [0, 10]
-        Passes that correct the noise so that the whole head's speed follows the prediction.
+        Passes that correct the noise so that the whole head's speed follows the prediction (3, the default,
+        as the shipped model's cross-validation chose).
     envelope_power : float in [1, 4]
         The predicted speed envelope is raised to this power (1: as predicted; 2, the default and the
         shipped model's, was chosen by cross-validation among 1, 2 and 3): above 1 the head moves faster on
@@ -300,6 +327,11 @@ class ProsodicHeadModel:
         within 1.5 times the recording's on the 49 clips at hand held out by speaker (1.13 / 1.11 / 1.02; on
         the seven talking-heads clips 1.64 / 1.57 / 1.03: the README's figures); 0 leaves the motion as the
         generator makes it. Files written before this setting existed read as 0.
+    pitch_follow_s : float in [0, 2], in s
+        The head's pitch follows the predicted pitch with this time constant at the average predicted speed,
+        longer where the predicted speed is lower (:func:`follow`): the prediction moves the head where the
+        speech says it moves and holds it where it says it is quiet. 0 takes the prediction as it is (files
+        written before this setting existed read as 0); cross-validation chooses between 0 and 0.2.
 
     Attributes
     ----------
@@ -326,8 +358,8 @@ class ProsodicHeadModel:
 
     def __init__(self, lookbehind_s: float = 0.5, lookahead_s: float = 0.5, step_s: float = 0.1,
                  ridge: float = 1e4, pitch_share: float = 0.95, leak_s: float = 2.0, pitch_leak_s: float = 0.15,
-                 idle_ratio: float = 0.15, speed_iterations: int = 2, envelope_power: float = 2.0,
-                 burst_power: float = 0.5):
+                 idle_ratio: float = 0.15, speed_iterations: int = 3, envelope_power: float = 2.0,
+                 burst_power: float = 0.5, pitch_follow_s: float = 0.2):
         self.lookbehind_s = lookbehind_s
         self.lookahead_s = lookahead_s
         self.step_s = step_s
@@ -339,6 +371,7 @@ class ProsodicHeadModel:
         self.pitch_leak_s = pitch_leak_s
         self.envelope_power = envelope_power
         self.burst_power = burst_power
+        self.pitch_follow_s = pitch_follow_s
 
     # settings -------------------------------------------------------------------------------------------
     def _check_settings(self) -> None:
@@ -349,6 +382,7 @@ class ProsodicHeadModel:
             ("leak_s", self.leak_s, 1e-2, 1e3), ("pitch_leak_s", self.pitch_leak_s, 1e-2, 1e3),
             ("idle_ratio", self.idle_ratio, 0.0, 1.0), ("speed_iterations", self.speed_iterations, 0, 10),
             ("envelope_power", self.envelope_power, 1.0, 4.0), ("burst_power", self.burst_power, 0.0, 1.0),
+            ("pitch_follow_s", self.pitch_follow_s, 0.0, 2.0),
         )
         for name, value, low, high in checks:
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)
@@ -427,7 +461,7 @@ class ProsodicHeadModel:
         self.noise_spread_ = np.mean([self._noise_angles(f, seed=seed).std(axis=0)
                                       for f in features for seed in seeds], axis=0)
         self.noise_spread_ = np.where(self.noise_spread_ > 0, self.noise_spread_, 1.0)
-        pitch_spread = float(np.mean([self.predicted_pitch(f).std() for f in features]))
+        pitch_spread = float(np.mean([self._followed_pitch(f).std() for f in features]))
         self.pitch_prediction_spread_ = pitch_spread if pitch_spread > 0 else 1.0
         # the average over recordings of generated / recorded spread is 1 on every axis
         ratios = np.mean([self._motion(f, seed=seed).std(axis=0) / (spread / RADIANS_PER_AU)
@@ -491,6 +525,15 @@ class ProsodicHeadModel:
         predicted = self._linear(features, PITCH_FEATURES, self.pitch_weights_, self.pitch_mean_, self.pitch_std_)
         return predicted * speech_presence(features)
 
+    def _followed_pitch(self, features: Features) -> np.ndarray:
+        """The predicted pitch as the head follows it (:func:`follow`, ``pitch_follow_s`` at the average
+        predicted speed), in units of the recorded spread."""
+        pitch = self.predicted_pitch(features)
+        if self.pitch_follow_s <= 0 or pitch.size == 0:
+            return pitch
+        speed = self.predicted_envelope(features)
+        return follow(pitch, speed / max(float(speed.mean()), 1e-12), frames=self.pitch_follow_s * self.fps_)
+
     def _noise_angles(self, features: Features, *, seed: int) -> np.ndarray:
         """Coloured noise (n_frames, 3), rad, whose speed follows the predicted envelope, leaking to rest."""
         n = features.n_frames
@@ -523,7 +566,7 @@ class ProsodicHeadModel:
         if features.n_frames == 0:
             return np.zeros((0, len(HEAD_FAPS)))
         noise = self._noise_angles(features, seed=seed) / self.noise_spread_  # unit spread per axis
-        pitch = self.predicted_pitch(features) / self.pitch_prediction_spread_  # unit spread
+        pitch = self._followed_pitch(features) / self.pitch_prediction_spread_  # unit spread
         share = self.pitch_share
         noise[:, 0] *= math.sqrt(max(0.0, 1.0 - share**2))
         scale = self.spread_au_ * self.output_scale_ * RADIANS_PER_AU
@@ -560,9 +603,9 @@ class ProsodicHeadModel:
 
     # persistence ----------------------------------------------------------------------------------------
     SETTINGS = ("lookbehind_s", "lookahead_s", "step_s", "ridge", "pitch_share", "leak_s", "pitch_leak_s",
-                "idle_ratio", "speed_iterations", "envelope_power", "burst_power")
+                "idle_ratio", "speed_iterations", "envelope_power", "burst_power", "pitch_follow_s")
     #: settings that files written before they existed leave out, with the value that reproduces those files
-    OPTIONAL_SETTINGS = {"envelope_power": 1.0, "burst_power": 0.0}
+    OPTIONAL_SETTINGS = {"envelope_power": 1.0, "burst_power": 0.0, "pitch_follow_s": 0.0}
 
     def _array_shapes(self) -> dict[str, tuple[int, ...]]:
         fps = getattr(self, "fps_", 30.0)

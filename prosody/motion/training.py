@@ -33,7 +33,8 @@ _LOG = logging.getLogger("prosody.training")
 #: Kinds of head model ``train`` fits.
 MODEL_KINDS = ("prosodic", "arx", "pad")
 #: Settings of the prosodic generator tried by cross-validation (the rest keep their defaults).
-PROSODIC_GRID = {"pitch_share": (0.9, 0.95), "speed_iterations": (2, 3), "envelope_power": (1.0, 2.0, 3.0)}
+PROSODIC_GRID = {"pitch_share": (0.9, 0.95), "speed_iterations": (2, 3), "envelope_power": (1.0, 2.0, 3.0),
+                 "pitch_follow_s": (0.0, 0.2)}
 #: Seeds over which a stochastic model's held-out measures are averaged.
 CV_SEEDS = 10
 
