@@ -260,7 +260,7 @@ def test_train_prosodic_with_cv_stores_held_out_figures(tmp_path, rng) -> None:
     payload = json.loads(out.read_text())
     cv = payload["cross_validation"]
     assert cv["seeds"] == 10 and set(cv["per_recording"]) == {"clip0", "clip1", "clip2"}
-    assert set(cv["settings"]) == {"pitch_share", "speed_iterations", "envelope_power"}
+    assert set(cv["settings"]) == {"pitch_share", "speed_iterations", "envelope_power", "pitch_follow_s"}
     assert payload["settings"]["envelope_power"] == cv["settings"]["envelope_power"]
     assert set(cv["mean"]) == {"speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db", "std_ratio"}
     assert payload["settings"]["pitch_share"] == cv["settings"]["pitch_share"]
