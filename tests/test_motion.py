@@ -206,7 +206,7 @@ def test_pitch_follows_the_prediction_quickly_when_talking_and_holds_in_pauses(s
     model, (features, _) = simulated
     assert model.pitch_follow_s == 0.2
     raw, speed = model.predicted_pitch(features), model.predicted_envelope(features)
-    followed = model._followed_pitch(features)
+    followed = model._followed_pitch(features, speed)
     # the lag's time constant is 0.2 s (6 frames) at the average predicted speed, shorter when faster
     np.testing.assert_allclose(followed, follow(raw, speed / speed.mean(), frames=6.0), rtol=1e-12)
     # where the speech says the head is quiet it keeps much less of the prediction's changes than where it
@@ -223,7 +223,7 @@ def test_pitch_follows_the_prediction_quickly_when_talking_and_holds_in_pauses(s
     (tmp_path / "old.json").write_text(json.dumps(payload))
     old = load_head_model(tmp_path / "old.json")
     assert old.pitch_follow_s == 0.0
-    np.testing.assert_array_equal(old._followed_pitch(features), raw)
+    np.testing.assert_array_equal(old._followed_pitch(features, speed), raw)
 
 
 def test_same_seed_same_motion_other_seed_other_motion(simulated) -> None:

@@ -685,7 +685,8 @@ class _Synthesis:
         wanted = envelope * model.speed_rad_s_
         pitch_part = model.pitch_share * pitch / model.pitch_prediction_spread_
         if not parts:
-            # the head follows the predicted pitch as fast as the predicted speed lets it
+            # the head follows the predicted pitch as fast as the predicted speed lets it (one step of
+            # prosody.motion.speech_head.follow)
             if self._follow_frames > 0:
                 self._followed += (pitch_part - self._followed) * -math.expm1(-envelope / self._follow_frames)
                 pitch_part = self._followed

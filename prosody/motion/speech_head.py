@@ -461,7 +461,7 @@ class ProsodicHeadModel:
         self.noise_spread_ = np.mean([self._noise_angles(f, seed=seed).std(axis=0)
                                       for f in features for seed in seeds], axis=0)
         self.noise_spread_ = np.where(self.noise_spread_ > 0, self.noise_spread_, 1.0)
-        pitch_spread = float(np.mean([self._followed_pitch(f).std() for f in features]))
+        pitch_spread = float(np.mean([self._followed_pitch(f, self.predicted_envelope(f)).std() for f in features]))
         self.pitch_prediction_spread_ = pitch_spread if pitch_spread > 0 else 1.0
         # the average over recordings of generated / recorded spread is 1 on every axis
         ratios = np.mean([self._motion(f, seed=seed).std(axis=0) / (spread / RADIANS_PER_AU)
@@ -525,14 +525,13 @@ class ProsodicHeadModel:
         predicted = self._linear(features, PITCH_FEATURES, self.pitch_weights_, self.pitch_mean_, self.pitch_std_)
         return predicted * speech_presence(features)
 
-    def _followed_pitch(self, features: Features) -> np.ndarray:
-        """The predicted pitch as the head follows it (:func:`follow`, ``pitch_follow_s`` at the average
-        predicted speed), in units of the recorded spread."""
+    def _followed_pitch(self, features: Features, envelope: np.ndarray) -> np.ndarray:
+        """The predicted pitch as the head follows it (:func:`follow`, ``pitch_follow_s`` at the average of
+        the predicted ``envelope``), in units of the recorded spread."""
         pitch = self.predicted_pitch(features)
         if self.pitch_follow_s <= 0 or pitch.size == 0:
             return pitch
-        speed = self.predicted_envelope(features)
-        return follow(pitch, speed / max(float(speed.mean()), 1e-12), frames=self.pitch_follow_s * self.fps_)
+        return follow(pitch, envelope / max(float(envelope.mean()), 1e-12), frames=self.pitch_follow_s * self.fps_)
 
     def _noise_angles(self, features: Features, *, seed: int) -> np.ndarray:
         """Coloured noise (n_frames, 3), rad, whose speed follows the predicted envelope, leaking to rest."""
@@ -566,14 +565,14 @@ class ProsodicHeadModel:
         if features.n_frames == 0:
             return np.zeros((0, len(HEAD_FAPS)))
         noise = self._noise_angles(features, seed=seed) / self.noise_spread_  # unit spread per axis
-        pitch = self._followed_pitch(features) / self.pitch_prediction_spread_  # unit spread
+        envelope = self.predicted_envelope(features)
+        pitch = self._followed_pitch(features, envelope) / self.pitch_prediction_spread_  # unit spread
         share = self.pitch_share
         noise[:, 0] *= math.sqrt(max(0.0, 1.0 - share**2))
         scale = self.spread_au_ * self.output_scale_ * RADIANS_PER_AU
         fixed = np.zeros_like(noise)
         fixed[:, 0] = share * pitch
-        wanted = self.predicted_envelope(features)
-        wanted = wanted / max(float(wanted.mean()), 1e-12)
+        wanted = envelope / max(float(envelope.mean()), 1e-12)
         for _ in range(self.speed_iterations):
             # the pitch prediction moves the head too: rescale the noise until the sum has the wanted speed
             speed = smooth_speed_envelope((fixed + noise) * scale, fps=self.fps_)
