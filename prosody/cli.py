@@ -1299,8 +1299,10 @@ def build_parser() -> argparse.ArgumentParser:
                        help="leave-one-speaker-out cross-validation (a folder's speakers.csv names the speakers; "
                             "without one, each recording is its own): for prosodic, choose its settings by the "
                             "held-out speed-envelope and pitch correlations above the mismatched-audio control "
-                            "and store those figures in the model file; for arx, choose na, nb, nk and the "
-                            "ridge penalty by free-run error (the head measures are reported beside it)")
+                            "and store those figures in the model file (pitch share, speed passes, envelope power, "
+                            "pitch follow); for live, its presence window or pitch follow the same way; for arx, "
+                            "choose na, nb, nk and the ridge penalty by free-run error (the head measures are "
+                            "reported beside it)")
     arx = train.add_argument_group("ARX orders (--kind arx only)")
     arx.add_argument("--na", type=int, default=None, help="past outputs fed back (default 1)")
     arx.add_argument("--nb", type=int, default=None, help="input lags (default 5)")
