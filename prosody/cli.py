@@ -645,6 +645,9 @@ def _cmd_stream(args: argparse.Namespace) -> int:
                 server.publish_audio(samples, rate)
             emit(converter.push(samples))
 
+        if args.mic or args.input == "-":  # live input: say when it is listened to (programs wait for this line)
+            source = "the microphone" if args.mic else "standard input"
+            _say(f"prosody stream: reading {source} at {rate} Hz (Ctrl-C to stop)")
         passes = 0
         while True:
             interrupted = _read_until_stopped(chunks, consume)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,17 +14,86 @@ REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("PROSODY_SHARED_DATA", REPO.parent / "shared" / "data"))
 
 
+SHARED_MISSING = f"real data not found at {SHARED_DATA} (set PROSODY_SHARED_DATA)"
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     if SHARED_DATA.is_dir():
         return
-    skip = pytest.mark.skip(reason=f"real data not found at {SHARED_DATA} (set PROSODY_SHARED_DATA)")
+    skip = pytest.mark.skip(reason=SHARED_MISSING)
     for item in items:
         if "shared_data" in item.keywords:
             item.add_marker(skip)
 
 
+# Reads of ../shared outside a test marked shared_data ----------------------------------------------------------
+# A user's clone has no ../shared: a test that reads it must carry the marker, so that it skips there with its
+# reason instead of failing. An audit hook sees every file opened, folder listed and process started while a
+# test runs; a test without the marker that touches SHARED_DATA fails with the path it touched.
+_SHARED_ROOTS = tuple(dict.fromkeys(str(path) for path in (SHARED_DATA, SHARED_DATA.resolve())))
+_AUDITED = {"open", "os.listdir", "os.scandir", "glob.glob", "subprocess.Popen", "os.exec", "os.posix_spawn"}
+
+
+class SharedReads:
+    """What an unmarked test read of the shared data: ``watching`` is set while such a test runs."""
+
+    watching = False
+    seen: list[str] = []
+
+    @classmethod
+    def audit(cls, event: str, args: tuple) -> None:
+        if not cls.watching or event not in _AUDITED:
+            return
+        for value in _audit_strings(args):
+            if value.startswith(_SHARED_ROOTS):
+                cls.seen.append(f"{event} {value}")
+                return
+
+
+def _audit_strings(args) -> list[str]:
+    found: list[str] = []
+    for value in args:
+        if isinstance(value, (str, bytes, os.PathLike)):
+            try:
+                found.append(os.fsdecode(value))
+            except TypeError:
+                pass
+        elif isinstance(value, (list, tuple)):
+            found.extend(_audit_strings(value))
+    return found
+
+
+sys.addaudithook(SharedReads.audit)
+
+
+def _watch_shared_reads(item: pytest.Item):
+    marked = item.get_closest_marker("shared_data") is not None
+    SharedReads.watching, SharedReads.seen = not marked, []
+    failure = None
+    try:
+        return (yield)
+    except Exception as error:  # a read that failed (no such file in a user's clone) is told as the rule broken
+        failure = error
+        raise
+    finally:
+        SharedReads.watching = False
+        if SharedReads.seen and not isinstance(failure, pytest.fail.Exception):
+            pytest.fail(f"{item.nodeid} reads the shared data without @pytest.mark.shared_data (a user's clone "
+                        f"has none, so it must skip there): {SharedReads.seen[0]}", pytrace=False)
+
+
+pytest_runtest_setup = pytest.hookimpl(wrapper=True)(_watch_shared_reads)
+pytest_runtest_call = pytest.hookimpl(wrapper=True)(_watch_shared_reads)
+
+
 @pytest.fixture
-def shared_data() -> Path:
+def shared_data(request: pytest.FixtureRequest) -> Path:
+    """The real data folder; only for tests marked ``shared_data`` (they skip where it is absent)."""
+    if request.node.get_closest_marker("shared_data") is None:
+        pytest.fail(f"{request.node.nodeid} uses the shared_data fixture without @pytest.mark.shared_data",
+                    pytrace=False)
+    if not SHARED_DATA.is_dir():
+        pytest.skip(SHARED_MISSING)
     return SHARED_DATA
 
 

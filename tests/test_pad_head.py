@@ -179,6 +179,7 @@ def test_pad_state_drives_the_gestures():
     assert 0.8 < np.ptp(nod) <= 1.0 + 1e-9
 
 
+@pytest.mark.shared_data
 def test_eq2_arousal_coefficients_are_recovered_from_motion_made_with_them(shared_data):
     # a simulated system with known coefficients: motion generated with C4-C6 = (2, 3, 4) on real speech, where
     # the pose drawn per PW and the boundary smoothing blur each stretch's peak-to-peak
@@ -204,6 +205,7 @@ def test_eq2_arousal_coefficients_are_recovered_from_motion_made_with_them(share
         fit_arousal(np.array([0.0, 1.0, 1.0]), np.ones((3, 3)))
 
 
+@pytest.mark.shared_data
 def test_train_kind_pad_writes_a_model_that_model_file_reads(shared_data, tmp_path, capsys):
     import json
 

@@ -42,6 +42,41 @@ class _Reader(threading.Thread):
             self.lines.append((time.monotonic(), line.decode()))
 
 
+def _started(process: subprocess.Popen, timeout_s: float = 120.0) -> _Reader:
+    """Waits for the command's readiness line on its standard error (it is reading its input), not on the
+    clock: a busy machine can take seconds to start Python. Returns the reader of the rest of standard error."""
+    errors = _Reader(process.stderr)
+    errors.start()
+    deadline = time.monotonic() + timeout_s
+    while not any("prosody stream: reading" in line for _, line in errors.lines):
+        assert process.poll() is None, "".join(line for _, line in errors.lines)
+        assert time.monotonic() < deadline, "no readiness line"
+        time.sleep(0.02)
+    return errors
+
+
+def _unread_bytes(pipe) -> int:
+    """Bytes written into a pipe that its reader has not taken yet (Linux's FIONREAD works on either end)."""
+    import fcntl
+    import struct
+    import termios
+
+    return struct.unpack("i", fcntl.ioctl(pipe.fileno(), termios.FIONREAD, b"\0" * 4))[0]
+
+
+def _waits_on_its_pipe(process: subprocess.Popen) -> bool:
+    """The process's main thread is blocked reading a pipe (its standard input), by the kernel's account;
+    where the kernel hides that, that it sleeps."""
+    proc = Path("/proc") / str(process.pid)
+    try:
+        channel = (proc / "wchan").read_text()
+        if channel not in ("", "0"):
+            return "pipe_read" in channel
+        return (proc / "stat").read_text().rsplit(")", 1)[1].split()[0] == "S"
+    except OSError:
+        return False
+
+
 def _pcm16(samples: np.ndarray) -> bytes:
     return (np.clip(samples, -1, 1) * 32767).astype("<i2").tobytes()
 
@@ -52,6 +87,7 @@ def test_pipe_at_real_time_pace_gives_every_frame_in_time_and_in_order():
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=ENV) as process:
         reader = _Reader(process.stdout)
         reader.start()
+        errors = _started(process)
         chunk = rate // 50  # 20 ms
         written = []  # (time, samples written so far)
         start = time.monotonic()
@@ -64,7 +100,7 @@ def test_pipe_at_real_time_pace_gives_every_frame_in_time_and_in_order():
             written.append((time.monotonic(), min(samples.size, offset + chunk)))
         input_closed = time.monotonic()
         process.stdin.close()
-        assert process.wait(timeout=60) == 0, process.stderr.read().decode()
+        assert process.wait(timeout=120) == 0, "".join(line for _, line in errors.lines)
         reader.join(timeout=10)
     frames = [json.loads(line) for _, line in reader.lines]
     expected = int(np.ceil(samples.size / rate * 30 - 1e-9))
@@ -106,13 +142,21 @@ def test_ctrl_c_flushes_the_last_frames_and_writes_the_file_whole(tmp_path, stop
     out = tmp_path / "stopped.fap"
     with subprocess.Popen([*PROSODY, "stream", "-", "--raw-rate", "16000", "-o", str(out)],
                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=ENV) as process:
+        errors = _started(process)
         process.stdin.write(_pcm16(segments(16000, (0.6, 150, 0.5), (0.4, 220, 0.5))))
         process.stdin.flush()
-        time.sleep(2.5)  # started and analysed what it was given; stdin stays open, as a microphone's would
+        deadline = time.monotonic() + 120
+        settled = 0  # the command has taken it all and waits for more, seen on consecutive looks
+        while settled < 5 and time.monotonic() < deadline:
+            settled = settled + 1 if not _unread_bytes(process.stdin) and _waits_on_its_pipe(process) else 0
+            time.sleep(0.02)
+        # stdin stays open, as a microphone's would: the signal stops the wait for more
         process.send_signal(stop)
-        _, err = process.communicate(timeout=30)
-    assert process.returncode == 0, err.decode()
-    assert b"the last frames flushed" in err
+        process.wait(timeout=120)
+        errors.join(timeout=10)
+    err = "".join(line for _, line in errors.lines)
+    assert process.returncode == 0, err
+    assert "the last frames flushed" in err
     stream = read_fap(out).stream
     assert stream.n_frames == 30  # the whole second given, its last frames flushed at the stop
     assert not list(tmp_path.glob(".*.part*"))

@@ -19,6 +19,7 @@ from prosody.evaluation.ratings import (
     ballot_design,
     parse_identifications,
     parse_ratings,
+    ratings_markdown,
 )
 from prosody.evaluation.study import CONDITIONS, plan_study, write_plan
 
@@ -169,6 +170,79 @@ def test_anovas_and_tukey_agree_with_statsmodels_and_scipy(rng) -> None:
         sign = -1 if i < j else 1  # statsmodels gives the later group minus the earlier one
         assert test["mean_difference"] == pytest.approx(sign * float(tukey.meandiffs[k]))
         assert test["ci_low"] <= test["mean_difference"] <= test["ci_high"]
+
+
+def _rows(scores: dict[str, list[int]], subjects: int = 6) -> list[tuple]:
+    """Each subject rates each condition with the scores given for it, in turn (two stimuli)."""
+    return [(stimulus, f"p{subject}", name, values[(subject * 2 + k) % len(values)])
+            for subject in range(subjects) for k, stimulus in enumerate(("a", "b")) for name, values in scores.items()]
+
+
+@pytest.mark.parametrize("score", [1, 3, 4, 5])
+@pytest.mark.parametrize("subjects", [2, 7, 13])
+def test_scores_that_are_all_equal_are_no_effect(score, subjects) -> None:
+    import warnings
+
+    from scipy import stats
+
+    rows = _rows({name: [score] for name in ("NO_PROSODY", "RANDOM", "SPEECH_DRIVEN", "calm")}, subjects)
+    results = analyze_ratings(parse_ratings(_ratings_text(rows)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # scipy warns of the constant input, and answers nan
+        assert np.isnan(stats.f_oneway(*[[score] * (2 * subjects)] * 4).statistic)
+    for anova in (results["anova"], results["anova_rm"]):
+        assert anova["F"] is None and anova["p"] is None, anova
+        assert "no variance" in anova["note"]
+    assert results["anova"]["eta_squared"] is None and results["anova_rm"]["partial_eta_squared"] is None
+    assert all(test["p_adjusted"] is None and test["cohen_d"] is None and test["reject"] is None
+               for test in results["tukey"])
+    assert all(entry["sd"] == 0 for entry in results["conditions"].values())
+    assert "no variance, so no effect to test" in ratings_markdown(results)
+
+
+def test_conditions_each_constant_but_different_leave_f_undefined() -> None:
+    rows = _rows({"NO_PROSODY": [2], "SPEECH_DRIVEN": [4]})
+    anova = analyze_ratings(parse_ratings(_ratings_text(rows)))["anova"]
+    assert anova["F"] is None and anova["p"] is None and anova["eta_squared"] == 1.0
+    assert "do not vary within any condition" in anova["note"]
+
+
+@pytest.mark.parametrize("scores", [
+    {"NO_PROSODY": [3, 4], "SPEECH_DRIVEN": [3, 4, 4, 4]},  # two-valued
+    {"NO_PROSODY": [3], "RANDOM": [3], "SPEECH_DRIVEN": [3, 4]},  # tied: one condition varies, a little
+    {"NO_PROSODY": [1, 5], "RANDOM": [5, 1], "SPEECH_DRIVEN": [5, 5, 1, 1]},  # equal means, the same spread
+])
+def test_two_valued_and_tied_scores_agree_with_scipy_and_statsmodels(scores) -> None:
+    import pandas as pd
+    from scipy import stats
+    from statsmodels.stats.anova import AnovaRM
+    from statsmodels.stats.multicomp import pairwise_tukeyhsd
+
+    rows = _rows(scores)
+    results = analyze_ratings(parse_ratings(_ratings_text(rows)))
+    frame = pd.DataFrame(rows, columns=["stimulus", "subject", "condition", "score"])
+    groups = [frame.loc[frame.condition == name, "score"].to_numpy(float) for name in sorted(scores)]
+    expected = stats.f_oneway(*groups)
+    assert results["anova"]["F"] == pytest.approx(expected.statistic, abs=1e-12)
+    assert results["anova"]["p"] == pytest.approx(expected.pvalue)
+    # the repeated-measures error sum of squares in exact fractions: zero where subjects and conditions add up
+    from fractions import Fraction
+
+    means = {(subject, name): Fraction(int(group.sum()), len(group))
+             for (subject, name), group in frame.groupby(["subject", "condition"])["score"]}
+    subjects, names = sorted({k[0] for k in means}), sorted(scores)
+    grand = sum(means.values()) / len(means)
+    by_subject = {u: sum(means[u, c] for c in names) / len(names) for u in subjects}
+    by_condition = {c: sum(means[u, c] for u in subjects) / len(subjects) for c in names}
+    error = sum((means[u, c] - by_subject[u] - by_condition[c] + grand) ** 2 for u in subjects for c in names)
+    rm = results["anova_rm"]
+    if error == 0:  # statsmodels divides by its rounding noise here (F about 1e29 in the tied case)
+        assert rm["F"] is None and rm["p"] is None
+    else:
+        table = AnovaRM(frame, "score", "subject", within=["condition"], aggregate_func="mean").fit().anova_table
+        assert rm["F"] == pytest.approx(float(table["F Value"].iloc[0]), abs=1e-9)
+    tukey = pairwise_tukeyhsd(frame["score"].to_numpy(float), frame["condition"].to_numpy(str))
+    assert sorted(test["p_adjusted"] for test in results["tukey"]) == pytest.approx(sorted(tukey.pvalues))
 
 
 def test_bad_rating_rows_are_listed() -> None:

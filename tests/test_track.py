@@ -31,7 +31,12 @@ pytest.importorskip("mediapipe", reason="the 'track' extra (MediaPipe) is not in
 VIDEOS = SHARED_DATA / "talking-videos"
 HEADS = SHARED_DATA / "talking-heads"
 CLIP = VIDEOS / "LipNet_GRID_bbaf2n.mpg"  # 3 s, 25 fps, 360x288, MPEG-1 video and MP2 sound at 44.1 kHz
-needs_clip = pytest.mark.skipif(not CLIP.is_file(), reason="shared talking-videos not available")
+
+
+def needs_clip(test):
+    """Reads the shared talking-videos clip: skipped where it is absent."""
+    return pytest.mark.shared_data(pytest.mark.skipif(not CLIP.is_file(),
+                                                      reason="shared talking-videos not available")(test))
 
 
 def _rotation(rx: float, ry: float, rz: float) -> np.ndarray:
@@ -99,6 +104,7 @@ def test_envelope_is_the_rms_of_a_tone_whatever_the_blocks():
 README_LAGS = {"KristiNoem": 5, "Obama_clip1": 8, "Obama_clip2": 6, "andrew_clip_1": 3, "reagan_clip1": 2}
 
 
+@pytest.mark.shared_data
 @pytest.mark.skipif(not HEADS.is_dir(), reason="shared talking-heads not available")
 @pytest.mark.parametrize("clip", sorted(README_LAGS))
 def test_sync_estimate_finds_the_readme_lags(clip):

@@ -169,18 +169,29 @@ def _mean_interval(values: np.ndarray) -> dict:
 
     n = values.size
     mean = float(values.mean())
-    sd = float(values.std(ddof=1)) if n > 1 else 0.0
+    sd = float(values.std(ddof=1)) if _varies(values) else 0.0
     half = float(stats.t.ppf(0.975, n - 1) * sd / math.sqrt(n)) if n > 1 else None
     return {"n": int(n), "mean": mean, "sd": sd, "ci_low": None if half is None else mean - half,
             "ci_high": None if half is None else mean + half}
 
 
+def _varies(values: np.ndarray) -> bool:
+    """Whether the values differ at all: exactly, by their range (a mean-based spread of equal floats can be
+    rounding noise that a test would call an effect)."""
+    return values.size > 1 and float(np.ptp(values)) > 0
+
+
 def _cohen_d(a: np.ndarray, b: np.ndarray) -> float | None:
-    if a.size + b.size <= 2:
+    if a.size + b.size <= 2 or not (_varies(a) or _varies(b)):
         return None
     pooled = ((a.size - 1) * a.var(ddof=1 if a.size > 1 else 0) + (b.size - 1) * b.var(ddof=1 if b.size > 1 else 0)) \
         / (a.size + b.size - 2)
     return float((a.mean() - b.mean()) / math.sqrt(pooled)) if pooled > 0 else None
+
+
+#: Why F and p are absent where the scores leave nothing to test.
+NO_SPREAD = "every score is the same: there is no variance, so no effect to test"
+NO_SPREAD_WITHIN = "the scores do not vary within any condition: F is undefined"
 
 
 def _one_way(frame) -> dict:
@@ -193,14 +204,20 @@ def _one_way(frame) -> dict:
                            f"of {groups} condition(s))"}
     table = anova_lm(ols("score ~ C(condition)", data=frame).fit())
     between, within = table.loc["C(condition)"], table.loc["Residual"]
+    result = {"F": None, "df_between": int(between["df"]), "df_within": int(within["df"]), "p": None,
+              "eta_squared": None, "omega_squared": None}
+    scores = frame["score"].to_numpy(float)
+    if not _varies(scores):
+        return result | {"note": NO_SPREAD}
+    if not any(_varies(group.to_numpy(float)) for _, group in frame.groupby("condition")["score"]):
+        # every condition constant, not all alike: the conditions explain everything, F has no error to divide by
+        return result | {"eta_squared": 1.0, "note": NO_SPREAD_WITHIN}
     total = between["sum_sq"] + within["sum_sq"]
     mean_square_within = within["sum_sq"] / within["df"]
-    defined = bool(within["sum_sq"] > 0)
-    return {"F": float(between["F"]) if defined else None, "df_between": int(between["df"]),
-            "df_within": int(within["df"]), "p": float(between["PR(>F)"]) if defined else None,
-            "eta_squared": float(between["sum_sq"] / total) if total > 0 else None,
-            "omega_squared": float((between["sum_sq"] - between["df"] * mean_square_within)
-                                   / (total + mean_square_within)) if total > 0 else None}
+    return result | {"F": float(between["F"]), "p": float(between["PR(>F)"]),
+                     "eta_squared": float(between["sum_sq"] / total),
+                     "omega_squared": float((between["sum_sq"] - between["df"] * mean_square_within)
+                                            / (total + mean_square_within))}
 
 
 def _repeated(frame, conditions: list[str]) -> dict:
@@ -213,6 +230,9 @@ def _repeated(frame, conditions: list[str]) -> dict:
         return {"skipped": f"needs two or more subjects who rated every condition ({len(complete)} did)"}
     matrix = complete.to_numpy(float)
     n, k = matrix.shape
+    if not _varies(matrix.ravel()):
+        return {"subjects": n, "subjects_left_out": dropped, "df_condition": k - 1, "df_error": (n - 1) * (k - 1),
+                "F": None, "p": None, "partial_eta_squared": None, "note": NO_SPREAD}
     grand = matrix.mean()
     ss_condition = n * float(((matrix.mean(axis=0) - grand) ** 2).sum())
     ss_subject = k * float(((matrix.mean(axis=1) - grand) ** 2).sum())
@@ -226,6 +246,8 @@ def _repeated(frame, conditions: list[str]) -> dict:
         table = AnovaRM(long, depvar="score", subject="subject", within=["condition"]).fit().anova_table
         result["F"] = float(table["F Value"].iloc[0])
         result["p"] = float(table["Pr > F"].iloc[0])
+    else:
+        result["note"] = "subjects and conditions add up to every mean exactly: no error variance, F is undefined"
     return result
 
 
@@ -235,7 +257,7 @@ def _tukey(frame, conditions: list[str]) -> list[dict]:
     if len(conditions) < 2 or len(frame) <= len(conditions):
         return []
     scores = {name: frame.loc[frame["condition"] == name, "score"].to_numpy(float) for name in conditions}
-    spread = any(values.size > 1 and values.std() > 0 for values in scores.values())
+    spread = any(_varies(values) for values in scores.values())
     result = pairwise_tukeyhsd(frame["score"].to_numpy(float), frame["condition"].to_numpy(str)) if spread else None
     tests = []
     for a, b in itertools.combinations(conditions, 2):
@@ -264,8 +286,9 @@ def analyze_ratings(ratings: Sequence[Rating], conditions: Sequence[str] | None 
         "ci_high"}}, "by_stimulus": {stimulus: {name: mean}}, "anova": {"F", "df_between", "df_within", "p",
         "eta_squared", "omega_squared"}, "anova_rm": {"subjects", "subjects_left_out", "F", "df_condition",
         "df_error", "p", "partial_eta_squared"} (or {"skipped": why}), "tukey": [{"a", "b", "mean_difference",
-        "ci_low", "ci_high", "p_adjusted", "reject", "cohen_d"}]}``; F and p are None where they are undefined
-        (no spread).
+        "ci_low", "ci_high", "p_adjusted", "reject", "cohen_d"}]}``; F and p are None where they are undefined,
+        and a "note" says why: no score differs from another (no variance, no effect), or none differs within
+        a condition.
     """
     import pandas as pd
 
@@ -360,7 +383,7 @@ def ratings_markdown(results: dict, *, figure: str | None = None) -> str:
     else:
         lines.append(f"F({anova['df_between']}, {anova['df_within']}) = {_number(anova['F'])}, "
                      f"{_p_is(anova['p'])}, η² = {_number(anova['eta_squared'], 3)}, "
-                     f"ω² = {_number(anova['omega_squared'], 3)}")
+                     f"ω² = {_number(anova['omega_squared'], 3)}" + (f" ({anova['note']})" if "note" in anova else ""))
     rm = results["anova_rm"]
     lines += ["", "## Repeated-measures ANOVA (each subject's mean per condition)", ""]
     if "skipped" in rm:
@@ -370,7 +393,7 @@ def ratings_markdown(results: dict, *, figure: str | None = None) -> str:
             if rm["subjects_left_out"] else ""
         lines.append(f"{rm['subjects']} subjects{left_out}: F({rm['df_condition']}, {rm['df_error']}) = "
                      f"{_number(rm['F'])}, {_p_is(rm['p'])}, partial η² = "
-                     f"{_number(rm['partial_eta_squared'], 3)}")
+                     f"{_number(rm['partial_eta_squared'], 3)}" + (f" ({rm['note']})" if "note" in rm else ""))
     if results["tukey"]:
         lines += ["", "## Tukey's pairwise tests", "", "| a − b | difference | 95% CI | p (adjusted) | Cohen's d |",
                   "|---|---|---|---|---|"]
