@@ -1047,7 +1047,7 @@ def _cmd_study_export(args: argparse.Namespace) -> int:
 def _cmd_study_analyze(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from audio_features.atomic import atomic_write
+    from audio_features.atomic import atomic_path, atomic_write
 
     from .errors import BallotError
     from .evaluation import ratings
@@ -1069,6 +1069,7 @@ def _cmd_study_analyze(args: argparse.Namespace) -> int:
     conditions = plan.conditions if plan is not None else None
     report = Path(args.report or "report.md")
     figure = report.with_name(report.stem + (".confusion.png" if design == "identification" else ".means.png"))
+    draw = None  # the report's figure, drawn once everything is checked
     if design == "paired":
         ballots = parse_ballots(text, source=args.input, conditions=conditions or CONDITIONS)
         notes = missing_pairs(ballots, conditions or CONDITIONS)
@@ -1078,33 +1079,34 @@ def _cmd_study_analyze(args: argparse.Namespace) -> int:
         summary = f"{len(ballots)} ballots, {len(results['scores'])} stimulus/stimuli"
         markdown = study_markdown(ballots, results, notes=notes, conditions=conditions or CONDITIONS) \
             if args.report else ""
+        parsed: list = ballots
     elif design == "mos":
-        scores = ratings.parse_ratings(text, source=args.input, conditions=conditions)
-        results = ratings.analyze_ratings(scores, conditions)
-        summary = f"{len(scores)} ratings by {results['subjects']} subject(s)"
-        if args.report:
-            ratings.plot_means(results, figure)
-            markdown = ratings.ratings_markdown(results, figure=figure.name)
+        parsed = ratings.parse_ratings(text, source=args.input, conditions=conditions)
+        results = ratings.analyze_ratings(parsed, conditions)
+        summary = f"{len(parsed)} ratings by {results['subjects']} subject(s)"
+        markdown = ratings.ratings_markdown(results, figure=figure.name)
+        draw = ratings.plot_means
     else:
-        answers = ratings.parse_identifications(text, source=args.input, classes=conditions)
-        results = ratings.analyze_identifications(answers, conditions)
-        summary = (f"{len(answers)} answers by {results['subjects']} subject(s), "
+        parsed = ratings.parse_identifications(text, source=args.input, classes=conditions)
+        results = ratings.analyze_identifications(parsed, conditions)
+        summary = (f"{len(parsed)} answers by {results['subjects']} subject(s), "
                    f"{results['overall']['accuracy']:.1%} correct (chance {results['chance']:.1%})")
-        if args.report:
-            ratings.plot_confusion(results, figure)
-            markdown = ratings.identification_markdown(results, figure=figure.name)
+        markdown = ratings.identification_markdown(results, figure=figure.name)
+        draw = ratings.plot_confusion
     if plan is not None:
-        parsed = ballots if design == "paired" else scores if design == "mos" else answers
         strangers = [f"row {b.row} ({b.stimulus})" for b in parsed if b.stimulus not in plan.stimuli]
         if strangers:
             raise BallotError(f"{args.input}: {len(strangers)} ballot row(s) name a stimulus that is not in "
                               f"{args.plan}: " + ", ".join(strangers[:20]) + (", ..." if len(strangers) > 20 else ""))
-    with atomic_write(args.output, newline="\n") as handle:
+    # every output under a temporary name, renamed only once all of them are complete
+    with contextlib.ExitStack() as pending:
+        handle = pending.enter_context(atomic_write(args.output, newline="\n"))
         json.dump(results, handle, indent=1, allow_nan=False)
         handle.write("\n")
-    if args.report:
-        with atomic_write(args.report, newline="\n") as handle:
-            handle.write(markdown)
+        if args.report:
+            if draw is not None:
+                draw(results, pending.enter_context(atomic_path(figure)))
+            pending.enter_context(atomic_write(args.report, newline="\n")).write(markdown)
     _say(f"{args.output}: {design} study, {summary}")
     return EXIT_OK
 

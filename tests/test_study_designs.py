@@ -337,3 +337,40 @@ def test_plan_cli_designs(tmp_path) -> None:
     assert parse_plan(out.read_text()).conditions == ("NO_PROSODY", "calm", "lively")
     assert main(["study", "plan", "--stimuli", "a", "--design", "identification", "-o", str(out)]) == 2
     assert main(["study", "plan", "--stimuli", "a", "--repeats", "2", "-o", str(out)]) == 2
+
+
+def test_a_ballot_of_many_classes_draws_a_bounded_figure_and_nothing_before_a_failure(tmp_path, capsys) -> None:
+    import resource
+    import time
+
+    from PIL import Image
+
+    from prosody.evaluation.ratings import MAX_CONFUSION_CLASSES
+
+    classes = [f"c{k:03d}" for k in range(200)]
+    rows = [(classes[k], classes[k] if k % 3 else classes[(k + 1) % 200]) for k in range(200)
+            for _ in range(1 + (k % 7 == 0) * 5)]  # every seventh class shown six times: those lead the figure
+    ident = tmp_path / "many.csv"
+    ident.write_text("stimulus,subject,shown,answer\n" + "".join(f"a,p{k % 9},{s},{a}\n"
+                                                                  for k, (s, a) in enumerate(rows)))
+    out, report = tmp_path / "many.json", tmp_path / "many.md"
+    before_s, before_kb = time.process_time(), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    assert main(["study", "analyze", str(ident), "-o", str(out), "--report", str(report)]) == 0
+    grown_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before_kb) / 1024
+    assert time.process_time() - before_s < 20 and grown_mb < 400  # 200 classes took 12.9 GB unbounded
+    assert len(json.loads(out.read_text())["confusion"]) == 200  # the JSON keeps the whole matrix
+    with Image.open(tmp_path / "many.confusion.png") as image:
+        assert max(image.size) < 3000
+    text = report.read_text()
+    assert f"of the {MAX_CONFUSION_CLASSES} classes shown most often (of 200" in text
+    table = text.split("Confusion matrix")[1]
+    assert all(f"| {classes[k]} |" in table for k in range(0, 140, 7))  # the twenty shown six times
+    assert f"| {classes[1]} |" not in table
+    # a failure after the analysis (a stimulus the plan lacks) leaves no figure, JSON or report behind
+    plan = tmp_path / "plan.csv"
+    write_plan(make_plan(["b"], design="identification", conditions=classes), plan)
+    for name in ("many.json", "many.md", "many.confusion.png"):
+        (tmp_path / name).unlink()
+    assert main(["study", "analyze", str(ident), "--plan", str(plan), "-o", str(out), "--report", str(report)]) == 1
+    assert "name a stimulus that is not in" in capsys.readouterr().err
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["many.csv", "plan.csv"]

@@ -294,3 +294,48 @@ def test_the_face_model_is_the_pinned_file():
 
     with open(model_path(), "rb") as handle:
         assert hashlib.sha256(handle.read()).hexdigest() == MODEL_SHA256
+
+
+def test_the_users_own_wav_beside_the_video_is_never_replaced(tmp_path, capsys):
+    # clip.mp4 has its own sound; clip.wav beside it is the user's (48 kHz stereo): tracking into that folder
+    # would write clip.wav: refused in one line, the user's file untouched
+    video = tmp_path / "clip.mp4"
+    _run_ffmpeg("-f", "lavfi", "-i", "testsrc2=size=160x120:rate=25:duration=1", "-f", "lavfi", "-i",
+                "sine=frequency=220:sample_rate=44100:duration=1", "-c:v", "libx264", "-c:a", "aac", "-shortest",
+                str(video))
+    theirs = tmp_path / "clip.wav"
+    soundfile.write(theirs, np.zeros((4800, 2)), 48000)
+    before = theirs.read_bytes()
+    assert main(["track", str(video), "-o", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "clip.wav already exist(s) and was not written by 'prosody track'" in err and "Traceback" not in err
+    assert theirs.read_bytes() == before
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["clip.mp4", "clip.wav"]
+    # so are curve files of the same names; a record of an earlier tracking that lists them makes them ours
+    theirs.unlink()
+    (tmp_path / "clip.head.csv").write_text("mine\n")
+    from prosody.jobs.track import _refuse_files_of_others
+
+    with pytest.raises(ConfigError, match="clip.head.csv already exist"):
+        _refuse_files_of_others(video, tmp_path / "clip", tmp_path / "clip.track.json", writes_wav=True)
+    (tmp_path / "clip.track.json").write_text(json.dumps({"files": ["clip.head.csv"]}))
+    _refuse_files_of_others(video, tmp_path / "clip", tmp_path / "clip.track.json", writes_wav=True)
+
+
+@needs_clip
+@pytest.mark.parametrize("container", ["webm", "matroska"])
+def test_a_silent_recording_without_a_length_in_its_header_is_timed_by_its_frames(tmp_path, container):
+    # a browser recorder's file: written to a pipe, its header holds no duration
+    silent = tmp_path / f"take.{'webm' if container == 'webm' else 'mkv'}"
+    with open(silent, "wb") as out:
+        subprocess.run([_ffmpeg(), "-v", "error", "-i", str(CLIP), "-an", "-c:v", "libvpx", "-b:v", "1M",
+                        "-f", container, "pipe:1"], stdout=out, check=True)
+    from prosody.tracking.video import probe_video
+
+    assert not math.isfinite(probe_video(silent).duration_s) or probe_video(silent).duration_s == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["track", str(silent), "-o", str(tmp_path / "out"), "--quiet"]) == 0
+    head = read_head_csv(tmp_path / "out" / "take.head.csv")
+    assert head.n_frames == 90  # 75 pictures at 25 fps: 3 s at 30 fps
+    assert json.loads((tmp_path / "out" / "take.track.json").read_text())["video_frames"] == 75

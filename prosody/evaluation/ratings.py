@@ -422,10 +422,13 @@ def identification_markdown(results: dict, *, figure: str | None = None) -> str:
     for name, entry in results["per_class"].items():
         lines.append(f"| {name} | {entry['n']} | {entry['correct']} | {entry['accuracy']:.1%} | "
                      f"[{entry['ci_low']:.1%}, {entry['ci_high']:.1%}] | {entry['p']:.2g} | {entry['p_holm']:.2g} |")
-    lines += ["", "Confusion matrix (rows: shown; columns: answered):", "",
-              "| shown \\ answered | " + " | ".join(results["classes"]) + " |",
-              "|---" * (len(results["classes"]) + 1) + "|"]
-    for name, row in zip(results["classes"], results["confusion"], strict=True):
+    shown, kept = confusion_shown(results)
+    counts = np.asarray(results["confusion"], int)[np.ix_(kept, kept)]
+    part = "" if len(kept) == len(results["classes"]) else \
+        f" of the {len(kept)} classes shown most often (of {len(results['classes'])}; the JSON has them all)"
+    lines += ["", f"Confusion matrix{part} (rows: shown; columns: answered):", "",
+              "| shown \\ answered | " + " | ".join(shown) + " |", "|---" * (len(shown) + 1) + "|"]
+    for name, row in zip(shown, counts, strict=True):
         lines.append(f"| {name} | " + " | ".join(str(v) for v in row) + " |")
     if figure:
         lines += ["", f"![Confusion matrix]({figure})"]
@@ -455,14 +458,33 @@ def plot_means(results: dict, path: str | os.PathLike[str]) -> Path:
     return Path(path)
 
 
+#: Most classes a confusion figure or table shows: past it, those shown most often (the figure's size and the
+#: time to draw it grow with the square of the classes: 200 classes took 12.9 GB).
+MAX_CONFUSION_CLASSES = 20
+
+
+def confusion_shown(results: dict) -> tuple[list[str], list[int]]:
+    """(names, indices) of the classes a confusion figure or table shows: all of them, or the
+    :data:`MAX_CONFUSION_CLASSES` shown most often (ties by their order), in their order."""
+    names = results["classes"]
+    if len(names) <= MAX_CONFUSION_CLASSES:
+        return list(names), list(range(len(names)))
+    shown = np.asarray(results["confusion"], int).sum(axis=1)
+    kept = sorted(np.argsort(-shown, kind="stable")[:MAX_CONFUSION_CLASSES].tolist())
+    return [names[i] for i in kept], kept
+
+
 def plot_confusion(results: dict, path: str | os.PathLike[str]) -> Path:
-    """The confusion matrix as a PNG: each row's share of answers as colour, the counts written in."""
+    """The confusion matrix as a PNG: each row's share of answers as colour, the counts written in; past
+    :data:`MAX_CONFUSION_CLASSES` classes, the rows and columns of those shown most often (a row's share is
+    still of all its answers)."""
     from .plots import _pyplot, _save
 
     plt = _pyplot()
-    names = results["classes"]
-    counts = np.asarray(results["confusion"], float)
-    shares = counts / np.maximum(counts.sum(axis=1, keepdims=True), 1)
+    names, kept = confusion_shown(results)
+    every = np.asarray(results["confusion"], float)
+    counts = every[np.ix_(kept, kept)]
+    shares = counts / np.maximum(every[kept].sum(axis=1, keepdims=True), 1)
     size = max(3.6, 0.8 * len(names) + 2.0)
     figure, axes = plt.subplots(figsize=(size + 0.8, size), layout="tight")
     image = axes.imshow(shares, vmin=0, vmax=1, cmap="Blues")
@@ -473,7 +495,9 @@ def plot_confusion(results: dict, path: str | os.PathLike[str]) -> Path:
     axes.set_yticks(range(len(names)), names)
     axes.set_xlabel("answered")
     axes.set_ylabel("shown")
-    axes.set_title(f"Identification (chance {results['chance']:.0%})")
+    part = "" if len(kept) == len(results["classes"]) else \
+        f", the {len(kept)} classes shown most often of {len(results['classes'])}"
+    axes.set_title(f"Identification (chance {results['chance']:.0%}{part})")
     figure.colorbar(image, ax=axes, fraction=0.046, label="share of the row")
     try:
         _save(figure, path, tight=True)

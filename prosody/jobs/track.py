@@ -39,6 +39,7 @@ from ..tracking.curves import (
     tracked_curves,
     write_curves,
 )
+from ..motion.ground_truth import HEAD_CSV_FPS
 from ..tracking.face import MODEL_SHA256, FaceTracker, face_measures, head_angles
 from ..tracking.video import (
     DEFAULT_MAX_SIDE_PX,
@@ -210,6 +211,8 @@ def track_video(video: str | os.PathLike[str], outdir: str | os.PathLike[str], *
         stored = json.loads(record.read_text())
         return TrackOutcome(str(path), "skipped", str(stem), frames=stored.get("frames", 0),
                             missing_frames=stored.get("missing_frames", 0), sync=stored.get("sync"))
+    _refuse_files_of_others(path, stem, record, writes_wav=info.has_audio or (
+        sound is not None and sound.resolve() != Path(f"{stem}.wav").resolve()))
     out.mkdir(parents=True, exist_ok=True)
     # every file goes to a temporary name, renamed only once all of them are complete
     with contextlib.ExitStack() as pending:
@@ -222,6 +225,27 @@ def track_video(video: str | os.PathLike[str], outdir: str | os.PathLike[str], *
         handle.write("\n")
     outcome.seconds = time.monotonic() - started
     return outcome
+
+
+#: The endings of the files a video's tracking writes besides its record (and its WAV).
+CURVE_ENDINGS = (".head.csv", ".brows.csv", ".mouth.csv")
+
+
+def _refuse_files_of_others(video: Path, stem: Path, record: Path, *, writes_wav: bool) -> None:
+    """A file the tracking would write that is already there and not of an earlier tracking (named in the
+    record's file list) is the user's own, e.g. ``clip.wav`` beside ``clip.mp4`` tracked into its own folder:
+    never replaced."""
+    try:
+        stored = json.loads(record.read_text())
+        ours = set(stored.get("files", [])) if isinstance(stored, dict) else set()
+    except (OSError, ValueError, TypeError):
+        ours = set()
+    endings = (".wav",) * writes_wav + CURVE_ENDINGS
+    theirs = [Path(f"{stem}{ending}") for ending in endings
+              if os.path.lexists(f"{stem}{ending}") and f"{stem.name}{ending}" not in ours]
+    if theirs:
+        raise ConfigError(f"{video}: {', '.join(map(str, theirs))} already exist(s) and {'was' if len(theirs) == 1 else 'were'} "
+                          "not written by 'prosody track': nothing is replaced; track into another folder (-o OUT)")
 
 
 def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options: TrackOptions,
@@ -244,7 +268,7 @@ def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options:
         note("no sound in the video and no WAV beside it: the curves are timed from the first frame, no .wav "
              "written")
     has_sound = envelope.samples > 0
-    duration_s = envelope.samples / TRACK_AUDIO_RATE_HZ if has_sound else info.duration_s
+    duration_s = envelope.samples / TRACK_AUDIO_RATE_HZ
     if has_sound and np.isfinite(info.duration_s) and \
             abs(info.duration_s + info.video_start_s - duration_s) > LENGTH_WARNING_S:
         note(f"the picture ({info.duration_s:.2f} s from {info.video_start_s:+.2f} s) and the sound "
@@ -269,6 +293,10 @@ def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options:
                 progress(index + 1, max(estimate, index + 1))
     if not times:
         raise TrackingError(f"{path}: its video has no frames")
+    if not has_sound:  # the picture's length as decoded: browser recorders' headers give none, or 0 s
+        step = float(np.median(np.diff(times))) if len(times) > 1 else \
+            1.0 / info.fps if np.isfinite(info.fps) and info.fps > 0 else 1.0 / HEAD_CSV_FPS
+        duration_s = times[-1] + step
     if with_face == 0:
         raise TrackingError(f"{path}: no face found in any of its {len(times)} frames")
     if faces_seen > 1:
