@@ -114,7 +114,7 @@ class PcmDecoder:
         mono = values[:, 0] if self.format.channels == 1 else values.mean(axis=1)
         finite = np.isfinite(mono)
         if not finite.all():
-            raise AudioLoadError(f"sample value {mono[~finite][0]!r} is not finite; audio must have no NaN "
+            raise AudioLoadError(f"sample value {float(mono[~finite][0])} is not finite; audio must have no NaN "
                                  "or infinity")
         return mono
 

@@ -132,6 +132,40 @@ def test_an_output_that_is_an_input_or_no_file_is_refused(tmp_path, speech, caps
     assert not (tmp_path / "r.json").exists()
 
 
+@pytest.mark.parametrize("command", ["convert", "preview"])
+@pytest.mark.parametrize("option, content", [
+    ("--transcript", "hello world\n"), ("--expression", "time_s,joy\n0,1\n"), ("--pad", "time_s,p,a,d\n0,0,0,0\n"),
+    ("--pad-map", "{}\n"), ("--mouth-model", "{}\n")])
+@pytest.mark.parametrize("link", ["same", "symlink", "hardlink"])
+def test_no_output_is_a_file_any_option_reads(tmp_path, speech, capsys, command, option, content, link) -> None:
+    given = tmp_path / "given.txt"
+    given.write_text(content)
+    out = given if link == "same" else tmp_path / "out.fap"
+    if link == "symlink":
+        out.symlink_to(given)
+    elif link == "hardlink":
+        os.link(given, out)
+    assert main([command, str(speech), option, str(given), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"is also {option}: writing it would destroy it" in err and len(err.strip().splitlines()) == 1
+    assert given.read_text() == content
+
+
+def test_compare_refuses_an_input_inside_its_output_folder_under_a_name_it_writes(tmp_path, speech, capsys) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    truth = out / "ground_truth.fap"
+    truth.write_text("x")
+    assert main(["compare", str(speech), "--ground-truth", str(truth), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--ground-truth" in err and "under a name the command writes there" in err and truth.read_text() == "x"
+    elsewhere = tmp_path / "take.fap"
+    elsewhere.write_text("x")
+    (out / "mine.fap").symlink_to(elsewhere)  # a link's own name is not written; its target is outside
+    main(["compare", str(speech), "--ground-truth", str(out / "mine.fap"), "-o", str(out)])  # "x" is no FAP file
+    assert "under a name the command writes" not in capsys.readouterr().err and elsewhere.read_text() == "x"
+
+
 def test_quiet_says_only_errors_and_json_messages_are_one_object_a_line(tmp_path, speech) -> None:
     import json
 
