@@ -287,6 +287,7 @@ def test_server_round_trip_and_refusals(served) -> None:
 def test_server_says_503_when_the_answer_cannot_be_saved(served) -> None:
     who = json.loads(_request(served, "/api/participants", {"start": True})[1])["participant"]
     store = served.store
+    served.arrivals.per_client = 100  # this test makes participants until the disk is full
     pages = store._db.execute("PRAGMA page_count").fetchone()[0]
     store._db.execute(f"PRAGMA max_page_count = {pages}")
     for _ in range(30):  # fill the last free pages
@@ -321,3 +322,148 @@ def test_a_refused_start_leaves_no_database(tmp_path, recordings, capsys) -> Non
                  str(tmp_path / "s.sqlite")]) == 2
     assert "made for another plan" in capsys.readouterr().err
     assert not list(tmp_path.glob("s.sqlite*"))
+
+
+# what an outside probe broke ---------------------------------------------------------------------------------
+@needs_ffmpeg
+def test_a_manifest_may_only_name_videos_in_its_folder_and_each_entry_is_checked(tmp_path, recordings,
+                                                                                  capsys) -> None:
+    from prosody.evaluation.study import write_plan
+    from prosody.jobs.study_server import StudyServer
+
+    write_plan(make_plan(["a", "b"], design="paired", conditions=["none", "speech"], seed=1), tmp_path / "plan.csv")
+    plan = _plan()
+    folder = tmp_path / "stimuli"
+    make_stimuli(plan, recordings, folder, _conditions(plan), width=64)
+    original = (folder / "stimuli.json").read_text()
+    store = StudyStore(tmp_path / "s.sqlite", plan)
+    (tmp_path / "secret.txt").write_text("secret")
+    (folder / "a" / "link.mp4").symlink_to(tmp_path / "secret.txt")
+    bad_entries = {
+        "/etc/passwd": (lambda entry: entry | {"file": "/etc/passwd"}, "outside"),
+        "../": (lambda entry: entry | {"file": "../secret.txt"}, "outside"),
+        "a link out": (lambda entry: entry | {"file": "a/link.mp4"}, "outside"),
+        "not an object": (lambda entry: ["a/NO_PROSODY.mp4"], "is not an object"),
+        "no sha256": (lambda entry: {"file": entry["file"]}, "is not an object with a file name and its SHA-256"),
+    }
+    for name, (change, message) in bad_entries.items():
+        manifest = json.loads(original)
+        manifest["videos"]["a/NO_PROSODY"] = change(manifest["videos"]["a/NO_PROSODY"])
+        (folder / "stimuli.json").write_text(json.dumps(manifest))
+        with pytest.raises(ConfigError, match=message):
+            StudyServer(plan, folder, store, port=0)
+        capsys.readouterr()
+        assert main(["study", "serve", str(tmp_path / "plan.csv"), "--stimuli", str(folder), "--db",
+                     str(tmp_path / "s.sqlite"), "--listen", "127.0.0.1:0"]) != 0, name
+        err = capsys.readouterr().err
+        assert message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    store.close()
+
+
+def _open_connections(served, count: int, payload: bytes) -> list:
+    import socket
+
+    host, port = served._http.server_address[:2]
+    sockets = []
+    for _ in range(count):
+        connection = socket.create_connection((host, port), timeout=10)
+        connection.sendall(payload)
+        sockets.append(connection)
+    return sockets
+
+
+def test_ranges_are_read_by_seeking_not_the_whole_video(served) -> None:
+    import tracemalloc
+
+    state = json.loads(_request(served, "/api/participants", {"start": True})[1])
+    video = state["trial"]["videos"][0]
+    path = served.files[video.rsplit("/", 1)[1]]
+    head = path.read_bytes()[:20]
+    with open(path, "r+b") as handle:  # a 64 MB video (its tail sparse)
+        handle.truncate(64 << 20)
+    tracemalloc.start()
+    try:
+        for _ in range(10):
+            status, part, headers = _request(served, video, headers={"Range": "bytes=0-1"})
+            assert status == 206 and part == head[:2] and headers["Content-Range"] == f"bytes 0-1/{64 << 20}"
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 4 << 20  # the whole file each time was 64 MB a request
+    status, part, headers = _request(served, video, headers={"Range": "bytes=-5"})
+    assert status == 206 and part == b"\0" * 5 and headers["Content-Range"] == f"bytes {(64 << 20) - 5}-{(64 << 20) - 1}/{64 << 20}"
+    status, _, _ = _request(served, video, headers={"Range": "bytes=" + "9" * 5000 + "-"})
+    assert status == 200  # not a range this server reads: the whole video, no traceback
+
+
+def test_many_voters_at_once_are_all_served(served) -> None:
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(50) as pool:
+        statuses = list(pool.map(lambda _: _request(served, "/api/study")[0], range(50)))
+    assert statuses == [200] * 50
+
+
+def test_half_sent_requests_are_timed_out_and_bounded_and_told_in_one_line(served, capfd) -> None:
+    import time
+
+    from prosody.jobs.study_server import MAX_HANDLERS
+
+    served._http.RequestHandlerClass.timeout = 1.0
+    before = threading.active_count()
+    stalled = _open_connections(served, 100, b"GET /api/study HTTP/1.1\r\nHost: 127.0.0.1\r\n")
+    time.sleep(0.5)
+    assert threading.active_count() - before <= MAX_HANDLERS
+    deadline = time.monotonic() + 30
+    status = None
+    while time.monotonic() < deadline and status != 200:  # served once the stalled ones are let go
+        status = _request(served, "/api/study")[0]
+        assert status in (200, 503)
+    assert status == 200
+    for connection in stalled:  # each closed by the server once silent too long, or told to come back
+        connection.settimeout(10)
+        try:
+            answer = connection.recv(100)
+        except ConnectionResetError:
+            answer = b""
+        assert answer == b"" or answer.startswith(b"HTTP/1.1 503"), answer
+        connection.close()
+    # a client that goes away mid-answer: one line, no traceback
+    gone = _open_connections(served, 1, b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")[0]
+    gone.close()
+    time.sleep(0.3)
+    assert "Traceback" not in capfd.readouterr().err
+
+
+def test_new_participants_are_limited_per_address_and_the_counterbalancing_is_kept(served) -> None:
+    from prosody.jobs.study_server import NEW_PER_CLIENT_PER_MINUTE
+
+    statuses = [_request(served, "/api/participants", {"start": True})[:3:2] for _ in range(15)]
+    assert [status for status, _ in statuses] == [201] * NEW_PER_CLIENT_PER_MINUTE + [429] * 5
+    assert statuses[-1][1]["Retry-After"] == "60"
+    assert served.store.progress()["participants"] == NEW_PER_CLIENT_PER_MINUTE
+    assert sum("refused a new participant" in line for line in served.lines) == 1  # one line a second at most
+
+
+def test_an_answer_position_out_of_range_is_a_400(served) -> None:
+    who = json.loads(_request(served, "/api/participants", {"start": True})[1])["participant"]
+    for position in (2**63, -1, 0, 10**30):
+        status, body, _ = _request(served, "/api/answer", {"participant": who, "position": position, "answer": "x"})
+        assert status == 400 and b"from 1 to 4" in body
+
+
+@needs_ffmpeg
+def test_the_study_listens_on_ipv6(tmp_path, recordings) -> None:
+    from prosody.jobs.study_server import StudyServer
+
+    plan = _plan()
+    make_stimuli(plan, recordings, tmp_path / "stimuli", _conditions(plan), width=64)
+    store = StudyStore(tmp_path / "s.sqlite", plan)
+    server = StudyServer(plan, tmp_path / "stimuli", store, host="::1", port=0).start()
+    try:
+        assert server.url.startswith("http://[::1]:")
+        with urllib.request.urlopen(server.url + "api/study", timeout=10) as response:
+            assert json.loads(response.read())["design"] == "paired"
+    finally:
+        server.close()
+        store.close()

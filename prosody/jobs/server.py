@@ -82,8 +82,12 @@ def normalize_origin(text: str) -> str:
     >>> normalize_origin("HTTP://LocalHost:80/"), normalize_origin("https://example.org:8443")
     ('http://localhost', 'https://example.org:8443')
     """
-    parts = urllib.parse.urlsplit(text.strip())
-    if parts.scheme not in ("http", "https") or not parts.hostname:
+    try:
+        parts = urllib.parse.urlsplit(text.strip())
+        hostname = parts.hostname
+    except ValueError:  # an unclosed IPv6 bracket
+        raise ConfigError(f"origin {text!r} must be http(s)://HOST[:PORT], e.g. http://localhost:8080") from None
+    if parts.scheme not in ("http", "https") or not hostname:
         raise ConfigError(f"origin {text!r} must be http(s)://HOST[:PORT], e.g. http://localhost:8080")
     try:
         port = parts.port
@@ -116,12 +120,23 @@ def parse_address(text: str, address_of: str = "listen address") -> tuple[str, i
     >>> parse_address("8765"), parse_address("0.0.0.0:80"), parse_address("[::1]:9000")
     (('127.0.0.1', 8765), ('0.0.0.0', 80), ('::1', 9000))
     """
-    host, _, port = text.rpartition(":")
-    host = host.strip("[]") or "127.0.0.1"
+    form = ConfigError(f"{address_of} {text!r} must be HOST:PORT, e.g. 127.0.0.1:8765 ([::1]:8765 for IPv6)")
+    host, _, port = text.strip().rpartition(":")
+    if host.startswith("[") or host.endswith("]"):
+        if not (host.startswith("[") and host.endswith("]")):
+            raise form
+        host = host[1:-1]
+        try:
+            ipaddress.IPv6Address(host)
+        except ValueError:
+            raise form from None
+    elif ":" in host or any(c in host for c in "[]/ ") or not port.isdigit() or len(port) > 5:
+        raise form
+    host = host or "127.0.0.1"
     try:
         number = int(port)
     except ValueError:
-        raise ConfigError(f"{address_of} {text!r} must be HOST:PORT, e.g. 127.0.0.1:8765") from None
+        raise form from None
     if not 0 <= number <= 65535:
         raise ConfigError(f"{address_of} {text!r}: port {number} must be in 0-65535")
     return host, number

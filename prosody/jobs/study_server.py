@@ -13,6 +13,14 @@ answer before showing the next trial, and retries while the server is away. The 
 - ``GET /admin/export.csv`` and ``/admin/progress`` with the organiser's token (``Authorization: Bearer TOKEN``
   or ``?token=TOKEN``), printed when the server starts.
 
+Limits, so that one client cannot stall or skew the study: at most :data:`MAX_HANDLERS` connections are
+served at once (the next wait in a listen queue of :data:`LISTEN_BACKLOG`, then are told 503 with
+``Retry-After``); a connection silent for :data:`CONNECTION_TIMEOUT_S` is closed; a connection that fails is told
+to the organiser in one line (at most one such line a second); at most :data:`NEW_PER_CLIENT_PER_MINUTE` new
+participants a minute come from one address and :data:`NEW_PER_MINUTE` in all (429 with ``Retry-After``), so a
+script cannot fill the database or shift the counterbalancing. Videos are read from disk by the range asked for,
+and only files inside the stimulus folder (resolved) are served.
+
 Requests from a page of another site are refused: a browser names the page in ``Origin`` (and
 ``Sec-Fetch-Site``), and only this server's own origin, on a host no other site can point here (an address,
 ``localhost``, this machine's name), or one allowed with ``--allow-origin`` is served. Answers must be JSON.
@@ -20,12 +28,18 @@ Requests from a page of another site are refused: a browser names the page in ``
 
 from __future__ import annotations
 
+import collections
+import contextlib
 import hmac
 import json
+import os
 import re
 import secrets
+import socket
 import sqlite3
+import sys
 import threading
+import time
 import urllib.parse
 from collections.abc import Callable, Iterable
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -44,7 +58,18 @@ MAX_BODY_BYTES = 4096
 QUESTIONS = {"paired": "Which face moves more naturally with the voice?",
              "mos": "How natural is the face's motion with the voice?",
              "identification": "What does the face express?"}
-_RANGE = re.compile(r"bytes=(\d*)-(\d*)$")
+_RANGE = re.compile(r"bytes=(\d{0,18})-(\d{0,18})$")
+#: Connections served at once; the next ones wait in the listen queue, and past it are told to come back.
+MAX_HANDLERS = 64
+#: Connections the system holds waiting to be served (50 voters at once must not be reset).
+LISTEN_BACKLOG = 256
+#: Seconds a connection may stay silent (a half-sent request, a reader that stopped) before it is closed.
+CONNECTION_TIMEOUT_S = 20.0
+#: New anonymous participants allowed per client address, and in all, within a minute (more: 429, try later).
+NEW_PER_CLIENT_PER_MINUTE = 10
+NEW_PER_MINUTE = 120
+#: Bytes of a video sent at a time.
+VIDEO_BLOCK_BYTES = 1 << 16
 
 
 def study_page() -> bytes:
@@ -89,12 +114,17 @@ class StudyServer:
         self.allow_origins = frozenset(normalize_origin(origin) for origin in allow_origins)
         self.token = token or secrets.token_urlsafe(18)
         self._page = study_page()
-        handler = type("Handler", (_Handler,), {"study": self})
+        self.arrivals = _Arrivals()
+        self._quiet = _OneLinePerSecond(self.report)
+        handler = type("Handler", (_Handler,), {"study": self, "timeout": CONNECTION_TIMEOUT_S})
+        server = _StudyHTTPServer
+        if ":" in host:
+            server = type("_StudyHTTPServer6", (_StudyHTTPServer,), {"address_family": socket.AF_INET6})
         try:
-            self._http = ThreadingHTTPServer((host, port), handler)
-        except OSError as error:
-            raise ConfigError(f"cannot listen on {host}:{port} ({error.strerror or error})") from None
-        self._http.daemon_threads = True
+            self._http = server((host, port), handler, on_error=self._quiet)
+        except (OSError, OverflowError) as error:
+            raise ConfigError(f"cannot listen on {host}:{port} ({getattr(error, 'strerror', None) or error})") \
+                from None
         self._thread: threading.Thread | None = None
 
     @property
@@ -132,6 +162,90 @@ class StudyServer:
             state["trial"] = {"position": trial["position"],
                               "videos": [self.videos[f"{trial['stimulus']}/{name}"] for name in trial["conditions"]]}
         return state
+
+
+class _OneLinePerSecond:
+    """Tells the organiser of connections that went wrong (a client gone, a timeout) in one line each, at most
+    one a second: a burst is summed up as a count, never a traceback."""
+
+    def __init__(self, report: Callable[[str], None]) -> None:
+        self.report, self.lock, self.last, self.held = report, threading.Lock(), 0.0, 0
+
+    def __call__(self, line: str) -> None:
+        with self.lock:
+            now = time.monotonic()
+            if now - self.last < 1.0:
+                self.held += 1
+                return
+            held, self.held, self.last = self.held, 0, now
+        self.report(line + (f" (and {held} more since the last such line)" if held else ""))
+
+
+class _Arrivals:
+    """New participants in the last minute, per client address and in all."""
+
+    def __init__(self, per_client: int = NEW_PER_CLIENT_PER_MINUTE, in_all: int = NEW_PER_MINUTE) -> None:
+        self.per_client, self.in_all = per_client, in_all
+        self.lock = threading.Lock()
+        self.times: dict[str, collections.deque] = {}
+        self.all: collections.deque = collections.deque()
+
+    def admit(self, client: str) -> str | None:
+        """None if ``client`` may become a new participant now (counted), else why not."""
+        now = time.monotonic()
+        with self.lock:
+            for queue in (self.all, *self.times.values()):
+                while queue and now - queue[0] > 60.0:
+                    queue.popleft()
+            self.times = {key: queue for key, queue in self.times.items() if queue}
+            mine = self.times.setdefault(client, collections.deque())
+            if len(mine) >= self.per_client:
+                return f"at most {self.per_client} new participants a minute from one address"
+            if len(self.all) >= self.in_all:
+                return f"at most {self.in_all} new participants a minute"
+            mine.append(now)
+            self.all.append(now)
+            return None
+
+
+class _StudyHTTPServer(ThreadingHTTPServer):
+    """A thread per connection, at most :data:`MAX_HANDLERS` at once, a deep listen queue, and errors of a
+    connection told in one line."""
+
+    request_queue_size = LISTEN_BACKLOG
+    daemon_threads = True
+
+    def __init__(self, address, handler, *, on_error: Callable[[str], None]) -> None:
+        self.slots = threading.BoundedSemaphore(MAX_HANDLERS)
+        self.on_error = on_error
+        super().__init__(address, handler)
+
+    def process_request(self, request, client_address) -> None:
+        if not self.slots.acquire(timeout=1.0):  # every handler busy: the client is asked to come back
+            with contextlib.suppress(OSError):
+                request.settimeout(1.0)
+                request.sendall(b"HTTP/1.1 503 Service Unavailable\r\nRetry-After: 1\r\nContent-Length: 0\r\n"
+                                b"Connection: close\r\n\r\n")
+            self.shutdown_request(request)
+            self.on_error(f"{MAX_HANDLERS} connections busy: one more was asked to come back")
+            return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self.slots.release()
+            raise
+
+    def process_request_thread(self, request, client_address) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self.slots.release()
+
+    def handle_error(self, request, client_address) -> None:
+        error = sys.exc_info()[1]
+        what = "went away" if isinstance(error, (ConnectionError, BrokenPipeError)) else \
+            "was too slow and was closed" if isinstance(error, TimeoutError) else f"failed ({error!r})"
+        self.on_error(f"a connection from {client_address[0]} {what}")
 
 
 class _Handler(BaseHTTPRequestHandler):
@@ -275,6 +389,13 @@ class _Handler(BaseHTTPRequestHandler):
             return
         try:
             if path == "/api/participants":
+                refused = study.arrivals.admit(self.client_address[0])
+                if refused is not None:
+                    study._quiet(f"refused a new participant from {self.client_address[0]}: {refused}")
+                    self._send(429, json.dumps({"error": f"too many new participants: {refused}; try again in a "
+                                                         "minute"}).encode(), "application/json",
+                               {"Retry-After": "60"})
+                    return
                 participant = study.store.new_participant()
                 progress = study.store.progress()
                 study.report(f"participant {progress['participants']} arrived ({participant})")
@@ -294,27 +415,48 @@ class _Handler(BaseHTTPRequestHandler):
             self._error(503, f"the answer could not be saved ({error}); it will be sent again")
 
     def _video(self, name: str) -> None:
+        """A video of the manifest, whole or the byte range asked for, read by seeking and sent in blocks."""
         path = self.study.files.get(name)
         if path is None:
             self._error(404, "no such video")
             return
         try:
-            data = path.read_bytes()
+            real = path.resolve(strict=True)
+            if not real.is_relative_to(self.study.folder):  # a link swapped in after the start
+                self._error(404, "no such video")
+                return
+            handle = open(real, "rb")  # noqa: SIM115 - closed below, after the sending
         except OSError as error:
             self._error(404, f"the video cannot be read ({error.strerror or error})")
             return
-        headers = {"Accept-Ranges": "bytes"}
-        match = _RANGE.match(self.headers.get("Range", "").strip())
-        if match and (match[1] or match[2]):
-            size = len(data)
-            if match[1]:
-                start, end = int(match[1]), min(int(match[2]) if match[2] else size - 1, size - 1)
-            else:
-                start, end = max(0, size - int(match[2])), size - 1
-            if start > end or start >= size:
-                self._send(416, b"", "video/mp4", {"Content-Range": f"bytes */{size}"})
+        with handle:
+            size = os.fstat(handle.fileno()).st_size
+            headers = {"Accept-Ranges": "bytes"}
+            status, start, end = 200, 0, size - 1
+            match = _RANGE.match(self.headers.get("Range", "").strip())
+            if match and (match[1] or match[2]):
+                if match[1]:
+                    start, end = int(match[1]), min(int(match[2]) if match[2] else size - 1, size - 1)
+                else:
+                    start, end = max(0, size - int(match[2])), size - 1
+                if start > end or start >= size:
+                    self._send(416, b"", "video/mp4", {"Content-Range": f"bytes */{size}"})
+                    return
+                status = 206
+                headers["Content-Range"] = f"bytes {start}-{end}/{size}"
+            self.send_response(status)
+            for key, value in {"Content-Type": "video/mp4", "Content-Length": str(end - start + 1),
+                               "Cache-Control": "no-store", "X-Content-Type-Options": "nosniff",
+                               "Referrer-Policy": "no-referrer", **headers}.items():
+                self.send_header(key, value)
+            self.end_headers()
+            if self.command == "HEAD":
                 return
-            headers["Content-Range"] = f"bytes {start}-{end}/{size}"
-            self._send(206, data[start:end + 1], "video/mp4", headers)
-            return
-        self._send(200, data, "video/mp4", headers)
+            handle.seek(start)
+            left = end - start + 1
+            while left > 0:
+                block = handle.read(min(VIDEO_BLOCK_BYTES, left))
+                if not block:
+                    break
+                self.wfile.write(block)
+                left -= len(block)

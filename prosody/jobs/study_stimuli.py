@@ -26,6 +26,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -145,6 +146,18 @@ def read_manifest(folder: str | os.PathLike[str]) -> dict:
     if payload.get("format") != STIMULI_FORMAT or payload.get("version") != FORMAT_VERSION \
             or not isinstance(payload.get("videos"), dict) or not isinstance(payload.get("conditions"), dict):
         raise ConfigError(f"{path}: not a stimuli manifest of this project (format {STIMULI_FORMAT})")
+    inside = Path(folder).resolve()
+    for key, entry in payload["videos"].items():
+        if not isinstance(entry, dict) or not isinstance(entry.get("file"), str) \
+                or not re.fullmatch(r"[0-9a-f]{64}", str(entry.get("sha256", ""))):
+            raise ConfigError(f"{path}: video {key!r} is not an object with a file name and its SHA-256; make the "
+                              "stimuli again with 'prosody study stimuli'")
+        if not (inside / entry["file"]).resolve().is_relative_to(inside):
+            raise ConfigError(f"{path}: video {key!r} names {entry['file']!r}, outside {folder}: a manifest may "
+                              "only name videos in its own folder")
+    for name, entry in payload["conditions"].items():
+        if not isinstance(entry, dict):
+            raise ConfigError(f"{path}: condition {name!r} is not an object; make the stimuli again")
     return payload
 
 

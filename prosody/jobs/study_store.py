@@ -188,8 +188,8 @@ class StudyStore:
         """
         with self._lock:
             self._participant(participant)
-        if isinstance(position, bool) or not isinstance(position, int):
-            raise StudyStoreError("the trial position must be a whole number")
+        if isinstance(position, bool) or not isinstance(position, int) or not 1 <= position <= self.total:
+            raise StudyStoreError(f"the trial position must be a whole number from 1 to {self.total}")
         given = self._check_answer(answer)
         if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not 0 <= seconds < 1e6:
             seconds = None
