@@ -174,8 +174,52 @@ def transcript_words(text: str) -> list[str]:
     --------
     >>> transcript_words("He turned -- sharply, and faced Gregson's desk.")
     ['he', 'turned', 'sharply', 'and', 'faced', "gregson's", 'desk']
+    >>> transcript_words("héllo ñandú")  # letters of any alphabet stay in their word
+    ['héllo', 'ñandú']
     """
-    return re.findall(r"[a-z0-9]+(?:'[a-z0-9]+)*", text.lower())
+    return re.findall(r"[^\W_]+(?:'[^\W_]+)*", text.lower())
+
+
+#: Most words a second of speech can hold in a transcript (fast speech is 4-6 words a second), plus a margin
+#: for short clips; a longer transcript is not this recording's (900 KB once took 1.5 GB for 3 s).
+MAX_WORDS_PER_S = 12.0
+MAX_WORDS_MARGIN = 20
+#: Largest transcript file read.
+MAX_TRANSCRIPT_BYTES = 1 << 20
+
+
+def read_transcript(path: str | os.PathLike[str]) -> str:
+    """The text of a transcript file: UTF-8 (with or without a byte-order mark), or UTF-16/32 with theirs (as
+    Notepad saves "Unicode"); at most :data:`MAX_TRANSCRIPT_BYTES`.
+
+    Raises
+    ------
+    ParameterError
+        The file is not text (binary, or in an encoding without a byte-order mark other than UTF-8).
+    OSError
+        It cannot be read.
+    """
+    import codecs
+
+    from .inputs import open_input
+
+    with open_input(path, max_bytes=MAX_TRANSCRIPT_BYTES) as handle:
+        data = handle.read()
+    for bom, encoding in ((codecs.BOM_UTF32_LE, "utf-32"), (codecs.BOM_UTF32_BE, "utf-32"),
+                          (codecs.BOM_UTF8, "utf-8-sig"), (codecs.BOM_UTF16_LE, "utf-16"),
+                          (codecs.BOM_UTF16_BE, "utf-16")):
+        if data.startswith(bom):
+            break
+    else:
+        encoding = "utf-8"
+    try:
+        text = data.decode(encoding)
+    except UnicodeDecodeError:
+        text = None
+    if text is None or "\0" in text:
+        raise ParameterError(f"transcript {os.fspath(path)!r} is not a text file (UTF-8, or UTF-16 with its "
+                             "byte-order mark): give the words said, as text")
+    return text
 
 
 def _aligned(samples: np.ndarray, words: list[str]) -> list[Phone] | None:
@@ -242,6 +286,10 @@ def recognise_phones(source: Audio | str | os.PathLike[str], *, transcript: str 
         words = transcript_words(transcript)
         if not words:
             raise ParameterError("transcript has no words")
+        most = int(MAX_WORDS_PER_S * duration_s) + MAX_WORDS_MARGIN
+        if len(words) > most:
+            raise ParameterError(f"the transcript has {len(words)} words, more than {most} that {duration_s:.1f} s "
+                                 "of speech can hold: is it this recording's?")
         decoder = _decoder()
         unknown = [word for word in words if decoder.lookup_word(word) is None]
         known = [word for word in words if word not in unknown]

@@ -165,6 +165,37 @@ def test_transcript_words_and_a_transcript_that_does_not_fit(tmp_path):
     assert labels[:8] == ["HH", "IY", "T", "ER", "N", "D", "SH", "AA"]
 
 
+@pytest.mark.parametrize("encoding", ["utf-8", "utf-8-sig", "utf-16", "utf-16-be", "utf-32"])
+def test_a_transcript_file_is_read_in_the_encodings_editors_save(tmp_path, encoding):
+    from audio_features.phones import read_transcript
+
+    path = tmp_path / "words.txt"
+    text = "Héllo ñandú, it's 5 o'clock.\n"
+    path.write_bytes(("\ufeff" if encoding == "utf-16-be" else "").encode(encoding) + text.encode(encoding))
+    assert read_transcript(path).lstrip("\ufeff") == text
+    assert transcript_words(read_transcript(path)) == ["héllo", "ñandú", "it's", "5", "o'clock"]
+
+
+def test_a_binary_or_overlong_transcript_is_one_line(tmp_path, speech, capsys):
+    from prosody.cli import main
+
+    binary = tmp_path / "words.bin"
+    binary.write_bytes(bytes(range(256)) * 4)
+    assert main(["convert", str(speech), "--transcript", str(binary), "-o", str(tmp_path / "x.fap")]) == 2
+    err = capsys.readouterr().err
+    assert "is not a text file" in err and len(err.strip().splitlines()) == 1
+    latin = tmp_path / "latin1.txt"
+    latin.write_bytes("caf\xe9 cr\xe8me".encode("latin-1"))  # no byte-order mark, not UTF-8
+    assert main(["convert", str(speech), "--transcript", str(latin), "-o", str(tmp_path / "x.fap")]) == 2
+    assert "is not a text file" in capsys.readouterr().err
+    long = tmp_path / "book.txt"
+    long.write_text("word " * 100_000)  # 1.7 s of speech holds at most 12 x 1.7 + 20 = 40 words
+    assert main(["convert", str(speech), "--transcript", str(long), "-o", str(tmp_path / "x.fap")]) == 2
+    err = capsys.readouterr().err
+    assert "the transcript has 100000 words, more than 40" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x.fap").exists()
+
+
 @pytest.mark.shared_data
 def test_phones_agree_with_the_labelled_alignment(shared_data):
     # arctic_a0009 comes with a hand-checked phone alignment (HTK label times in 100 ns)

@@ -72,10 +72,9 @@ def make_face(audio: str | os.PathLike[str], features, *, lips: str | None = "vi
     if lips is None and not segments and not states:
         return None
     if transcript is not None and os.path.isfile(transcript):
-        from audio_features.inputs import open_input
+        from audio_features.phones import read_transcript
 
-        with open_input(transcript, text=True, encoding="utf-8-sig", max_bytes=1 << 20) as handle:
-            transcript = handle.read()
+        transcript = read_transcript(transcript)
     model = None
     if mouth_model is not None and lips == "acoustic":
         from .mouth_model import AcousticMouthModel
