@@ -102,8 +102,8 @@ def test_writer_produces_the_interoperable_subset(tmp_path) -> None:
     text = format_fap(stream)
     assert text == (
         "2.1 my_clip 30 2\n"
-        f"{_mask_line(31, 48)}\n0 2 1\n"
-        f"{_mask_line(31, 48)}\n1 4 -2\n"
+        f"{_mask_line(31, 48)} \n0 2 1 \n"
+        f"{_mask_line(31, 48)} \n1 4 -2 \n"
     )
     path = tmp_path / "out.fap"
     write_fap(stream, path)
@@ -117,7 +117,7 @@ def test_writer_refuses_what_players_cannot_read(tmp_path) -> None:
         format_fap(FapStream.from_curves({48: np.zeros(3)}, fps=29.97))
     with pytest.raises(FapWriteError, match="exceeds 16777216"):
         format_fap(FapStream.from_curves({48: np.array([2.0**24 + 1])}, fps=30))
-    assert format_fap(FapStream.from_curves({48: np.array([2.0**24])}, fps=30)).endswith(f" {2**24}\n")
+    assert format_fap(FapStream.from_curves({48: np.array([2.0**24])}, fps=30)).endswith(f" {2**24} \n")
     with pytest.raises(FapWriteError, match="no frame"):
         format_fap(FapStream.empty(0, fps=30))
     path = tmp_path / "x.fap"
@@ -127,7 +127,26 @@ def test_writer_refuses_what_players_cannot_read(tmp_path) -> None:
 
 
 def test_empty_frames_write_a_bare_frame_number() -> None:
-    assert format_fap(FapStream.empty(1, fps=25, name="e")) == f"2.1 e 25 1\n{MASK_ZEROS}\n0\n"
+    assert format_fap(FapStream.empty(1, fps=25, name="e")) == f"2.1 e 25 1\n{MASK_ZEROS} \n0 \n"
+
+
+def _atoi(token: str) -> int:
+    """C's atoi: leading whitespace skipped, then a sign and digits, the rest ignored."""
+    import re
+
+    match = re.match(r"\s*([+-]?\d+)", token)
+    return int(match[1]) if match else 0
+
+
+def test_greta_buffer_reading_from_space_to_space_reads_every_token(rng) -> None:
+    # C++ Greta's FAPdata::ReadFapBuffer takes the text between two spaces as one number (atoi): a line that
+    # ends without a space glues its last number to the next line's first, and the next line's first is lost
+    values = {fap: rng.normal(0, 300, 5) for fap in (3, 31, 48, 49, 50, 59)}
+    text = format_fap(FapStream.from_curves(values, fps=25))
+    body = text.split("\n", 1)[1]  # the header line is read by line
+    tokens = body.split()
+    assert [_atoi(piece) for piece in body.split(" ") if piece.strip()] == [int(t) for t in tokens]
+    assert all(line.endswith(" ") for line in body.splitlines())
 
 
 @settings(max_examples=60, deadline=None)

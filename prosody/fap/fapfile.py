@@ -2,7 +2,8 @@
 
 Writing produces the subset that Xface, the Java Greta and the older C++ Greta all read: header
 ``2.1 <name> <integer fps> <N>``, 68 mask tokens, frames 0..N-1, integer values, FAP 1 and 2 masked off,
-no comments, every line ending in a newline and no blank line at the end.
+no comments, every mask and value line ending in a space and a newline (as Greta's own writer: the C++
+Greta's buffer reader needs the space), and no blank line at the end.
 
 Reading is liberal (versions 2.0/2.1, names with spaces or paths, CRLF, tabs, trailing spaces, ``#``
 comment lines, 69-token masks, frame numbers from 1, float values, masks that change, header counts that
@@ -415,9 +416,11 @@ def _fap_lines(stream: FapStream, *, name: str | None = None) -> Iterator[str]:
             tokens = ["0"] * N_FAPS
             for column in columns[bits]:
                 tokens[column] = "1"
-            mask_line = mask_lines[key] = " ".join(tokens) + "\n"
+            mask_line = mask_lines[key] = " ".join(tokens) + " \n"
         yield mask_line
-        yield " ".join([str(k), *map(str, integers[k, bits].tolist())]) + "\n"
+        # each mask and value line ends with a space, as Greta's own writer does: C++ Greta's buffer reader
+        # (FAPdata::ReadFapBuffer) steps from space to space and misreads a line without it
+        yield " ".join([str(k), *map(str, integers[k, bits].tolist())]) + " \n"
 
 
 def format_fap(stream: FapStream, *, name: str | None = None) -> str:
