@@ -133,8 +133,9 @@ def _add_motion_options(parser: argparse.ArgumentParser, *, live: bool = False) 
     controls = parser.add_argument_group("intensity (1 keeps the motion as computed, 0.5 halves it)")
     for channel, what in (("pitch", "head nods (FAP 48)"), ("yaw", "head turns (FAP 49)"),
                           ("roll", "head tilts (FAP 50)"), ("brow", "eyebrow raises (FAP 31-34)")):
-        controls.add_argument(f"--{channel}-gain", type=float, default=1.0, metavar="G",
-                              help=f"scale the {what} by G (default 1)")
+        controls.add_argument(f"--{channel}-gain", type=_number_in(0, 100), default=1.0, metavar="G",
+                              help=f"scale the {what} by G (default 1; 0 to 100, the head and brows kept within "
+                                   "what a person can do)")
     if not live:
         controls.add_argument("--lip-gain", type=_number_in(0, 100), default=1.0, metavar="G",
                               help="scale the lips' motion (FAP 3-11, 16-17, 51-58) by G (default 1)")

@@ -20,6 +20,7 @@ from ..motion.eyebrows import BrowRule
 from ..motion.face import FaceLayer, make_face
 from ..motion.ground_truth import fit_to_grid, read_motion
 from ..motion.head_models import HeadModel, resolve_head_model, rest_pose
+from ..motion.limits import warn_if_bent, within_human_limits
 from ..motion.lips import LIP_FAPS
 from ..motion.pad import PadSegment, parse_pad
 from ..motion.pad_head import PadHeadModel
@@ -169,6 +170,9 @@ def convert(
     # gains scale motion about the rest pose: a model's resting lean is not motion
     stream = apply_controls(stream, gains=gains, disabled=disabled,
                             rest=rest_pose(head_model) if head_model is not None else None)
+    if chosen is not Condition.GROUND_TRUTH:  # what a person did is never bent
+        stream, bent = within_human_limits(stream)
+        warn_if_bent(bent, stacklevel=2)
     if recorded is not None:
         stream = stream.merged_over(recorded)
     if output is not None:

@@ -29,6 +29,7 @@ from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
 from ..motion.conditions import Condition
 from ..motion.expressivity import BrowShaper, Expressivity, HeadShaper
 from ..motion.eyebrows import BrowRule
+from ..motion.limits import limit_frame
 from ..motion.lips import LIP_FAPS, shape_faps
 from ..motion.live import LiveHeadModel, LivePerlin, live_brows
 from ..motion.model_files import read_model_json
@@ -219,7 +220,8 @@ class LiveConverter:
             self._next += 1
             if self._mouth is not None:
                 value.update({fap: float(curve[0]) for fap, curve in shape_faps(self._mouth.shape(k)).items()})
-            frames.append(LiveFrame(k, k / self.fps, {fap: value[fap] * self._gain[fap] for fap in self.faps}))
+            frames.append(LiveFrame(k, k / self.fps,
+                                    limit_frame({fap: value[fap] * self._gain[fap] for fap in self.faps})))
         return frames
 
     def push(self, samples: np.ndarray) -> list[LiveFrame]:
