@@ -103,6 +103,14 @@ def test_eq14_same_sign_opposite_sign_and_rest():
     np.testing.assert_allclose(mix_with_lips({12: np.array([10.0])}, {12: np.array([30.0])}, delta=0.25)[12], 25.0)
 
 
+@pytest.mark.parametrize("name", sorted(EXPRESSIONS))
+def test_each_expression_sets_a_lip_corner_on_both_contours_alike(name):
+    # Xface copies the inner corners to the outer ones, Greta does not: set both so the two players agree
+    targets = EXPRESSIONS[name]
+    for inner, outer in ((12, 59), (13, 60), (6, 53), (7, 54)):
+        assert targets.get(inner) == targets.get(outer), (name, inner, outer)
+
+
 def test_expressions_blend_in_and_out_and_brows_stay_in_range():
     segments = [ExpressionSegment("joy", 0.5, 1.0, 2.0)]
     curves = expression_curves(segments, 120, fps=30)

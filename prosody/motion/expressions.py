@@ -30,7 +30,9 @@ import numpy as np
 from ..errors import ConfigError
 from .lips import dominance
 
-#: The six expressions' FAP targets at intensity 1 (FAP -> value in its FAPU).
+#: The six expressions' FAP targets at intensity 1 (FAP -> value in its FAPU). Each lip corner is set on the
+#: inner and the outer contour alike (12/13 with 59/60, 6/7 with 53/54): Xface copies the inner corner to the
+#: outer, Greta does not, so a corner set on one contour only looks different in the two players.
 EXPRESSIONS: dict[str, dict[int, float]] = {
     # AU6 + AU12: cheeks raised, lip corners up and back, lower eyelids pushed up, brows relaxed
     "joy": {12: 120, 13: 120, 59: 120, 60: 120, 6: 100, 7: 100, 53: 100, 54: 100, 41: 100, 42: 100, 21: 100,
@@ -40,13 +42,13 @@ EXPRESSIONS: dict[str, dict[int, float]] = {
                 60: -80, 18: 60},
     # AU4 + AU5 + AU7 + AU24: brows down and together, eyes staring, lids tense, lips pressed
     "anger": {31: -120, 32: -120, 33: -60, 34: -60, 37: 60, 38: 60, 19: -60, 20: -60, 21: 80, 22: 80, 4: 30, 5: 30,
-              12: -30, 13: -30},
+              12: -30, 13: -30, 59: -30, 60: -30},
     # AU1 + AU2 + AU4 + AU5 + AU20 + AU26: brows up and together, eyes wide, lips stretched, jaw dropped
     "fear": {31: 150, 32: 150, 33: 90, 34: 90, 35: 40, 36: 40, 37: 40, 38: 40, 19: -120, 20: -120, 6: 80, 7: 80,
              53: 80, 54: 80, 3: 80},
     # AU9 + AU10 (+ AU4): nose wrinkled, upper lip raised, cheeks up, brows lowered
     "disgust": {4: -80, 8: -60, 9: -60, 51: -80, 55: -60, 56: -60, 41: 60, 42: 60, 63: 40, 31: -40, 32: -40,
-                33: -40, 34: -40, 21: 60, 22: 60, 12: -40, 13: -40},
+                33: -40, 34: -40, 21: 60, 22: 60, 12: -40, 13: -40, 59: -40, 60: -40},
     # AU1 + AU2 + AU5 + AU26: brows high, upper lids wide open, jaw dropped
     "surprise": {31: 200, 32: 200, 33: 200, 34: 200, 35: 150, 36: 150, 19: -150, 20: -150, 3: 250, 4: -40, 5: -60,
                  51: -40, 52: -60},
