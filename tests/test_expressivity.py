@@ -223,6 +223,25 @@ def test_activation_makes_the_head_hold_still(real_head):
 
 
 @pytest.mark.shared_data
+def test_still_keeps_at_most_a_quarter_of_the_heads_spread(real_head):
+    _, motions = real_head
+    for motion in motions:
+        still = shape_head(motion, fps=FPS, expressivity=Expressivity.still())
+        assert (still.std(axis=0) / motion.std(axis=0)).mean() <= 0.25
+
+
+def test_still_does_not_follow_a_generators_slow_drift():
+    # a pose that drifts slowly (0.03 Hz, 4 degrees) under quick nods (1.5 Hz, 1 degree): the 4 s pull towards
+    # the generator's pose would keep the drift; a held head rests at its mean pose instead
+    t = np.arange(int(60 * FPS)) / FPS
+    drift = 4.0 * np.sin(2 * np.pi * 0.03 * t)[:, None] * np.array([1.0, 0.7, 0.3])
+    nods = 1.0 * np.sin(2 * np.pi * 1.5 * t)[:, None] * np.array([1.0, 0.2, 0.1])
+    motion = (drift + nods) * 1745.33  # degrees in AU
+    still = shape_head(motion, fps=FPS, expressivity=Expressivity.still())
+    assert (still.std(axis=0) / motion.std(axis=0)).mean() < 0.25
+
+
+@pytest.mark.shared_data
 def test_temporal_makes_movements_slower_or_quicker_at_about_the_same_size(real_head):
     _, motions = real_head
     slow, speed = _mean_over_seeds(motions, Expressivity(temporal=1), lambda m: np.mean(_speeds(m)))

@@ -17,8 +17,11 @@ rises and falls are rescaled to keep the generator's proportion (running means o
 - activation (OAC, 0..1): how often gestures happen. The head holds during its weakest moments, about
   ``1 - activation`` of the time: a threshold follows the running ``1 - activation`` quantile of ``r``, and a
   soft gate (``r^8 / (r^8 + threshold^8)``, smoothed over 0.1 s) lowers the velocity of the moments below it
-  to a tenth (the idle sway). 1 holds nothing, 0.5 the weaker half, 0 everything: only the idle sway is left
-  (``--still``).
+  to a tenth (the idle sway), and the pull leads the held head towards the generator's running mean pose (20
+  s, started as if the first pose had lasted 5 s) rather than its pose of the moment, so the generator's slow
+  drifts do not pass either. 1 holds nothing, 0.5 the weaker half, 0 everything (``--still``): what is left is
+  the idle sway and the slow walk of the mean pose, 0.16 of the head's spread on average over the
+  talking-heads recordings (at most 0.22; three seeds each).
 - spatial (SPC, -1..1): amplitude about the rest pose, times ``2^spatial`` (half at -1, double at +1).
 - temporal (TMP, -1..1): the time a movement takes. Above 0 the velocity is smoothed by a one-pole filter of
   ``0.3 s * temporal``: each movement lasts longer and is slower, and still covers the same angle. Below 0 its
@@ -77,6 +80,8 @@ QUANTILE_STEP = 0.02
 GATE_SHARPNESS = 8
 GATE_SMOOTHING_S = 0.1
 PULL_S = 4.0
+#: The held pose (the generator's running mean) starts as if its first pose had lasted this long (s).
+MEAN_START_S = 5.0
 SLOW_S = 0.3
 QUICK_S = 0.15
 QUICK_BOOST = 2.0
@@ -197,6 +202,7 @@ class HeadShaper:
         self._frames = 0
         self._gate = 1.0
         self._slow = np.zeros(3)
+        self._mean = np.zeros(3)  # the generator's running mean pose (20 s): where a held head rests
         self._fluid = np.zeros((2, 3))
         self._visible = np.zeros((2, 3))
         self._pitch_mean = 0.0
@@ -235,6 +241,7 @@ class HeadShaper:
         if self._previous is None:
             self._previous = x.copy()
             self._output = x.copy()
+            self._mean = x.copy()
         velocity = x - self._previous
         self._previous = x.copy()
         self._frames += 1
@@ -246,8 +253,10 @@ class HeadShaper:
         self._speed = self._smooth_speed * self._speed + (1 - self._smooth_speed) * instant
         weight = max(1.0 / self._frames, 1.0 / (REFERENCE_S * fps))
         self._reference += weight * (self._speed - self._reference)
+        self._mean += (x - self._mean) / min(self._frames + MEAN_START_S * fps, REFERENCE_S * fps)
         ratio = self._speed / self._reference if self._reference > 0 else 1.0
         gain = 1.0
+        target = x
         if e.activation < 1.0:
             # the threshold follows the running (1 - activation) quantile of the ratio: the share of time held
             # is about 1 - activation whatever the generator's own statistics
@@ -256,7 +265,11 @@ class HeadShaper:
             open_ = 0.0 if e.activation <= 0 else ratio**GATE_SHARPNESS / (
                 ratio**GATE_SHARPNESS + self._threshold**GATE_SHARPNESS + 1e-300)
             self._gate = self._smooth_gate * self._gate + (1 - self._smooth_gate) * open_
-            gain *= IDLE_SHARE + (1 - IDLE_SHARE) * self._gate
+            share = IDLE_SHARE + (1 - IDLE_SHARE) * self._gate
+            gain *= share
+            # a held head is pulled towards its mean pose, not the generator's: the generator's slow drifts
+            # would otherwise pass through the 4 s pull and keep a third of its spread
+            target = self._mean + self._gate * (x - self._mean)
         if e.power != 0.0:
             # the gain's average over the speed it scales is kept at 1, so the average speed stays
             exponent = e.power if e.power < 0 else POWER_SHARPENING * e.power
@@ -279,7 +292,7 @@ class HeadShaper:
                         else velocity + JITTER_BOOST * -e.fluidity * (velocity - self._fluid[1]))
         if self._reshaping:
             self._output = self._output + velocity
-            self._output += self._pull * (x - self._output)
+            self._output += self._pull * (target - self._output)
         else:
             self._output = x.copy()
         shaped = self._output.copy()
