@@ -35,6 +35,8 @@ CSV_COLUMNS = ("frame", "time_s", "f0_hz", "f0_conditioned_hz", "energy_db")
 MAX_CSV_BYTES = 64 << 20
 #: Highest frame rate of the grid (animation runs at 24-120 fps; the analysis step is 10 ms at most).
 MAX_FPS = 1000.0
+#: Slowest frame rate: one frame a second (a slower grid holds no motion; 1e-308 fps once overflowed).
+MIN_FPS = 1.0
 #: Samples per block when scanning a file for its peak (bounded memory).
 _SCAN_BLOCK = 1 << 20
 #: Files of at most this many samples (all channels) are read into memory at once (128 MiB as float64:
@@ -374,8 +376,8 @@ def extract_features(
     >>> round(float(np.nanmedian(features.f0.values)))
     200
     """
-    if not (np.isfinite(fps) and 0 < fps <= MAX_FPS):
-        raise ParameterError(f"fps must be a number in (0, {MAX_FPS:g}], got {fps!r}")
+    if not (np.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+        raise ParameterError(f"fps must be a number from {MIN_FPS:g} to {MAX_FPS:g}, got {fps!r}")
     if not chunk_s > 0 or not margin_s >= 0:
         raise ParameterError(f"need chunk_s > 0 and margin_s >= 0, got {chunk_s!r} and {margin_s!r}")
     settings: dict[str, Any] = dict(fps=fps, f0_floor_hz=f0_floor_hz, f0_ceiling_hz=f0_ceiling_hz,

@@ -1,7 +1,7 @@
 """Spectral features on the frame grid: mel-frequency cepstral coefficients and log energy.
 
-The short-time spectrum of 25 ms Hann windows every 10 ms is pooled by a 40-band mel filterbank (librosa's,
-50-7600 Hz, the bands of speech recognisers), logged, and turned into 13 cepstral coefficients by a DCT;
+The short-time spectrum of 25 ms Hann windows every 10 ms is pooled by a 40-band mel filterbank (librosa's
+default one, Slaney's, 50-7600 Hz, the bands of speech recognisers), logged, and turned into 13 cepstral coefficients by a DCT;
 with the log energy they describe the vocal tract's shape, which the mouth is part of. The 10 ms frames are
 then read at any grid time by the nearest one.
 """
@@ -27,29 +27,63 @@ N_CEPSTRA = 13
 N_SPECTRAL = N_CEPSTRA + 1
 
 
+def _hz_to_mel(hz: np.ndarray) -> np.ndarray:
+    """Slaney's mel scale (librosa's default): linear below 1 kHz (200/3 Hz a mel), logarithmic above."""
+    hz = np.asarray(hz, float)
+    linear = hz / (200.0 / 3)
+    return np.where(hz >= 1000.0, 15.0 + np.log(np.maximum(hz, 1e-10) / 1000.0) / (np.log(6.4) / 27.0), linear)
+
+
+def _mel_to_hz(mel: np.ndarray) -> np.ndarray:
+    mel = np.asarray(mel, float)
+    return np.where(mel >= 15.0, 1000.0 * np.exp((np.log(6.4) / 27.0) * (mel - 15.0)), mel * (200.0 / 3))
+
+
+def mel_filterbank(rate: int, n_fft: int, n_mels: int, low_hz: float, high_hz: float) -> np.ndarray:
+    """Triangular filters evenly spaced on Slaney's mel scale, each of unit area (Slaney's normalisation),
+    float32, shape ``(n_mels, n_fft // 2 + 1)``: the filterbank of ``librosa.filters.mel`` with its defaults,
+    built here so that the live path does not import librosa (and numba: about 130 MB)."""
+    edges = _mel_to_hz(np.linspace(_hz_to_mel(low_hz), _hz_to_mel(high_hz), n_mels + 2))
+    bins = np.fft.rfftfreq(n_fft, 1.0 / rate)
+    widths = np.diff(edges)
+    ramps = np.subtract.outer(edges, bins)
+    weights = np.zeros((n_mels, bins.size), dtype=np.float32)
+    for i in range(n_mels):
+        weights[i] = np.maximum(0, np.minimum(-ramps[i] / widths[i], ramps[i + 2] / widths[i + 1]))
+    weights *= (2.0 / (edges[2:n_mels + 2] - edges[:n_mels]))[:, None]
+    return weights
+
+
 def _analysis(rate: int) -> tuple[int, int, np.ndarray, np.ndarray]:
     """FFT size, window length, taper and mel filterbank of the analysis at ``rate``."""
-    import librosa.filters
-
     if rate < 8000:
         raise ParameterError(f"sample rate {rate} Hz is below 8000 Hz")
     window = int(round(WINDOW_S * rate))
     n_fft = 1 << (window - 1).bit_length()
     taper = np.zeros(n_fft)
     taper[(n_fft - window) // 2:(n_fft - window) // 2 + window] = np.hanning(window)
-    mel = librosa.filters.mel(sr=rate, n_fft=n_fft, n_mels=N_MELS, fmin=MEL_LOW_HZ,
-                              fmax=min(MEL_HIGH_HZ, 0.475 * rate))
+    mel = mel_filterbank(rate, n_fft, N_MELS, MEL_LOW_HZ, min(MEL_HIGH_HZ, 0.475 * rate))
     return n_fft, window, taper, mel
+
+
+def _dct_rows(n_in: int, n_out: int) -> np.ndarray:
+    """The first ``n_out`` rows of the orthonormal DCT-II of length ``n_in`` (``scipy.fft.dct(x, type=2,
+    norm="ortho")[:n_out] == _dct_rows(n_in, n_out) @ x``), as a matrix: the live path then needs no scipy."""
+    k = np.arange(n_out)[:, None]
+    rows = np.sqrt(2.0 / n_in) * np.cos(np.pi * k * (2 * np.arange(n_in) + 1) / (2 * n_in))
+    rows[0] /= np.sqrt(2.0)
+    return rows
+
+
+_DCT = _dct_rows(N_MELS, N_CEPSTRA)
 
 
 def _cepstra_of(frames: np.ndarray, taper: np.ndarray, mel: np.ndarray) -> np.ndarray:
     """Cepstra and log energy of windows (rows of ``frames``)."""
-    from scipy.fft import dct
-
     power = np.abs(np.fft.rfft(frames * taper, axis=1)) ** 2
     log_mel = np.log(power @ mel.T + 1e-10)
     out = np.empty((frames.shape[0], N_SPECTRAL))
-    out[:, :N_CEPSTRA] = dct(log_mel, type=2, norm="ortho", axis=1)[:, :N_CEPSTRA]
+    out[:, :N_CEPSTRA] = log_mel @ _DCT.T
     out[:, N_CEPSTRA] = np.log(power.mean(axis=1) + 1e-10)
     return out
 

@@ -36,7 +36,7 @@ from .analysis import (
 from .audio import MAX_SAMPLE_RATE_HZ, MIN_SAMPLE_RATE_HZ
 from .defaults import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS, MIN_F0_FLOOR_HZ
 from .errors import AudioLoadError, ParameterError
-from .features import MAX_FPS, shape_preserving_spline
+from .features import MAX_FPS, MIN_FPS, shape_preserving_spline
 
 #: Audio before each frame given to Praat's pitch path finder, in s.
 DEFAULT_CONTEXT_S = 0.25
@@ -82,8 +82,8 @@ class StreamingAnalyser:
                 MIN_SAMPLE_RATE_HZ <= sample_rate_hz <= MAX_SAMPLE_RATE_HZ):
             raise ParameterError(f"sample_rate_hz must be a whole number in [{MIN_SAMPLE_RATE_HZ}, "
                                  f"{MAX_SAMPLE_RATE_HZ}], got {sample_rate_hz!r}")
-        if not (isinstance(fps, (int, float)) and math.isfinite(fps) and 0 < fps <= MAX_FPS):
-            raise ParameterError(f"fps must be a number in (0, {MAX_FPS:g}], got {fps!r}")
+        if not (isinstance(fps, (int, float)) and math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+            raise ParameterError(f"fps must be a number from {MIN_FPS:g} to {MAX_FPS:g}, got {fps!r}")
         if not MIN_F0_FLOOR_HZ <= f0_floor_hz < f0_ceiling_hz < sample_rate_hz / 2:
             raise ParameterError(f"need {MIN_F0_FLOOR_HZ:g} <= f0_floor_hz < f0_ceiling_hz < "
                                  f"{sample_rate_hz / 2:g} Hz (Nyquist), got floor {f0_floor_hz!r} and ceiling "

@@ -96,8 +96,8 @@ def _add_seeds_option(parser: argparse.ArgumentParser) -> None:
 
 
 def _add_analysis_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--fps", type=_positive_float, default=DEFAULT_FPS,
-                        help="frames per second of the output grid (default 30; frame k is at k/fps s)")
+    parser.add_argument("--fps", type=_number_in(1, 1000), default=DEFAULT_FPS,
+                        help="frames per second of the output grid (default 30, 1 to 1000; frame k is at k/fps s)")
     parser.add_argument("--f0-floor", type=_positive_float, default=DEFAULT_F0_FLOOR_HZ, metavar="HZ",
                         help=f"lowest F0 the pitch tracker looks for, in Hz (default {DEFAULT_F0_FLOOR_HZ:g})")
     parser.add_argument("--f0-ceiling", type=_positive_float, default=DEFAULT_F0_CEILING_HZ, metavar="HZ",
@@ -376,6 +376,9 @@ def _cmd_convert(args: argparse.Namespace) -> int:
     from .jobs.pipeline import convert
 
     _check_motion_options(args)
+    if args.format is None and args.output.lower().endswith((".mp4", ".gif", ".webm", ".mov", ".mkv", ".avi")):
+        raise ConfigError(f"-o {args.output!r}: convert writes motion (.fap, .csv, .json, .bvh, .livelink.csv); "
+                          f"to draw a video, use 'prosody preview {args.input} -o {args.output}'")
     if args.output == "-":
         if args.format is None:
             raise ConfigError("-o - writes to standard output: give --format (fap, csv, csv-physical, json, bvh, "
@@ -441,7 +444,8 @@ class _ProgressBar:
             percent = int(100 * done / total) if total else 100
             if percent != self._last_percent:  # at most a hundred lines, whatever the length
                 self._last_percent = percent
-                _MESSAGES.emit("progress", f"{self.description}: {done}/{total} {self.unit}", done=done, total=total)
+                unit = self.unit if total == 1 else self.unit + "s"
+                _MESSAGES.emit("progress", f"{self.description}: {done}/{total} {unit}", done=done, total=total)
             return
         if self.bar is None:
             from tqdm import tqdm
@@ -875,8 +879,10 @@ def _cmd_track(args: argparse.Namespace) -> int:
         if outcome.sync is None:
             return None
         sync = SyncEstimate(**{key: outcome.sync.get(key) for key in ("lead_ms", "r", "spread_ms", "reason")})
-        state = "already complete" if outcome.status == "skipped" else f"{outcome.seconds:.1f} s"
-        return f"{outcome.stem}: {outcome.frames} frames at 30 fps ({state}); {sync.describe()}"
+        # the parenthesis is the clip's length, as every command's; the time taken follows it
+        took = "already complete" if outcome.status == "skipped" else f"tracked in {outcome.seconds:.1f} s"
+        return (f"{outcome.stem}: {outcome.frames} frames at 30 fps ({outcome.frames / 30:.1f} s), {took}; "
+                f"{sync.describe()}")
 
     on_outcome = _outcome_reporter("track", args.output, "video", len(find_videos(args.input)),
                                    lambda outcome: outcome.video, result)
@@ -1150,10 +1156,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     convert = commands.add_parser(
         "convert", help="turn a speech recording into a FAP stream",
-        description="Compute the prosody FAPs (eyebrows 31-34, head 48-50) of one condition and write them. "
-                    "speech: eyebrows from the F0 rule, head pitch/yaw/roll from the shipped prosodic head model "
-                    "(or --model arx for the thesis's ARX model, or a trained file); random: Perlin noise; "
-                    "none: all zero; truth: recorded motion.",
+        description="Compute the face's motion of one condition and write it: eyebrows (FAP 31-34), head "
+                    "(48-50), lips (3-11, 16-17, 51-58: visemes from the phones heard, with coarticulation, or "
+                    "--lips acoustic) and, if asked, an expression or a PAD state blended onto them. "
+                    "speech: brows on pitch accents, head pitch/yaw/roll from the shipped prosodic head model "
+                    "(or --model arx for the thesis's ARX model, pad for the PAD gestures, or a trained file); "
+                    "random: Perlin noise; none: a still head and brows; truth: recorded motion. The lips are the "
+                    "same in every condition. To see the motion, draw it with 'prosody preview'.",
     )
     convert.add_argument("input", help="speech recording")
     convert.add_argument("-o", "--output", required=True,
@@ -1315,8 +1324,8 @@ def build_parser() -> argparse.ArgumentParser:
     arx.add_argument("--nk", type=int, default=None, help="input delay in frames (default 0)")
     arx.add_argument("--ridge", type=_number_in(0, 1e6), default=None, metavar="R",
                      help="ridge penalty, 0 to 1e6 (default 0.1)")
-    train.add_argument("--fps", type=_positive_float, default=DEFAULT_FPS,
-                       help=f"frame rate (default {DEFAULT_FPS:g})")
+    train.add_argument("--fps", type=_number_in(1, 1000), default=DEFAULT_FPS,
+                       help=f"frame rate (default {DEFAULT_FPS:g}, 1 to 1000)")
     train.set_defaults(handler=_cmd_train)
 
     compare = commands.add_parser(

@@ -282,3 +282,38 @@ def test_analysis_reports_its_progress_chunk_by_chunk() -> None:
     extract_features(Audio(harmonic_tone(150, 5.0, 16000), 16000), chunk_s=2.0,
                      progress=lambda done, total: calls.append((done, total)))
     assert calls == [(0, 150), (60, 150), (120, 150), (150, 150)]
+
+
+@pytest.mark.parametrize("rate", [8000, 16000, 22050, 44100, 48000])
+def test_the_mel_filterbank_is_librosas_to_the_bit(rate) -> None:
+    # built by hand so that the live path does not import librosa; librosa's own is the known answer
+    import librosa
+
+    from audio_features.spectral import MEL_HIGH_HZ, MEL_LOW_HZ, N_MELS, mel_filterbank
+
+    window = int(round(0.025 * rate))
+    n_fft = 1 << (window - 1).bit_length()
+    high = min(MEL_HIGH_HZ, 0.475 * rate)
+    expected = librosa.filters.mel(sr=rate, n_fft=n_fft, n_mels=N_MELS, fmin=MEL_LOW_HZ, fmax=high)
+    assert np.array_equal(mel_filterbank(rate, n_fft, N_MELS, MEL_LOW_HZ, high), expected)
+
+
+def test_the_live_path_imports_neither_librosa_nor_scipy() -> None:
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np; from prosody.jobs.stream import LiveConverter; c = LiveConverter(16000); "
+            "c.push(np.zeros(16000)); c.finish(); print(sorted({'librosa', 'numba', 'scipy'} & set(sys.modules)))")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "[]"
+
+
+def test_the_cepstra_dct_is_scipys(rng) -> None:
+    from scipy.fft import dct
+
+    from audio_features.spectral import N_CEPSTRA, N_MELS, _dct_rows
+
+    x = rng.normal(size=(50, N_MELS))
+    np.testing.assert_allclose(x @ _dct_rows(N_MELS, N_CEPSTRA).T,
+                               dct(x, type=2, norm="ortho", axis=1)[:, :N_CEPSTRA], rtol=1e-12, atol=1e-12)

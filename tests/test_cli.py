@@ -182,3 +182,23 @@ def test_quiet_says_only_errors_and_json_messages_are_one_object_a_line(tmp_path
     assert events[-1]["event"] == "info" and str(out) in events[-1]["message"]
     broken = _run("convert", str(speech), "-o", str(out), "--messages", "json", "--f0-floor", "5", text=True)
     assert [json.loads(line) for line in broken.stderr.splitlines()][-1]["exit"] == 2
+
+
+@pytest.mark.parametrize("fps", ["1e-308", "5e-324", "0.5", "1001"])
+@pytest.mark.parametrize("command", ["features", "convert", "preview", "stream", "compare", "batch", "train"])
+def test_a_frame_rate_out_of_range_is_one_line_in_every_command(tmp_path, speech, capsys, command, fps) -> None:
+    argv = {"train": ["train", "--data", str(tmp_path)], "batch": ["batch", str(tmp_path)]}.get(
+        command, [command, str(speech)])
+    with pytest.raises(SystemExit) as stop:
+        main([*argv, "-o", str(tmp_path / "out.csv"), "--fps", fps])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "expected a number in [1, 1000]" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_the_library_refuses_a_frame_rate_below_one(speech) -> None:
+    from audio_features import extract_features
+    from audio_features.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="from 1 to 1000"):
+        extract_features(speech, fps=1e-308)

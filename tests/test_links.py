@@ -249,6 +249,11 @@ def test_ipv6_targets_are_sent_to():
     (["--livelink", "127.0.0.1:0"], "no port to send to"),
     (["--vmc", "127.0.0.1:port"], "must be HOST:PORT"),
     (["--vmc", "no-such-host.invalid"], "cannot resolve"),
+    (["--livelink", "[::1"], "target '[::1' must be HOST[:PORT]"),
+    (["--livelink", ""], "target '' must be HOST[:PORT]"),
+    (["--vmc", "::1"], "target '::1' must be HOST[:PORT]"),
+    (["-o", "-", "--listen", "[::1"], "listen address '[::1' must be HOST:PORT"),
+    (["-o", "-", "--listen", "127.0.0.1:0", "--allow-origin", "http://[::1"], "origin 'http://[::1' must be"),
 ])
 def test_link_usage_errors_exit_2_with_one_line(argv, message, capsys):
     code = main(["stream", str(SAMPLE), *argv])

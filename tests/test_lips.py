@@ -331,3 +331,37 @@ def test_phones_of_a_long_recording_are_the_same_on_one_core_or_several(monkeypa
     monkeypatch.setattr(phones_module, "PARALLEL_UTTERANCES", 10**6)
     one = recognise_phones(long)
     assert several == one and len(one) > 40
+
+
+def _live_opening(samples: np.ndarray, rate: int) -> np.ndarray:
+    from prosody.jobs.stream import LiveConverter
+
+    converter = LiveConverter(rate)
+    frames = converter.push(samples) + converter.finish()
+    return np.array([f.faps[3] - f.faps[4] - f.faps[5] for f in frames])
+
+
+def test_the_live_mouth_closes_in_a_stops_silence():
+    # a vowel-like tone, 90 ms of silence (a /p/'s closure), the tone again: the mouth closes in the gap
+    from conftest import segments
+
+    rate = 16000
+    samples = segments(rate, (0.8, 140, 0.5), (0.09, 0, 0.0), (0.8, 150, 0.5))
+    opening = _live_opening(samples, rate)
+    t = np.arange(opening.size) / 30
+    gap = (t > 0.82) & (t < 0.87)
+    assert gap.any() and opening[gap].min() < 5
+    assert np.median(opening[(t > 0.3) & (t < 0.7)]) > 100  # and opens on the vowel either side
+
+
+@pytest.mark.shared_data
+def test_the_live_mouth_closes_on_the_p_of_sharply(shared_data):
+    import re
+
+    samples, rate = soundfile.read(shared_data / "speech" / "arctic_a0009.wav")
+    opening = _live_opening(samples, rate)
+    labels = [line.split() for line in (shared_data / "speech" / "arctic_a0009_phone.lab").read_text().splitlines()]
+    p_start, p_end = next((int(a) / 1e7, int(b) / 1e7) for a, b, name in labels
+                          if re.search(r"-([^+]+)\+", name)[1] == "p")
+    t = np.arange(opening.size) / 30
+    assert opening[(t >= p_start) & (t <= p_end)].min() < 0.1 * np.median(opening[opening > 0])

@@ -257,9 +257,9 @@ class FaceRenderer:
         x = right[0] + (left[0] - right[0]) * t
         corner_y = right[1] + (left[1] - right[1]) * t
         bulge = 1.0 - (2.0 * t - 1.0) ** 2  # 0 at the corners, 1 in the middle
-        # at rest the mouth is a slight smile line (its middle 0.04 below the corners), as before lips moved
-        upper = corner_y + bulge * (upper_middle - m.mouth_y - 0.04)
-        lower = corner_y + bulge * (lower_middle - m.mouth_y - 0.04)
+        # at rest the mouth is a straight, neutral line: a smile is joy's to draw (FAP 12/13 raise the corners)
+        upper = corner_y + bulge * (upper_middle - m.mouth_y)
+        lower = corner_y + bulge * (lower_middle - m.mouth_y)
         z = np.array([m.surface_z(u, m.mouth_y) + 0.005 for u in x])
         return np.column_stack([x, upper, z]), np.column_stack([x, lower, z])
 

@@ -31,13 +31,11 @@ def parse_target(text: str, default_port: int) -> tuple[str, int]:
     (('192.168.1.20', 11111), ('127.0.0.1', 9000), ('::1', 5))
     """
     has_port = "]:" in text if text.startswith("[") else text.count(":") == 1
-    try:
-        if not text.strip():
-            raise ConfigError("empty")
-        host, port = parse_address(text if has_port else f"{text}:{default_port}", address_of="target")
-    except ConfigError:
+    if not text.strip() or (text.startswith("[") and "]" not in text) or (not text.startswith("[")
+                                                                          and text.count(":") > 1):
         raise ConfigError(f"target {text!r} must be HOST[:PORT], e.g. 192.168.1.20:{default_port} ([::1]:"
-                          f"{default_port} for IPv6)") from None
+                          f"{default_port} for IPv6)")
+    host, port = parse_address(text if has_port else f"{text}:{default_port}", address_of="target")
     if port == 0:
         raise ConfigError(f"target {text!r}: port 0 is no port to send to (1-65535)")
     return host, port

@@ -29,6 +29,15 @@ MODEL_VERSION = 1
 #: 10 ms frame powers), opening fully 10 dB above it: the regression alone never closes it in a pause.
 QUIET_BELOW_LOUD_DB = 35.0
 GATE_RAMP_DB = 10.0
+#: The mouth also closes in a dip: where the sound falls this far below its own peak within
+#: :data:`DIP_WINDOW_FRAMES` 10 ms frames either side (a stop's closure, /p/ of "sharply" 40 dB down), fully
+#: open while the dip is :data:`DIP_RAMP_DB` less: the regression averages over 0.6 s and never closes it there.
+DIP_CLOSED_DB = 25.0
+DIP_RAMP_DB = 10.0
+DIP_WINDOW_FRAMES = 10
+#: The voice gate and the dip gate are averaged over this many 10 ms frames either side of a grid frame.
+VOICE_HALF_FRAMES = 5
+DIP_HALF_FRAMES = 2
 #: Offsets at which the features are read, s.
 CONTEXT_S = tuple(np.round(np.arange(-0.3, 0.301, 0.05), 3))
 DEFAULT_MOUTH_MODEL_PATH = os.path.join(os.path.dirname(__file__), "models", "mouth_acoustic.json")
@@ -55,9 +64,27 @@ def voice_gate(db: np.ndarray, loud_db: float | np.ndarray) -> np.ndarray:
     return np.clip((db - (loud_db - QUIET_BELOW_LOUD_DB)) / GATE_RAMP_DB, 0.0, 1.0)
 
 
-def gated(shape: MouthShape, gate: np.ndarray) -> MouthShape:
-    """A mouth shape brought to rest (closed, neither rounded nor spread) where ``gate`` is 0."""
-    return MouthShape(shape.opening * gate, shape.rounding * gate, shape.spread * gate)
+def dip_gate(db: np.ndarray, peak_db: np.ndarray) -> np.ndarray:
+    """0 where a frame is :data:`DIP_CLOSED_DB` below the local peak ``peak_db``, 1 from :data:`DIP_RAMP_DB`
+    nearer to it."""
+    return np.clip((DIP_CLOSED_DB - (peak_db - db)) / DIP_RAMP_DB, 0.0, 1.0)
+
+
+def local_peak(db: np.ndarray) -> np.ndarray:
+    """Each 10 ms frame's highest power within :data:`DIP_WINDOW_FRAMES` either side."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    if not db.size:
+        return db
+    padded = np.pad(db, DIP_WINDOW_FRAMES, mode="edge")
+    return sliding_window_view(padded, 2 * DIP_WINDOW_FRAMES + 1).max(axis=1)
+
+
+def gated(shape: MouthShape, gate: np.ndarray, closing: np.ndarray | None = None) -> MouthShape:
+    """A mouth shape brought to rest (closed, neither rounded nor spread) where ``gate`` is 0, and its opening
+    also closed where ``closing`` (the dip gate) is 0."""
+    closing = 1.0 if closing is None else closing
+    return MouthShape(shape.opening * gate * closing, shape.rounding * gate, shape.spread * gate)
 
 
 def context_features(frames: np.ndarray, n_frames: int, *, fps: float) -> np.ndarray:
@@ -117,10 +144,12 @@ class AcousticMouthModel:
         frames = file_cepstra(audio)
         features = context_features(frames, n_frames, fps=fps)
         db = frame_db(frames)
-        gate = voice_gate(db, float(np.quantile(db, 0.95)))
-        # the gate at each grid frame: its 10 ms frames over +-50 ms, averaged
-        smooth = np.convolve(gate, np.ones(11) / 11, mode="same")
-        return gated(self.predict_features(features), on_grid(smooth[:, None], n_frames, fps=fps)[:, 0])
+        gates = np.column_stack([voice_gate(db, float(np.quantile(db, 0.95))), dip_gate(db, local_peak(db))])
+        # the gates at each grid frame: their 10 ms frames over +-50 ms (voice) and +-20 ms (dips), averaged
+        smooth = np.column_stack([np.convolve(gate, np.ones(2 * half + 1) / (2 * half + 1), mode="same")
+                                  for gate, half in zip(gates.T, (VOICE_HALF_FRAMES, DIP_HALF_FRAMES), strict=True)])
+        voice, dip = on_grid(smooth, n_frames, fps=fps).T
+        return gated(self.predict_features(features), voice, dip)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         write_model_json({"format": MODEL_FORMAT, "version": MODEL_VERSION, "kind": "mouth-acoustic",
@@ -319,6 +348,7 @@ class LiveMouth:
         self._standardizer = RunningStandardizer(model.prior_mean_, model.prior_var_)
         self._frames = np.zeros((0, N_SPECTRAL))
         self._gates = np.zeros(0)
+        self._db = np.zeros(0)
         self._first = 0  # absolute index of self._frames[0]
         self._recent_db: deque[float] = deque(maxlen=LOUD_WINDOW_FRAMES)
 
@@ -334,6 +364,7 @@ class LiveMouth:
             gates.append(float(voice_gate(np.array(db), loud)))
         self._frames = np.vstack([self._frames, self._standardizer.push(frames)])
         self._gates = np.concatenate([self._gates, gates])
+        self._db = np.concatenate([self._db, frame_db(frames)])
 
     def push(self, samples: np.ndarray) -> None:
         self._add(self._cepstra.push(samples))
@@ -349,16 +380,23 @@ class LiveMouth:
         row = self._frames[np.clip(index, 0, self._frames.shape[0] - 1)].reshape(-1) if self._frames.size else \
             np.zeros(len(self.model.offsets_s) * N_SPECTRAL)
         opening, rounding, spread = np.append(row, 1.0) @ self.model.weights_
-        # the gate over the 10 ms frames within 50 ms of this one that are in
+        # the voice gate over the 10 ms frames within 50 ms of this one that are in, and the dip gate (each
+        # frame's peak over the frames within DIP_WINDOW_FRAMES that are in) over those within 20 ms
         centre = int(np.round(k / self.fps * 100)) - self._first
-        near = self._gates[max(centre - 5, 0):max(centre + 6, 0)]
+        near = self._gates[max(centre - VOICE_HALF_FRAMES, 0):max(centre + VOICE_HALF_FRAMES + 1, 0)]
         gate = float(near.mean()) if near.size else 0.0
-        opening, rounding, spread = max(opening, 0.0) * gate, rounding * gate, spread * gate
+        low = max(centre - DIP_HALF_FRAMES, 0)
+        dips = self._db[low:max(centre + DIP_HALF_FRAMES + 1, 0)]
+        peaks = [self._db[max(i - DIP_WINDOW_FRAMES, 0):i + DIP_WINDOW_FRAMES + 1].max()
+                 for i in range(low, low + dips.size)]
+        closing = float(dip_gate(dips, np.array(peaks)).mean()) if dips.size else 0.0
+        opening, rounding, spread = max(opening, 0.0) * gate * closing, rounding * gate, spread * gate
         # what no later frame reads any more is let go
         oldest = int(np.round((k / self.fps + self.model.offsets_s[0]) * 100)) - self._first
         if oldest > 200:
             self._frames = self._frames[oldest - 100:]
             self._gates = self._gates[oldest - 100:]
+            self._db = self._db[oldest - 100:]
             self._first += oldest - 100
         return MouthShape(np.array([opening]), np.array([rounding]), np.array([spread]))
 
