@@ -365,3 +365,20 @@ def test_the_live_mouth_closes_on_the_p_of_sharply(shared_data):
                           if re.search(r"-([^+]+)\+", name)[1] == "p")
     t = np.arange(opening.size) / 30
     assert opening[(t >= p_start) & (t <= p_end)].min() < 0.1 * np.median(opening[opening > 0])
+
+
+@pytest.mark.parametrize("context", [3, None, True, "x", [0.1]])
+def test_a_mouth_model_with_other_context_offsets_is_one_line(tmp_path, speech, capsys, context):
+    import json
+    from pathlib import Path
+
+    from prosody.cli import main
+    from prosody.motion.mouth_model import DEFAULT_MOUTH_MODEL_PATH
+
+    payload = json.loads(Path(DEFAULT_MOUTH_MODEL_PATH).read_text()) | {"context_s": context}
+    model = tmp_path / "mouth.json"
+    model.write_text(json.dumps(payload))
+    code = main(["convert", str(speech), "--lips", "acoustic", "--mouth-model", str(model), "-o",
+                 str(tmp_path / "x.fap")])
+    err = capsys.readouterr().err
+    assert code == 1 and "field 'context_s' must list this release's offsets" in err and "Traceback" not in err

@@ -340,6 +340,34 @@ def test_mic_without_sounddevice_says_what_to_install(capsys, monkeypatch):
     assert "visual-prosody[mic]" in err and err.count("\n") == 1
 
 
+def test_mic_without_portaudio_or_a_device_says_what_to_do(capsys, monkeypatch):
+    import types
+
+    class Missing:  # the package imports, its PortAudio library does not load
+        def find_spec(self, name, path=None, target=None):
+            if name == "sounddevice":
+                raise OSError("PortAudio library not found")
+
+    monkeypatch.delitem(sys.modules, "sounddevice", raising=False)
+    monkeypatch.setattr(sys, "meta_path", [Missing(), *sys.meta_path])
+    assert main(["stream", "--mic", "-o", "-"]) == 2
+    err = capsys.readouterr().err
+    assert "apt install libportaudio2" in err and err.count("\n") == 1
+
+    class PortAudioError(Exception):
+        pass
+
+    def no_device(**options):
+        raise PortAudioError("Error querying device -1")
+
+    fake = types.SimpleNamespace(PortAudioError=PortAudioError, InputStream=no_device)
+    monkeypatch.setattr(sys, "meta_path", [m for m in sys.meta_path if not isinstance(m, Missing)])
+    monkeypatch.setitem(sys.modules, "sounddevice", fake)
+    assert main(["stream", "--mic", "-o", "-"]) == 2
+    err = capsys.readouterr().err
+    assert "no microphone to read at 16000 Hz (Error querying device -1)" in err and err.count("\n") == 1
+
+
 def test_only_the_servers_own_page_may_open_the_stream():
     # a page on another site (or one whose DNS name was pointed at this machine) must not watch the stream
     # or send audio; clients that are not browsers send no Origin and are served

@@ -341,9 +341,11 @@ def microphone_chunks(*, sample_rate_hz: int = 16000,
     """``(sample rate, chunks)`` from the default input device (needs the ``sounddevice`` package)."""
     try:
         import sounddevice
-    except (ImportError, OSError) as error:
-        raise ConfigError(f"--mic needs the sounddevice package and PortAudio ({error}); install "
-                          "'visual-prosody[mic]'") from None
+    except ImportError:
+        raise ConfigError("--mic needs the sounddevice package: pip install 'visual-prosody[mic]'") from None
+    except OSError:  # the package is there, the system's PortAudio library is not
+        raise ConfigError("--mic needs the system's PortAudio library: apt install libportaudio2 (Debian, "
+                          "Ubuntu), brew install portaudio (macOS)") from None
     import queue
 
     blocks: queue.Queue[np.ndarray] = queue.Queue()
@@ -351,9 +353,15 @@ def microphone_chunks(*, sample_rate_hz: int = 16000,
     def callback(indata, frames, time_info, status) -> None:  # runs on PortAudio's thread
         blocks.put(indata[:, 0].astype(np.float64).copy())
 
+    try:  # opened here, so that a machine without a microphone is told before anything starts
+        stream = sounddevice.InputStream(samplerate=sample_rate_hz, channels=1, dtype="float32",
+                                         blocksize=max(1, int(block_s * sample_rate_hz)), callback=callback)
+    except (sounddevice.PortAudioError, ValueError) as error:
+        raise ConfigError(f"--mic: no microphone to read at {sample_rate_hz} Hz ({str(error).strip()}); "
+                          "plug one in, or choose another rate with --mic-rate") from None
+
     def chunks() -> Iterator[np.ndarray]:
-        with sounddevice.InputStream(samplerate=sample_rate_hz, channels=1, dtype="float32",
-                                     blocksize=max(1, int(block_s * sample_rate_hz)), callback=callback):
+        with stream:
             while True:
                 yield blocks.get()
 

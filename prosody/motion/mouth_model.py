@@ -173,7 +173,11 @@ class AcousticMouthModel:
         except (KeyError, TypeError, ValueError) as error:
             raise ModelError(f"{name}: missing or malformed field ({error!r})") from None
         shape = (len(CONTEXT_S) * N_SPECTRAL + 1, 3)
-        if weights.shape != shape or list(payload.get("context_s", ())) != list(CONTEXT_S):
+        context = payload.get("context_s")
+        if not isinstance(context, list) or context != [float(x) for x in CONTEXT_S]:
+            raise ModelError(f"{name}: field 'context_s' must list this release's offsets ({CONTEXT_S[0]:g} to "
+                             f"{CONTEXT_S[-1]:g} s in steps of 0.05 s), got {str(context)[:60]}")
+        if weights.shape != shape:
             raise ModelError(f"{name}: weights of shape {weights.shape!r} for other features; expected {shape!r}")
         if not np.all(np.isfinite(weights)) or np.any(np.abs(weights) > MAX_MODEL_MAGNITUDE):
             raise ModelError(f"{name}: weights must be finite numbers within {MAX_MODEL_MAGNITUDE:g}")
