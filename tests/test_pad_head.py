@@ -229,3 +229,18 @@ def test_train_kind_pad_writes_a_model_that_model_file_reads(shared_data, tmp_pa
     model = load_head_model(out)
     assert isinstance(model, PadHeadModel) and model.coefficients_ == expected and len(model.training_) == 7
     assert main(["convert", str(folder / "reagan_clip1.wav"), "--model", str(out), "-o", str(tmp_path / "r.fap")]) == 0
+
+
+@pytest.mark.parametrize("fap", [1, 2, 69])
+def test_a_pad_map_may_name_only_faps_3_to_68(tmp_path, fap):
+    import json
+
+    from prosody.motion.pad import read_face_map
+
+    path = tmp_path / "map.json"
+    from prosody.motion.pad import FACE_MAP_FORMAT
+
+    path.write_text(json.dumps({"format": FACE_MAP_FORMAT,
+                                "parameters": {"smile": {"weights": [1, 0, 0], "faps": {str(fap): 10}}}}))
+    with pytest.raises(ConfigError, match="FAPs must be numbered 3-68"):
+        read_face_map(path)

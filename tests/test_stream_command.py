@@ -436,8 +436,10 @@ def test_hostile_control_messages_are_refused_and_the_server_goes_on(frame_serve
     with connect(url) as client:
         client.send('{"type": "start", "sample_rate": 1e400}')  # JSON's way to say infinity
         client.send("[" * 100000 + "]" * 100000)  # deeper than any parser's recursion
+        client.send('{"type": "stop"}')  # nothing was started: said so, not called an unknown type
         errors = [m for m in _receive_all(client, 1.0) if m["type"] == "error"]
-        assert len(errors) == 2 and "cannot start" in errors[0]["message"]
+        assert len(errors) == 3 and "cannot start" in errors[0]["message"]
+        assert errors[2]["message"] == "stop: no audio was started (send start first)"
         frame_server.publish(_frames(0, 3))
         assert [m["frame"] for m in _receive_all(client, 0.5)] == [0, 1, 2]
 

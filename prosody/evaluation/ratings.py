@@ -251,24 +251,30 @@ def _repeated(frame, conditions: list[str]) -> dict:
     return result
 
 
+#: Most conditions whose every pair Tukey's test compares: 435 pairs (statsmodels integrates the studentized
+#: range once per pair; 500 conditions, 124,750 pairs, took a minute and a 7 MB report).
+MAX_TUKEY_CONDITIONS = 30
+
+
 def _tukey(frame, conditions: list[str]) -> list[dict]:
     from statsmodels.stats.multicomp import pairwise_tukeyhsd
 
-    if len(conditions) < 2 or len(frame) <= len(conditions):
+    if len(conditions) < 2 or len(frame) <= len(conditions) or len(conditions) > MAX_TUKEY_CONDITIONS:
         return []
     scores = {name: frame.loc[frame["condition"] == name, "score"].to_numpy(float) for name in conditions}
     spread = any(_varies(values) for values in scores.values())
     result = pairwise_tukeyhsd(frame["score"].to_numpy(float), frame["condition"].to_numpy(str)) if spread else None
     tests = []
+    if result is not None:  # statsmodels' pairs are in combinations order of its sorted groups
+        groups = {name: i for i, name in enumerate(result.groupsunique)}
+        pair_index = {pair: k for k, pair in enumerate(itertools.combinations(range(len(groups)), 2))}
     for a, b in itertools.combinations(conditions, 2):
         entry = {"a": a, "b": b, "mean_difference": float(scores[a].mean() - scores[b].mean()),
                  "ci_low": None, "ci_high": None, "p_adjusted": None, "reject": None,
                  "cohen_d": _cohen_d(scores[a], scores[b])}
         if result is not None:
-            groups = list(result.groupsunique)
-            pairs = list(itertools.combinations(range(len(groups)), 2))
-            i, j = groups.index(a), groups.index(b)
-            k, sign = (pairs.index((i, j)), -1.0) if i < j else (pairs.index((j, i)), 1.0)
+            i, j = groups[a], groups[b]
+            k, sign = (pair_index[i, j], -1.0) if i < j else (pair_index[j, i], 1.0)
             low, high = sorted(sign * float(v) for v in result.confint[k])  # statsmodels: mean_j - mean_i
             entry.update(ci_low=low, ci_high=high, p_adjusted=float(result.pvalues[k]),
                          reject=bool(result.reject[k]))
@@ -286,7 +292,7 @@ def analyze_ratings(ratings: Sequence[Rating], conditions: Sequence[str] | None 
         "ci_high"}}, "by_stimulus": {stimulus: {name: mean}}, "anova": {"F", "df_between", "df_within", "p",
         "eta_squared", "omega_squared"}, "anova_rm": {"subjects", "subjects_left_out", "F", "df_condition",
         "df_error", "p", "partial_eta_squared"} (or {"skipped": why}), "tukey": [{"a", "b", "mean_difference",
-        "ci_low", "ci_high", "p_adjusted", "reject", "cohen_d"}]}``; F and p are None where they are undefined,
+        "ci_low", "ci_high", "p_adjusted", "reject", "cohen_d"}] (none past :data:`MAX_TUKEY_CONDITIONS`)}``; F and p are None where they are undefined,
         and a "note" says why: no score differs from another (no variance, no effect), or none differs within
         a condition.
     """
@@ -394,7 +400,10 @@ def ratings_markdown(results: dict, *, figure: str | None = None) -> str:
         lines.append(f"{rm['subjects']} subjects{left_out}: F({rm['df_condition']}, {rm['df_error']}) = "
                      f"{_number(rm['F'])}, {_p_is(rm['p'])}, partial η² = "
                      f"{_number(rm['partial_eta_squared'], 3)}" + (f" ({rm['note']})" if "note" in rm else ""))
-    if results["tukey"]:
+    if len(results["conditions"]) > MAX_TUKEY_CONDITIONS:
+        lines += ["", "## Tukey's pairwise tests", "", f"Not run: {len(results['conditions'])} conditions, more than "
+                  f"the {MAX_TUKEY_CONDITIONS} whose every pair is compared."]
+    elif results["tukey"]:
         lines += ["", "## Tukey's pairwise tests", "", "| a − b | difference | 95% CI | p (adjusted) | Cohen's d |",
                   "|---|---|---|---|---|"]
         for test in results["tukey"]:

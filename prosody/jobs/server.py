@@ -431,7 +431,10 @@ class FrameServer:
                     await self._refuse(websocket, client, "start", f"cannot start: {error}")
                     return
                 self.report(f"client {client.name} is sending audio ({pcm.sample_rate_hz} Hz {pcm.encoding})")
-            elif kind == "stop" and client.converter is not None:
+            elif kind == "stop":
+                if client.converter is None:
+                    await self._refuse(websocket, client, "stop", "stop: no audio was started (send start first)")
+                    return
                 converter, client.converter = client.converter, None
                 frames = await loop.run_in_executor(None, converter.finish)
                 for frame in frames:

@@ -137,7 +137,7 @@ def read_face_map(path: str | os.PathLike[str] | None) -> dict[str, dict]:
                               "{FAP: value}") from None
         if len(weights) != 3 or not all(math.isfinite(w) and abs(w) <= 10 for w in weights):
             raise ConfigError(f"{name}: parameter {key!r}: \"weights\" must be three numbers within +-10")
-        if not all(1 <= fap <= 68 and math.isfinite(v) and abs(v) <= 2000 for fap, v in faps.items()):
+        if not all(3 <= fap <= 68 and math.isfinite(v) and abs(v) <= 2000 for fap, v in faps.items()):
             raise ConfigError(f"{name}: parameter {key!r}: FAPs must be numbered 3-68 with values within +-2000")
         checked[key] = {"weights": weights, "faps": faps}
     return checked
