@@ -388,3 +388,15 @@ def test_many_conditions_are_analysed_quickly_without_every_pair() -> None:
     assert time.process_time() - started < 15  # every pair's test took a minute
     assert results["tukey"] == [] and results["anova"]["F"] is not None
     assert f"Not run: 500 conditions, more than the {MAX_TUKEY_CONDITIONS}" in report and len(report) < 100_000
+
+
+def test_a_plan_too_large_to_serve_or_a_stimulus_named_like_the_manifest_is_refused_at_plan_time(tmp_path,
+                                                                                                 capsys) -> None:
+    stimuli = ",".join(f"s{i}" for i in range(7000))  # 7,000 x 16 ordered pairs: 112,000 trials
+    assert main(["study", "plan", "--stimuli", stimuli, "-o", str(tmp_path / "p.csv")]) == 2
+    assert "112000 trials, more than the 100000" in capsys.readouterr().err
+    assert main(["study", "plan", "--stimuli", "a,stimuli.json", "-o", str(tmp_path / "p.csv")]) == 2
+    assert "'stimuli.json' name the stimulus folder's own files" in capsys.readouterr().err
+    assert not (tmp_path / "p.csv").exists()
+    assert main(["study", "plan", "--stimuli", ",".join(f"s{i}" for i in range(6250)), "-o",
+                 str(tmp_path / "p.csv")]) == 0  # exactly 100,000

@@ -112,10 +112,14 @@ def make_plan(stimuli: Sequence[str], *, design: str = "paired", conditions: Seq
             raise ConfigError("an identification study needs its conditions (the answers people choose from): "
                               "give --conditions NAME,NAME,...")
         conditions = CONDITIONS
+    if design == "paired" and repeats != 1:
+        raise ConfigError("--repeats is for mos and identification plans; a paired plan shows every ordered "
+                          "pair once")
+    each = len(conditions) ** 2 if design == "paired" else len(conditions) * repeats
+    if len(stimuli) * each > MAX_PLAN_TRIALS:  # refused here, not later by the stimuli and the server
+        raise ConfigError(f"{len(stimuli)} stimuli x {each} presentations each is {len(stimuli) * each} trials, more "
+                          f"than the {MAX_PLAN_TRIALS} a plan may hold: fewer stimuli, conditions or repeats")
     if design == "paired":
-        if repeats != 1:
-            raise ConfigError("--repeats is for mos and identification plans; a paired plan shows every ordered "
-                              "pair once")
         return plan_study(stimuli, seed=seed, conditions=conditions)
     return plan_single(stimuli, conditions, design=design, seed=seed, repeats=repeats)
 

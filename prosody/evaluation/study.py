@@ -39,6 +39,8 @@ _MAX_LISTED = 20
 T = TypeVar("T")
 _CONDITION_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_.-]{0,63}")
 _STIMULUS_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}")
+#: Names a stimulus may not have: a stimulus folder holds a folder per stimulus beside these files.
+_RESERVED_STIMULI = frozenset({"stimuli.json"})
 
 
 def condition_name(text: str) -> str:
@@ -80,6 +82,10 @@ def stimulus_names(stimuli: Sequence[str]) -> list[str]:
     if bad:
         raise ConfigError(f"stimulus name(s) {', '.join(map(repr, bad))} must be 1-128 letters, digits, '_', '-' or "
                           "'.', not starting with '.' (they name files: <stimulus>.wav)")
+    reserved = [name for name in names if name.lower() in _RESERVED_STIMULI]
+    if reserved:
+        raise ConfigError(f"stimulus name(s) {', '.join(map(repr, reserved))} name the stimulus folder's own files "
+                          f"({', '.join(sorted(_RESERVED_STIMULI))}): rename the recording")
     return names
 
 
