@@ -1038,10 +1038,16 @@ def _cmd_study_export(args: argparse.Namespace) -> int:
 
     from .jobs.study_store import StudyStore
 
+    import sqlite3
+
+    from .errors import ConfigError
+
     store = StudyStore(args.db, create=False)
     try:
         text = store.export_csv()
         progress = store.progress()
+    except sqlite3.DatabaseError as error:
+        raise ConfigError(f"{args.db}: the study database is damaged ({error})") from None
     finally:
         store.close()
     with atomic_write(args.output, newline="\n") as handle:

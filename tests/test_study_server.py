@@ -130,6 +130,43 @@ def test_a_database_that_is_not_this_studys_is_refused(tmp_path) -> None:
     assert not (tmp_path / "b.csv").exists()
 
 
+@pytest.mark.parametrize("damage, message", [
+    ("DROP TABLE answers", "the study database is damaged"),
+    ("DELETE FROM meta WHERE key = 'design'", "its record of the study lacks design"),
+    ("UPDATE meta SET value = 'many' WHERE key = 'trials'", "lacks a trial count"),
+    ("ALTER TABLE participants RENAME TO people", "the study database is damaged"),
+])
+def test_a_damaged_database_is_one_line_on_export(tmp_path, capsys, damage, message) -> None:
+    path = tmp_path / "s.sqlite"
+    store = StudyStore(path, _plan())
+    who = store.new_participant()
+    store.answer(who, 1, "left")
+    store.close()
+    with sqlite3.connect(path) as db:
+        db.execute(damage)
+    assert main(["study", "export", str(path), "-o", str(tmp_path / "b.csv")]) in (1, 2)
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "b.csv").exists()
+
+
+def test_export_reads_the_database_without_writing_it(tmp_path) -> None:
+    # export opens the database read-only: it works on media that cannot be written, and changes nothing
+    path = tmp_path / "s.sqlite"
+    store = StudyStore(path, _plan())
+    store.answer(store.new_participant(), 1, "right")
+    store.close()
+    for leftover in tmp_path.glob("s.sqlite-*"):
+        leftover.unlink()
+    before = path.read_bytes()
+    reader = StudyStore(path, create=False)
+    with pytest.raises(sqlite3.OperationalError, match="readonly"):
+        reader._db.execute("INSERT INTO meta VALUES ('x', 'y')")
+    assert "right" in reader.export_csv()
+    reader.close()
+    assert path.read_bytes() == before
+
+
 # the videos -------------------------------------------------------------------------------------------------------
 
 

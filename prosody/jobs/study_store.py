@@ -79,9 +79,10 @@ class StudyStore:
         if exists and not self.path.is_file():
             raise ConfigError(f"{path}: not a study database (not a regular file)")
         try:
-            self._db = sqlite3.connect(self.path, timeout=10.0, isolation_level=None, check_same_thread=False)
-            self._db.execute("PRAGMA busy_timeout = 10000")
+            self._db = self._connect(read_only=exists and not create)
             tables = {row[0] for row in self._db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        except sqlite3.OperationalError as error:  # there, but not to be opened or read (permissions, media)
+            raise ConfigError(f"{path}: the study database cannot be read ({error})") from None
         except sqlite3.DatabaseError as error:
             raise ConfigError(f"{path}: not a study database ({error})") from None
         self._lock = threading.RLock()
@@ -92,10 +93,19 @@ class StudyStore:
         elif "meta" not in tables:
             self.close()
             raise ConfigError(f"{path}: not a study database of this project (tables {', '.join(sorted(tables))})")
-        meta = dict(self._db.execute("SELECT key, value FROM meta"))
+        try:
+            meta = dict(self._db.execute("SELECT key, value FROM meta"))
+        except (sqlite3.DatabaseError, ValueError) as error:
+            self.close()
+            raise ConfigError(f"{path}: the study database is damaged ({error})") from None
         if meta.get("format") != STORE_FORMAT or meta.get("version") != str(STORE_VERSION):
             self.close()
             raise ConfigError(f"{path}: not a study database of this project (format {meta.get('format')!r})")
+        missing = [key for key in ("design", "plan_sha256", "conditions", "trials") if key not in meta]
+        if missing or not str(meta.get("trials", "")).isdigit():
+            self.close()
+            raise ConfigError(f"{path}: the study database is damaged (its record of the study lacks "
+                              f"{', '.join(missing) or 'a trial count'})")
         if plan is not None and meta.get("plan_sha256") != plan.sha256:
             self.close()
             raise ConfigError(f"{path}: this database holds a study of another plan; give that plan, or a new "
@@ -105,6 +115,25 @@ class StudyStore:
         self.conditions = tuple(meta["conditions"].split(","))
         self.total = int(meta["trials"])
         self.plan = plan
+
+    def _connect(self, *, read_only: bool) -> sqlite3.Connection:
+        """The connection: read-only for a reader (export), so that a database on read-only media is read; a
+        database in WAL mode whose folder cannot be written is read as immutable."""
+        options = dict(timeout=10.0, isolation_level=None, check_same_thread=False)
+        if not read_only:
+            db = sqlite3.connect(self.path, **options)
+        else:
+            uri = self.path.resolve().as_uri()
+            db = sqlite3.connect(f"{uri}?mode=ro", uri=True, **options)
+            try:
+                db.execute("SELECT name FROM sqlite_master").fetchall()
+            except sqlite3.OperationalError:
+                if os.access(self.path.parent, os.W_OK):
+                    raise
+                db.close()
+                db = sqlite3.connect(f"{uri}?immutable=1", uri=True, **options)
+        db.execute("PRAGMA busy_timeout = 10000")
+        return db
 
     def _create(self, plan: StudyPlan) -> None:
         self._db.execute("PRAGMA journal_mode = WAL")
@@ -251,11 +280,21 @@ class StudyStore:
         return out
 
     def export_csv(self) -> str:
-        """:meth:`export_rows` as the CSV text ``prosody study analyze`` reads."""
+        """:meth:`export_rows` as the CSV text ``prosody study analyze`` reads.
+
+        Raises
+        ------
+        ConfigError
+            The database is damaged (a table or a column missing, unreadable pages).
+        """
         buffer = io.StringIO()
-        writer = csv.DictWriter(buffer, fieldnames=[*EXPORT_COLUMNS[self.design], "order"], lineterminator="\n")
-        writer.writeheader()
-        writer.writerows(self.export_rows())
+        try:
+            writer = csv.DictWriter(buffer, fieldnames=[*EXPORT_COLUMNS[self.design], "order"],
+                                    lineterminator="\n")
+            writer.writeheader()
+            writer.writerows(self.export_rows())
+        except (sqlite3.DatabaseError, KeyError, IndexError) as error:
+            raise ConfigError(f"{self.path}: the study database is damaged ({error!s:.200})") from None
         return buffer.getvalue()
 
 
