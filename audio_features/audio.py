@@ -128,7 +128,8 @@ def _truncated(file: Path, container: str, promised: int, available: int) -> Aud
 
 def _check_container_truncation(file: Path) -> None:
     """libsndfile reads a cut-off file of most containers without complaint, as if it were shorter: compare
-    what each container's header promises with what the file holds (WAV, RF64, Wave64, AIFF, AU, Ogg)."""
+    what each container's header promises with what the file holds (WAV, RF64, Wave64, AIFF, AU, Ogg, and MP3
+    with a Xing, Info or VBRI tag)."""
     size = file.stat().st_size
     with open(file, "rb") as handle:
         head = handle.read(40)
@@ -145,6 +146,42 @@ def _check_container_truncation(file: Path) -> None:
             _check_w64(handle, file, size)
         elif head[:4] == b"OggS":
             _check_ogg_end(handle, file, size)
+        elif head[:3] == b"ID3" or (len(head) >= 2 and head[0] == 0xFF and head[1] & 0xE0 == 0xE0):
+            _check_mp3(handle, file, size)
+
+
+def _check_mp3(handle, file: Path, size: int) -> None:
+    """An MP3 whose first frame carries a Xing/Info (LAME, FFmpeg) or VBRI (Fraunhofer) tag says its stream's
+    length in bytes: a file cut short holds fewer (the decoder itself only notes it on standard error)."""
+    handle.seek(0)
+    head = handle.read(10)
+    start = 0
+    if head[:3] == b"ID3" and len(head) == 10:  # an ID3v2 tag first: its size in four 7-bit bytes
+        start = 10 + ((head[6] & 0x7F) << 21 | (head[7] & 0x7F) << 14 | (head[8] & 0x7F) << 7 | head[9] & 0x7F)
+        start += 10 if head[5] & 0x10 else 0  # a footer
+    handle.seek(start)
+    frame = handle.read(2048)
+    if len(frame) < 4 or frame[0] != 0xFF or frame[1] & 0xE0 != 0xE0:
+        return
+    promised = None
+    for tag in (b"Xing", b"Info"):
+        at = frame.find(tag, 4, 64)
+        if at >= 0 and at + 8 <= len(frame):
+            flags = struct.unpack(">I", frame[at + 4:at + 8])[0]
+            fields = at + 8 + (4 if flags & 1 else 0)  # the frame count comes before the byte count
+            if flags & 2 and fields + 4 <= len(frame):
+                promised = struct.unpack(">I", frame[fields:fields + 4])[0]
+            break
+    else:
+        at = frame.find(b"VBRI", 4, 64)
+        if at >= 0 and at + 14 <= len(frame):
+            promised = struct.unpack(">I", frame[at + 10:at + 14])[0]
+    if not promised:
+        return
+    handle.seek(max(size - 128, 0))
+    available = size - start - (128 if handle.read(3) == b"TAG" else 0)  # an ID3v1 tag last
+    if available < promised * 0.99:  # the tag's count is rounded by some encoders: 1 % is tolerated
+        raise _truncated(file, "MP3 file", promised, available)
 
 
 def _check_riff(handle, file: Path, size: int, *, big_endian: bool, rf64: bool) -> None:

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 import soundfile
@@ -362,6 +365,32 @@ def test_every_container_cut_off_is_reported_as_truncated(tmp_path, container, e
         cut.write_bytes(data[:int(len(data) * fraction)])
         with pytest.raises(AudioLoadError, match="truncated"):
             load_audio(cut)
+
+
+@pytest.mark.parametrize("id3", [False, True])
+def test_an_mp3_cut_off_is_reported_as_truncated_even_in_json_messages(tmp_path, id3) -> None:
+    # libsndfile decodes a cut MP3 as a shorter one and its decoder only notes it on standard error; the
+    # Xing/Info tag FFmpeg's LAME encoder writes says how many bytes the stream holds
+    import json
+
+    imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
+    wav, whole = tmp_path / "tone.wav", tmp_path / "whole.mp3"
+    soundfile.write(wav, harmonic_tone(150, 3.0, 16000), 16000)
+    subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-i", str(wav), "-c:a", "libmp3lame",
+                    *(["-id3v2_version", "3", "-metadata", "title=tone"] if id3 else ["-id3v2_version", "0"]),
+                    str(whole)], check=True)
+    assert abs(load_audio(whole).samples.size / 16000 - 3.0) < 0.1
+    data = whole.read_bytes()
+    for fraction in (0.5, 0.9):
+        cut = tmp_path / "cut.mp3"
+        cut.write_bytes(data[:int(len(data) * fraction)])
+        with pytest.raises(AudioLoadError, match="truncated MP3 file"):
+            load_audio(cut)
+    result = subprocess.run([sys.executable, "-m", "prosody", "convert", str(cut), "-o", str(tmp_path / "x.fap"),
+                             "--messages", "json", "--lips", "none"], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1 and not (tmp_path / "x.fap").exists()
+    events = [json.loads(line) for line in result.stderr.splitlines()]  # every line is JSON: no decoder note
+    assert events[-1]["event"] == "error" and "truncated MP3 file" in events[-1]["message"]
 
 
 def test_a_wav_header_whose_bits_do_not_fill_its_frames_is_refused(tmp_path) -> None:
