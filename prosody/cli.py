@@ -835,9 +835,9 @@ def _outcome_reporter(command: str, output: str, unit: str, total: int, name: Ca
 
     def on_outcome(outcome) -> None:
         for note in outcome.warnings:
-            progress.say(f"prosody {command}: warning: {name(outcome)}: {note}")
+            progress.say(f"prosody {command}: warning: {name(outcome)}: {_as_flags(str(note), command)}")
         if outcome.status == "failed":
-            progress.say(f"prosody {command}: error: {name(outcome)}: {outcome.error}")
+            progress.say(f"prosody {command}: error: {name(outcome)}: {_as_flags(str(outcome.error), command)}")
         elif result is not None and (line := result(outcome)):
             progress.say(line)
         finished[0] += 1
@@ -853,6 +853,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     conditions = [name for value in args.condition for name in value.split(",") if name.strip()] or None
     options = BatchOptions(model=args.model, seed=args.seed, seeds=args.seeds, normalize=args.normalize,
                            plots=args.plots, video=args.video, brows=args.brows,
+                           brow_semitones=args.brow_semitones,
                            lips=None if args.lips == "none" else args.lips,
                            expressivity=(_expressivity(args) or Expressivity()).as_dict(), **_analysis_kwargs(args))
     if conditions:
@@ -1403,6 +1404,9 @@ def build_parser() -> argparse.ArgumentParser:
     batch.add_argument("--brows", default="accent", choices=["accent", "thesis"],
                        help="eyebrow rule of the speech-driven condition, with its default settings (default "
                             "accent; thesis: the thesis's 207 Hz / 45 dB rule)")
+    batch.add_argument("--brow-semitones", type=_number_in(0, 24, low_open=True), default=None, metavar="ST",
+                       help="semitones above the speaker's median pitch that raise the brows, for either rule "
+                            "(default: the rule's own, 4 for the accent rule; lower raises more often)")
     batch.add_argument("--normalize", action="store_true", help="normalise as 'prosody compare --normalize'")
     batch.add_argument("--plots", action=argparse.BooleanOptionalAction, default=False,
                        help="also write figures and a report per file (default --no-plots, for speed)")
@@ -1601,9 +1605,16 @@ _FLAGS = (
 )
 
 
-def _as_flags(message: str) -> str:
+#: The same for batch, whose one option sets either rule's semitones.
+_BATCH_FLAGS = (
+    ("AccentRule(threshold_semitones=...)", "--brow-semitones ST"),
+    ("EyebrowRule(threshold_semitones=...)", "--brows thesis --brow-semitones ST"),
+)
+
+
+def _as_flags(message: str, command: str | None = None) -> str:
     """A library message with its Python argument names replaced by the command's options."""
-    for python, flag in _FLAGS:
+    for python, flag in (_BATCH_FLAGS + _FLAGS if command == "batch" else _FLAGS):
         message = message.replace(python, flag)
     return message
 

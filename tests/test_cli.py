@@ -202,3 +202,21 @@ def test_the_library_refuses_a_frame_rate_below_one(speech) -> None:
 
     with pytest.raises(ParameterError, match="from 1 to 1000"):
         extract_features(speech, fps=1e-308)
+
+
+def test_batch_warnings_name_batchs_own_options_not_python(tmp_path, capsys) -> None:
+    import shutil
+
+    from conftest import REPO
+
+    folder = tmp_path / "in"
+    folder.mkdir()
+    shutil.copy(REPO / "samples" / "arctic_a0007.wav", folder)  # a low voice: no raise at the default threshold
+    assert main(["batch", str(folder), "-o", str(tmp_path / "out"), "--condition", "speech", "--seeds", "1",
+                 "--lips", "none"]) == 0
+    err = capsys.readouterr().err
+    assert "no eyebrow raise" in err and "(--brow-semitones ST, default 4)" in err
+    assert "AccentRule" not in err and "--accent-semitones" not in err
+    assert main(["batch", str(folder), "-o", str(tmp_path / "out2"), "--condition", "speech", "--seeds", "1",
+                 "--lips", "none", "--brow-semitones", "1"]) == 0
+    assert "no eyebrow raise" not in capsys.readouterr().err

@@ -58,6 +58,8 @@ class BatchOptions:
     video: bool = False
     seeds: int = 10
     brows: str = "accent"
+    #: The brow rule's threshold in semitones above the speaker's median pitch (None: the rule's default).
+    brow_semitones: float | None = None
     lips: str | None = "visemes"
     #: Greta's expressivity controls by name (see :class:`prosody.motion.expressivity.Expressivity`).
     expressivity: Mapping[str, float] = field(default_factory=lambda: dict(NEUTRAL))
@@ -72,6 +74,9 @@ class BatchOptions:
             raise ConfigError(f"lips must be 'visemes', 'acoustic' or None, got {self.lips!r}")
         if self.brows not in ("accent", "thesis"):
             raise ConfigError(f"brows must be 'accent' or 'thesis', got {self.brows!r}")
+        if self.brow_semitones is not None and not (isinstance(self.brow_semitones, (int, float))
+                                                    and 0 < self.brow_semitones <= 24):
+            raise ConfigError(f"brow_semitones must be a number of semitones in (0, 24], got {self.brow_semitones!r}")
         if not (isinstance(self.seeds, int) and not isinstance(self.seeds, bool) and 1 <= self.seeds <= 1000):
             raise ConfigError(f"seeds must be a whole number from 1 to 1000, got {self.seeds!r}")
 
@@ -193,7 +198,8 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
             raise ConfigError("only GROUND_TRUTH was asked for and no ground truth was found")
         from ..motion.eyebrows import AccentRule, EyebrowRule
 
-        rule = AccentRule() if options.brows == "accent" else EyebrowRule()
+        semitones = {} if options.brow_semitones is None else {"threshold_semitones": options.brow_semitones}
+        rule = AccentRule(**semitones) if options.brows == "accent" else EyebrowRule(**semitones)
         with warnings.catch_warnings(record=True) as caught:
             # a file's warnings are reported with the file, not raised or printed by a worker
             warnings.simplefilter("always")
