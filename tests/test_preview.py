@@ -308,3 +308,23 @@ def test_eyelids_open_and_close_the_characters_left_eye_by_fap_19_and_21(closing
     assert _color_mask(frame, _EYE_WHITE, tolerance=10).any()  # the other eye is open
     assert m.irisd0 == pytest.approx(0.15) and m.eyelids(0.0, 0.0) == pytest.approx((0.175, 0.025))
     assert m.eyelids(2000.0, 2000.0)[0] == m.eyelids(2000.0, 2000.0)[1]  # shut, not crossed
+
+
+def test_the_mouth_at_rest_is_straight_and_joy_and_sadness_bend_it_their_ways():
+    from prosody.evaluation.preview import FaceRenderer, FacePose
+    from prosody.motion.expressions import EXPRESSIONS
+
+    renderer = FaceRenderer(WIDTH)
+
+    def bend(lips: dict[int, float]) -> float:
+        """Height of the lips' corners above their middle (face units; up is +y)."""
+        upper, lower = renderer.mouth_points(FacePose(lip_faps=tuple(lips.items())))
+        middle = (upper[6, 1] + lower[6, 1]) / 2
+        return float((upper[0, 1] + upper[-1, 1]) / 2 - middle)
+
+    assert bend({}) == pytest.approx(0.0, abs=1e-12)
+    mns = (renderer.model.nose_bottom_y - renderer.model.mouth_y) / 1024
+    joy = {fap: value for fap, value in EXPRESSIONS["joy"].items() if fap in (4, 5, 6, 7, 12, 13)}
+    assert bend(joy) == pytest.approx(240 * mns)  # the corners rise by FAP 12/13, the middle stays
+    sad = {fap: value for fap, value in EXPRESSIONS["sadness"].items() if fap in (4, 5, 6, 7, 12, 13)}
+    assert bend(sad) == pytest.approx(-80 * mns)

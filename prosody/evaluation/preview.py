@@ -257,9 +257,11 @@ class FaceRenderer:
         x = right[0] + (left[0] - right[0]) * t
         corner_y = right[1] + (left[1] - right[1]) * t
         bulge = 1.0 - (2.0 * t - 1.0) ** 2  # 0 at the corners, 1 in the middle
-        # at rest the mouth is a straight, neutral line: a smile is joy's to draw (FAP 12/13 raise the corners)
-        upper = corner_y + bulge * (upper_middle - m.mouth_y)
-        lower = corner_y + bulge * (lower_middle - m.mouth_y)
+        # at rest the mouth is a straight, neutral line; the middle of each lip stays where its own FAPs put it
+        # while the corners move (FAP 12/13 up: a smile, down: sadness), so the lips bend between them
+        corners_middle = (left[1] + right[1]) / 2
+        upper = corner_y + bulge * (upper_middle - corners_middle)
+        lower = corner_y + bulge * (lower_middle - corners_middle)
         z = np.array([m.surface_z(u, m.mouth_y) + 0.005 for u in x])
         return np.column_stack([x, upper, z]), np.column_stack([x, lower, z])
 

@@ -4,7 +4,7 @@ the lips (seed 002's superposition; seed 000's Eq. 14).
 The targets in :data:`EXPRESSIONS` (intensity 1) are ours: set from the MPEG-4 standard's description of its
 six expressions (FAP 2's table: joy, sadness, anger, fear, disgust, surprise) and the facial action units
 that carry them, with magnitudes of a clearly visible but not extreme display (a surprised brow rises about
-7 mm: 200 ENS; a smile lifts the lip corners about 2 mm: 120 MNS). Seed 002 matched its targets to JAFFE
+7 mm: 200 ENS; a smile lifts the lip corners about 4 mm: 240 MNS, and draws them back about 5 mm: 100 MW). Seed 002 matched its targets to JAFFE
 photographs without publishing them; these are not fitted to any recording.
 
 Over time (:func:`expression_curves`), each segment (start, end, expression, intensity) has the dominance of
@@ -35,7 +35,7 @@ from .lips import dominance
 #: outer, Greta does not, so a corner set on one contour only looks different in the two players.
 EXPRESSIONS: dict[str, dict[int, float]] = {
     # AU6 + AU12: cheeks raised, lip corners up and back, lower eyelids pushed up, brows relaxed
-    "joy": {12: 120, 13: 120, 59: 120, 60: 120, 6: 100, 7: 100, 53: 100, 54: 100, 41: 100, 42: 100, 21: 100,
+    "joy": {12: 240, 13: 240, 59: 240, 60: 240, 6: 100, 7: 100, 53: 100, 54: 100, 41: 100, 42: 100, 21: 100,
             22: 100, 3: 40},
     # AU1 + AU4 + AU15 (+ AU17): inner brows up, lids drooping, corners down, chin raised
     "sadness": {31: 90, 32: 90, 33: 20, 34: 20, 35: -40, 36: -40, 19: 150, 20: 150, 12: -80, 13: -80, 59: -80,
