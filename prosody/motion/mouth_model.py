@@ -231,6 +231,7 @@ RUNNING_HALF_LIFE_FRAMES = 3000
 PRIOR_FRAMES = 50
 #: The live loud level is that of the last minute of 10 ms frames.
 LOUD_WINDOW_FRAMES = 6000
+LOUD_EVERY_FRAMES = 10
 
 
 def live_mouth_path(lookahead_ms: int) -> str:
@@ -355,17 +356,22 @@ class LiveMouth:
         self._db = np.zeros(0)
         self._first = 0  # absolute index of self._frames[0]
         self._recent_db: deque[float] = deque(maxlen=LOUD_WINDOW_FRAMES)
+        self._loud: float | None = None
+        self._heard = 0  # 10 ms frames heard
 
     def _add(self, frames: np.ndarray) -> None:
         if not frames.size:
             return
         gates = []
         for db in frame_db(frames):
-            # the loud level of the last minute (its 95th percentile), as the whole recording's offline
+            # the loud level of the last minute (its 95th percentile), as the whole recording's offline, taken
+            # anew every LOUD_EVERY_FRAMES frames (0.1 s: a minute's level moves little in that time)
             self._recent_db.append(float(db))
-            # at the start of a stream the training recordings' loud level stands in for one not yet heard
-            loud = max(float(np.quantile(np.array(self._recent_db), 0.95)), self.model.prior_loud_db_)
-            gates.append(float(voice_gate(np.array(db), loud)))
+            self._heard += 1
+            if self._loud is None or self._heard % LOUD_EVERY_FRAMES == 0:
+                # at the start of a stream the training recordings' loud level stands in for one not yet heard
+                self._loud = max(float(np.quantile(np.array(self._recent_db), 0.95)), self.model.prior_loud_db_)
+            gates.append(float(voice_gate(np.array(db), self._loud)))
         self._frames = np.vstack([self._frames, self._standardizer.push(frames)])
         self._gates = np.concatenate([self._gates, gates])
         self._db = np.concatenate([self._db, frame_db(frames)])
