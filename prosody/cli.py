@@ -136,16 +136,22 @@ def _add_motion_options(parser: argparse.ArgumentParser, *, live: bool = False) 
         controls.add_argument(f"--{channel}-gain", type=_number_in(0, 100), default=1.0, metavar="G",
                               help=f"scale the {what} by G (default 1; 0 to 100, the head and brows kept within "
                                    "what a person can do)")
-    if not live:
-        controls.add_argument("--lip-gain", type=_number_in(0, 100), default=1.0, metavar="G",
-                              help="scale the lips' motion (FAP 3-11, 16-17, 51-58) by G (default 1)")
+    controls.add_argument("--lip-gain", type=_number_in(0, 100), default=1.0, metavar="G",
+                          help="scale the lips' motion (FAP 3-11, 16-17, 51-58) by G (default 1)")
     controls.add_argument("--off", action="append", default=[], metavar="CHANNEL[,CHANNEL]",
                           help="leave channels out of the output: pitch, yaw, roll, brows, lips (repeatable)")
     _add_expressivity_options(parser)
     if live:
+        from .motion.expressions import EXPRESSIONS
+
         parser.add_argument("--lips", dest="live_lips", default="acoustic", choices=["acoustic", "none"],
                             help="lips from the live acoustic mouth model (default; the same in every condition), "
-                                 "or none; the visemes of convert need whole phones and are not offered live")
+                                 "or none; the visemes of convert need whole phones and their neighbours, so they "
+                                 "and --transcript (aligned to the whole recording) are not offered live")
+        parser.add_argument("--expression", default=None, metavar="NAME[:INTENSITY]|FILE.csv",
+                            help=f"a facial expression over the stream ({', '.join(EXPRESSIONS)}; intensity 0-1, "
+                                 "default 1), or a CSV file of timed ones (start_s,end_s,expression,intensity, "
+                                 "times from the stream's start), mixed with the lips as in convert")
     else:
         _add_face_options(parser)
 
@@ -318,7 +324,8 @@ def _motion_kwargs(args: argparse.Namespace) -> dict:
     disabled = [name.strip() for value in args.off for name in value.split(",") if name.strip()]
     face: dict = {}
     if hasattr(args, "live_lips"):
-        face = {"live_lips": args.live_lips != "none"}
+        gains["lips"] = args.lip_gain
+        face = {"live_lips": args.live_lips != "none", "expression": args.expression}
     if hasattr(args, "lips"):
         gains["lips"] = args.lip_gain
         face = {"lips": None if args.lips == "none" else args.lips, "transcript": args.transcript,

@@ -357,3 +357,49 @@ def test_live_cross_validation_holds_out_a_speakers_recordings_together(monkeypa
 
     loaded = load_streamed(find_pairs(tmp_path), report=lambda line: None)
     assert [r.speaker for r in loaded] == ["Obama", "Obama"] and speaker_folds(loaded) == [[0, 1]]
+
+
+def test_an_expression_streams_as_convert_mixes_it(tmp_path):
+    # the live frames carry the expression mixed with the live lips and under the brow raises exactly as
+    # convert's face layer does on the same curves
+    import soundfile
+    from conftest import REPO
+
+    from prosody.jobs.stream import LiveConverter
+    from prosody.motion.expressions import add_brow_raises, expression_curves, mix_with_lips, parse_expressions
+
+    samples, rate = soundfile.read(REPO / "samples" / "arctic_a0009.wav")
+    plain = LiveConverter(rate)
+    frames = plain.push(samples) + plain.finish()
+    timed = tmp_path / "timed.csv"
+    timed.write_text("start_s,end_s,expression,intensity\n0.5,1.5,joy,0.8\n2.0,2.8,surprise,0.5\n")
+    for spec in ("anger:0.6", str(timed)):
+        shown = LiveConverter(rate, expression=spec)
+        mixed = shown.push(samples) + shown.finish()
+        n = len(frames)
+        assert len(mixed) == n
+        expression = expression_curves(parse_expressions(spec), n, fps=30.0)
+        lips = {fap: np.array([f.faps[fap] for f in frames]) for fap in frames[0].faps if fap <= 17 or fap >= 51}
+        lips = {fap: curve for fap, curve in lips.items() if fap not in (48, 49, 50)}
+        brows = {fap: np.array([f.faps[fap] for f in frames]) for fap in (31, 32, 33, 34)}
+        expected = mix_with_lips(lips, {fap: c for fap, c in expression.items() if fap not in brows})
+        expected.update(add_brow_raises({fap: expression[fap] for fap in brows if fap in expression}, brows))
+        for fap, curve in expected.items():
+            got = np.array([f.faps[fap] for f in mixed])
+            np.testing.assert_allclose(got, curve, atol=1e-9, err_msg=f"{spec} FAP {fap}")
+        assert set(mixed[0].faps) == set(frames[0].faps) | set(expression)
+
+
+def test_stream_takes_the_lip_gain_and_an_expression(tmp_path, capsys):
+    from conftest import REPO
+
+    from prosody.cli import main
+    from prosody.fap.fapfile import read_fap
+
+    sample = REPO / "samples" / "arctic_a0009.wav"
+    assert main(["stream", str(sample), "-o", str(tmp_path / "a.fap"), "-q"]) == 0
+    assert main(["stream", str(sample), "-o", str(tmp_path / "b.fap"), "-q", "--lip-gain", "0.5",
+                 "--expression", "joy"]) == 0
+    a, b = read_fap(tmp_path / "a.fap").stream, read_fap(tmp_path / "b.fap").stream
+    np.testing.assert_allclose(b.curve(16), 0.5 * a.curve(16), atol=1)  # no expression moves FAP 16
+    assert b.curve(41).max() > 50 and 41 not in a.active_faps  # joy lifts the cheeks

@@ -13,7 +13,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,6 +28,7 @@ from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
 from ..motion.conditions import Condition
 from ..motion.expressivity import BrowShaper, Expressivity, HeadShaper
+from ..motion.expressions import ExpressionSegment, add_brow_raises, expressions_at, mix_with_lips, parse_expressions
 from ..motion.eyebrows import BrowRule
 from ..motion.limits import limit_frame
 from ..motion.lips import LIP_FAPS, shape_faps
@@ -104,6 +105,9 @@ class LiveConverter:
     expressivity : Expressivity, optional
         Greta's expressivity controls on the head and brows, exactly as offline (they look at no future frame);
         :meth:`set_expressivity` changes them while streaming.
+    expression : str or sequence of ExpressionSegment, optional
+        A facial expression as ``convert``'s (``NAME:INTENSITY``, a timed CSV file, or segments), mixed with the
+        lips and under the brow raises frame by frame exactly as offline: each frame's blend needs only its time.
 
     Examples
     --------
@@ -120,7 +124,8 @@ class LiveConverter:
                  f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ, f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ,
                  eyebrow_rule: BrowRule | None = None, gains: Mapping[str, float] | None = None,
                  disabled: Iterable[str] = (), live_lips: bool = True,
-                 expressivity: Expressivity | None = None) -> None:
+                 expressivity: Expressivity | None = None,
+                 expression: str | Sequence[ExpressionSegment] | None = None) -> None:
         chosen = condition if isinstance(condition, Condition) else Condition.parse(condition)
         if chosen is Condition.GROUND_TRUTH:
             raise ConfigError("recorded motion (condition truth) has no live form; choose speech, random or none")
@@ -148,7 +153,10 @@ class LiveConverter:
 
             usable = max(ms for ms in SHIPPED_LIVE_MOUTH_MS if ms <= lookahead_ms + 1e-9)
             self._mouth = LiveMouthModel.load(live_mouth_path(usable)).start(sample_rate_hz, fps=self.analyser.fps)
-        produced = (LIP_FAPS if self._mouth is not None else ()) + PROSODY_FAPS
+        # an expression over the frames (constant, or timed: each frame's blend needs only its own time)
+        self._expression = parse_expressions(expression) if isinstance(expression, str) else list(expression or ())
+        shown = set(expressions_at(self._expression, np.zeros(1))) if self._expression else set()
+        produced = set(LIP_FAPS if self._mouth is not None else ()) | set(PROSODY_FAPS) | shown
         self.faps = tuple(sorted(fap for fap in produced if fap not in off))
         if not self.faps:
             raise ConfigError("every channel is off: the frames would be empty")
@@ -220,9 +228,22 @@ class LiveConverter:
             self._next += 1
             if self._mouth is not None:
                 value.update({fap: float(curve[0]) for fap, curve in shape_faps(self._mouth.shape(k)).items()})
-            frames.append(LiveFrame(k, k / self.fps,
-                                    limit_frame({fap: value[fap] * self._gain[fap] for fap in self.faps})))
+            faps = {fap: value[fap] * self._gain[fap] for fap in self.faps if fap in value}
+            if self._expression:
+                faps = self._with_expression(faps, k / self.fps)
+            frames.append(LiveFrame(k, k / self.fps, limit_frame(faps)))
         return frames
+
+    def _with_expression(self, faps: dict[int, float], time_s: float) -> dict[int, float]:
+        """One frame's FAPs with the expression mixed in as offline (:class:`prosody.motion.face.FaceLayer`):
+        by seed 000's Eq. 14 with the lips, under the prosodic brow raises, alone elsewhere."""
+        shown = {fap: curve for fap, curve in expressions_at(self._expression, np.array([time_s])).items()
+                 if fap in self.faps}
+        brows = {fap: np.array([faps[fap]]) for fap in shown if 31 <= fap <= 36 and fap in faps}
+        lips = {fap: np.array([value]) for fap, value in faps.items() if fap in LIP_FAPS}
+        mixed = mix_with_lips(lips, {fap: curve for fap, curve in shown.items() if fap not in brows})
+        mixed.update(add_brow_raises({fap: shown[fap] for fap in brows}, brows))
+        return {**faps, **{fap: float(curve[0]) for fap, curve in mixed.items()}}
 
     def push(self, samples: np.ndarray) -> list[LiveFrame]:
         """Add audio (mono float, full scale +-1); the frames that became final, possibly none."""

@@ -140,24 +140,33 @@ def read_expression_file(path: str | os.PathLike[str]) -> list[ExpressionSegment
 
 def expression_curves(segments: Sequence[ExpressionSegment], n_frames: int, *, fps: float) -> dict[int, np.ndarray]:
     """The expressions' FAPs over a frame grid, blended by dominance with a neutral face (see the module)."""
+    return expressions_at(segments, np.arange(n_frames) / fps)
+
+
+def expressions_at(segments: Sequence[ExpressionSegment], times_s: np.ndarray) -> dict[int, np.ndarray]:
+    """The expressions' FAPs at any times (a live stream asks for one frame's time at a time)."""
     timed = [(segment.start_s, segment.end_s,
               {fap: segment.intensity * value for fap, value in EXPRESSIONS.get(segment.expression, {}).items()})
              for segment in segments]
-    return blend_targets(timed, n_frames, fps=fps)
+    return blend_targets_at(timed, np.asarray(times_s, float))
 
 
 def blend_targets(timed: Sequence[tuple[float, float | None, Mapping[int, float]]], n_frames: int, *,
                   fps: float) -> dict[int, np.ndarray]:
     """Timed FAP targets ``(start_s, end_s or None, {FAP: value})`` over a frame grid, each weighted by its
     dominance and blended with a neutral face of constant dominance (see the module)."""
-    times = np.arange(n_frames) / fps
+    return blend_targets_at(timed, np.arange(n_frames) / fps)
+
+
+def blend_targets_at(timed: Sequence[tuple[float, float | None, Mapping[int, float]]],
+                     times: np.ndarray) -> dict[int, np.ndarray]:
+    """:func:`blend_targets` at any times; a segment without an end lasts for ever."""
     faps = sorted({fap for _, _, targets in timed for fap in targets})
-    total = np.full(n_frames, NEUTRAL_DOMINANCE)
-    weighted = {fap: np.zeros(n_frames) for fap in faps}
+    total = np.full(times.shape, NEUTRAL_DOMINANCE)
+    weighted = {fap: np.zeros(times.shape) for fap in faps}
     for start_s, end_s, targets in timed:
-        end = times[-1] + 1.0 if end_s is None and n_frames else (end_s or 0.0)
-        weight = dominance(times, start_s=start_s, end_s=end, alpha=1.0, theta_before=ONSET_THETA,
-                           theta_after=ONSET_THETA)
+        weight = dominance(times, start_s=start_s, end_s=math.inf if end_s is None else end_s, alpha=1.0,
+                           theta_before=ONSET_THETA, theta_after=ONSET_THETA)
         total += weight
         for fap, value in targets.items():
             weighted[fap] += weight * value
