@@ -1,9 +1,9 @@
 """Spectral features on the frame grid: mel-frequency cepstral coefficients and log energy.
 
 The short-time spectrum of 25 ms Hann windows every 10 ms is pooled by a 40-band mel filterbank (librosa's
-default one, Slaney's, 50-7600 Hz, the bands of speech recognisers), logged, and turned into 13 cepstral coefficients by a DCT;
-with the log energy they describe the vocal tract's shape, which the mouth is part of. The 10 ms frames are
-then read at any grid time by the nearest one.
+default one, Slaney's, 50-7600 Hz, the bands of speech recognisers), logged, and turned into 13 cepstral
+coefficients by a DCT; with the log energy they describe the vocal tract's shape, which the mouth is part of.
+The 10 ms frames are then read at any grid time by the nearest one.
 """
 
 from __future__ import annotations
@@ -27,14 +27,14 @@ N_CEPSTRA = 13
 N_SPECTRAL = N_CEPSTRA + 1
 
 
-def _hz_to_mel(hz: np.ndarray) -> np.ndarray:
+def _hz_to_mel(hz: np.ndarray | float) -> np.ndarray:
     """Slaney's mel scale (librosa's default): linear below 1 kHz (200/3 Hz a mel), logarithmic above."""
     hz = np.asarray(hz, float)
     linear = hz / (200.0 / 3)
     return np.where(hz >= 1000.0, 15.0 + np.log(np.maximum(hz, 1e-10) / 1000.0) / (np.log(6.4) / 27.0), linear)
 
 
-def _mel_to_hz(mel: np.ndarray) -> np.ndarray:
+def _mel_to_hz(mel: np.ndarray | float) -> np.ndarray:
     mel = np.asarray(mel, float)
     return np.where(mel >= 15.0, 1000.0 * np.exp((np.log(6.4) / 27.0) * (mel - 15.0)), mel * (200.0 / 3))
 

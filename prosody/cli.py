@@ -1042,13 +1042,12 @@ def _cmd_study_serve(args: argparse.Namespace) -> int:
 
 
 def _cmd_study_export(args: argparse.Namespace) -> int:
-    from audio_features.atomic import atomic_write
-
-    from .jobs.study_store import StudyStore
-
     import sqlite3
 
+    from audio_features.atomic import atomic_write
+
     from .errors import ConfigError
+    from .jobs.study_store import StudyStore
 
     store = StudyStore(args.db, create=False)
     try:

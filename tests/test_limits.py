@@ -16,7 +16,6 @@ from prosody.motion.limits import (
     HEAD_LIMITS_DEG,
     KNEE,
     LIMITS,
-    HumanLimitWarning,
     limit_frame,
     soft_limit,
     within_human_limits,

@@ -292,9 +292,9 @@ def analyze_ratings(ratings: Sequence[Rating], conditions: Sequence[str] | None 
         "ci_high"}}, "by_stimulus": {stimulus: {name: mean}}, "anova": {"F", "df_between", "df_within", "p",
         "eta_squared", "omega_squared"}, "anova_rm": {"subjects", "subjects_left_out", "F", "df_condition",
         "df_error", "p", "partial_eta_squared"} (or {"skipped": why}), "tukey": [{"a", "b", "mean_difference",
-        "ci_low", "ci_high", "p_adjusted", "reject", "cohen_d"}] (none past :data:`MAX_TUKEY_CONDITIONS`)}``; F and p are None where they are undefined,
-        and a "note" says why: no score differs from another (no variance, no effect), or none differs within
-        a condition.
+        "ci_low", "ci_high", "p_adjusted", "reject", "cohen_d"}] (none past :data:`MAX_TUKEY_CONDITIONS`)}``;
+        F and p are None where they are undefined, and a "note" says why: no score differs from another (no
+        variance, no effect), or none differs within a condition.
     """
     import pandas as pd
 

@@ -198,8 +198,13 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
             raise ConfigError("only GROUND_TRUTH was asked for and no ground truth was found")
         from ..motion.eyebrows import AccentRule, EyebrowRule
 
-        semitones = {} if options.brow_semitones is None else {"threshold_semitones": options.brow_semitones}
-        rule = AccentRule(**semitones) if options.brows == "accent" else EyebrowRule(**semitones)
+        rule: AccentRule | EyebrowRule
+        if options.brows == "accent":
+            rule = AccentRule() if options.brow_semitones is None else AccentRule(
+                threshold_semitones=options.brow_semitones)
+        else:
+            rule = EyebrowRule() if options.brow_semitones is None else EyebrowRule(
+                threshold_semitones=options.brow_semitones)
         with warnings.catch_warnings(record=True) as caught:
             # a file's warnings are reported with the file, not raised or printed by a worker
             warnings.simplefilter("always")

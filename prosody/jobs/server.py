@@ -93,7 +93,7 @@ def normalize_origin(text: str) -> str:
         port = parts.port
     except ValueError:
         raise ConfigError(f"origin {text!r} has a bad port") from None
-    host = f"[{parts.hostname}]" if ":" in parts.hostname else parts.hostname
+    host = f"[{hostname}]" if ":" in hostname else hostname
     default = {"http": 80, "https": 443}[parts.scheme]
     return f"{parts.scheme}://{host}" + ("" if port in (None, default) else f":{port}")
 

@@ -27,8 +27,8 @@ from ..errors import ConfigError
 from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
 from ..motion.conditions import Condition
-from ..motion.expressivity import BrowShaper, Expressivity, HeadShaper
 from ..motion.expressions import ExpressionSegment, add_brow_raises, expressions_at, mix_with_lips, parse_expressions
+from ..motion.expressivity import BrowShaper, Expressivity, HeadShaper
 from ..motion.eyebrows import BrowRule
 from ..motion.limits import limit_frame
 from ..motion.lips import LIP_FAPS, shape_faps

@@ -117,7 +117,7 @@ class StudyServer:
         self.arrivals = _Arrivals()
         self._quiet = _OneLinePerSecond(self.report)
         handler = type("Handler", (_Handler,), {"study": self, "timeout": CONNECTION_TIMEOUT_S})
-        server = _StudyHTTPServer
+        server: type[_StudyHTTPServer] = _StudyHTTPServer
         if ":" in host:
             server = type("_StudyHTTPServer6", (_StudyHTTPServer,), {"address_family": socket.AF_INET6})
         try:

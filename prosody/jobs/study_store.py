@@ -119,19 +119,21 @@ class StudyStore:
     def _connect(self, *, read_only: bool) -> sqlite3.Connection:
         """The connection: read-only for a reader (export), so that a database on read-only media is read; a
         database in WAL mode whose folder cannot be written is read as immutable."""
-        options = dict(timeout=10.0, isolation_level=None, check_same_thread=False)
+        def connect(target: str | Path, *, uri: bool = False) -> sqlite3.Connection:
+            return sqlite3.connect(target, timeout=10.0, isolation_level=None, check_same_thread=False, uri=uri)
+
         if not read_only:
-            db = sqlite3.connect(self.path, **options)
+            db = connect(self.path)
         else:
-            uri = self.path.resolve().as_uri()
-            db = sqlite3.connect(f"{uri}?mode=ro", uri=True, **options)
+            address = self.path.resolve().as_uri()
+            db = connect(f"{address}?mode=ro", uri=True)
             try:
                 db.execute("SELECT name FROM sqlite_master").fetchall()
             except sqlite3.OperationalError:
                 if os.access(self.path.parent, os.W_OK):
                     raise
                 db.close()
-                db = sqlite3.connect(f"{uri}?immutable=1", uri=True, **options)
+                db = connect(f"{address}?immutable=1", uri=True)
         db.execute("PRAGMA busy_timeout = 10000")
         return db
 

@@ -30,6 +30,7 @@ import numpy as np
 from audio_features.atomic import atomic_path, atomic_write
 
 from ..errors import ConfigError, TrackingError, VisualProsodyError
+from ..motion.ground_truth import HEAD_CSV_FPS
 from ..tracking.curves import (
     ALL_COLUMNS,
     MAX_GAP_S,
@@ -39,7 +40,6 @@ from ..tracking.curves import (
     tracked_curves,
     write_curves,
 )
-from ..motion.ground_truth import HEAD_CSV_FPS
 from ..tracking.face import MODEL_SHA256, FaceTracker, face_measures, head_angles
 from ..tracking.video import (
     DEFAULT_MAX_SIDE_PX,
@@ -244,8 +244,9 @@ def _refuse_files_of_others(video: Path, stem: Path, record: Path, *, writes_wav
     theirs = [Path(f"{stem}{ending}") for ending in endings
               if os.path.lexists(f"{stem}{ending}") and f"{stem.name}{ending}" not in ours]
     if theirs:
-        raise ConfigError(f"{video}: {', '.join(map(str, theirs))} already exist(s) and {'was' if len(theirs) == 1 else 'were'} "
-                          "not written by 'prosody track': nothing is replaced; track into another folder (-o OUT)")
+        were = "was" if len(theirs) == 1 else "were"
+        raise ConfigError(f"{video}: {', '.join(map(str, theirs))} already exist(s) and {were} not written by "
+                          "'prosody track': nothing is replaced; track into another folder (-o OUT)")
 
 
 def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options: TrackOptions,

@@ -4,8 +4,9 @@ the lips (seed 002's superposition; seed 000's Eq. 14).
 The targets in :data:`EXPRESSIONS` (intensity 1) are ours: set from the MPEG-4 standard's description of its
 six expressions (FAP 2's table: joy, sadness, anger, fear, disgust, surprise) and the facial action units
 that carry them, with magnitudes of a clearly visible but not extreme display (a surprised brow rises about
-7 mm: 200 ENS; a smile lifts the lip corners about 4 mm: 240 MNS, and draws them back about 5 mm: 100 MW). Seed 002 matched its targets to JAFFE
-photographs without publishing them; these are not fitted to any recording.
+7 mm: 200 ENS; a smile lifts the lip corners about 4 mm: 240 MNS, and draws them back about 5 mm: 100 MW).
+Seed 002 matched its targets to JAFFE photographs without publishing them; these are not fitted to any
+recording.
 
 Over time (:func:`expression_curves`), each segment (start, end, expression, intensity) has the dominance of
 :func:`prosody.motion.lips.dominance` (1 inside it, decaying at :data:`ONSET_THETA` per second outside), and a

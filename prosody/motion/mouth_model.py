@@ -80,10 +80,9 @@ def local_peak(db: np.ndarray) -> np.ndarray:
     return sliding_window_view(padded, 2 * DIP_WINDOW_FRAMES + 1).max(axis=1)
 
 
-def gated(shape: MouthShape, gate: np.ndarray, closing: np.ndarray | None = None) -> MouthShape:
+def gated(shape: MouthShape, gate: np.ndarray, closing: np.ndarray | float = 1.0) -> MouthShape:
     """A mouth shape brought to rest (closed, neither rounded nor spread) where ``gate`` is 0, and its opening
     also closed where ``closing`` (the dip gate) is 0."""
-    closing = 1.0 if closing is None else closing
     return MouthShape(shape.opening * gate * closing, shape.rounding * gate, shape.spread * gate)
 
 
