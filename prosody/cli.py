@@ -320,14 +320,13 @@ def _cmd_features(args: argparse.Namespace) -> int:
 
 def _motion_kwargs(args: argparse.Namespace) -> dict:
     """The keyword arguments of :func:`prosody.jobs.pipeline.convert` set by :func:`_add_motion_options`."""
-    gains = {"pitch": args.pitch_gain, "yaw": args.yaw_gain, "roll": args.roll_gain, "brows": args.brow_gain}
+    gains = {"pitch": args.pitch_gain, "yaw": args.yaw_gain, "roll": args.roll_gain, "brows": args.brow_gain,
+             "lips": args.lip_gain}
     disabled = [name.strip() for value in args.off for name in value.split(",") if name.strip()]
     face: dict = {}
     if hasattr(args, "live_lips"):
-        gains["lips"] = args.lip_gain
         face = {"live_lips": args.live_lips != "none", "expression": args.expression}
     if hasattr(args, "lips"):
-        gains["lips"] = args.lip_gain
         face = {"lips": None if args.lips == "none" else args.lips, "transcript": args.transcript,
                 "expression": args.expression, "mouth_model": args.mouth_model, "pad": args.pad,
                 "pad_map": args.pad_map}
