@@ -916,12 +916,27 @@ def _study_condition_names(text: str | None) -> list[str] | None:
     return names
 
 
+def _stimulus_names(given: str) -> list[str]:
+    """``--stimuli``: names, comma-separated, or a folder of recordings (the stems of its WAV files)."""
+    from pathlib import Path
+
+    from .errors import ConfigError
+
+    folder = Path(given)
+    if not folder.is_dir():
+        return given.split(",")
+    names = sorted(path.stem for path in folder.iterdir() if path.suffix.lower() == ".wav" and path.is_file())
+    if not names:
+        raise ConfigError(f"--stimuli {given}: a folder with no recording (NAME.wav) in it")
+    return names
+
+
 def _cmd_study_plan(args: argparse.Namespace) -> int:
     from .evaluation.designs import make_plan
     from .evaluation.study import write_plan
 
-    rows = make_plan(args.stimuli.split(","), design=args.design, conditions=_study_condition_names(args.conditions),
-                     seed=args.seed, repeats=args.repeats)
+    rows = make_plan(_stimulus_names(args.stimuli), design=args.design,
+                     conditions=_study_condition_names(args.conditions), seed=args.seed, repeats=args.repeats)
     write_plan(rows, args.output)
     _say(f"{args.output}: {args.design} plan, {len(rows)} presentations")
     return EXIT_OK
@@ -1472,8 +1487,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "answer options are the conditions. The same seed gives the same plan; 'serve' gives each "
                     "participant their own order from it.",
     )
-    plan.add_argument("--stimuli", required=True, metavar="NAME[,NAME...]",
-                      help="stimulus names, comma-separated (each the name of a recording: NAME.wav)")
+    plan.add_argument("--stimuli", required=True, metavar="NAME[,NAME...]|DIR",
+                      help="stimulus names, comma-separated (each the name of a recording: NAME.wav), or the "
+                           "folder of the recordings (every NAME.wav in it), as 'study stimuli --recordings' takes")
     plan.add_argument("--design", choices=["paired", "mos", "identification"], default="paired",
                       help="paired comparison (default), opinion scores 1-5, or identification")
     plan.add_argument("--conditions", default=None, metavar="NAME|FILE.json,...",

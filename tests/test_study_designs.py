@@ -400,3 +400,16 @@ def test_a_plan_too_large_to_serve_or_a_stimulus_named_like_the_manifest_is_refu
     assert not (tmp_path / "p.csv").exists()
     assert main(["study", "plan", "--stimuli", ",".join(f"s{i}" for i in range(6250)), "-o",
                  str(tmp_path / "p.csv")]) == 0  # exactly 100,000
+
+
+def test_plan_takes_the_folder_of_recordings_as_stimuli(tmp_path, capsys) -> None:
+    recordings = tmp_path / "recordings"
+    recordings.mkdir()
+    for name in ("b", "a", "c"):
+        (recordings / f"{name}.wav").write_bytes(b"RIFF")
+    (recordings / "notes.txt").write_text("x")
+    assert main(["study", "plan", "--stimuli", str(recordings), "--design", "mos", "-o", str(tmp_path / "p.csv")]) == 0
+    assert sorted({row.split(",")[1] for row in (tmp_path / "p.csv").read_text().splitlines()[1:]}) == ["a", "b", "c"]
+    (tmp_path / "empty").mkdir()
+    assert main(["study", "plan", "--stimuli", str(tmp_path / "empty"), "-o", str(tmp_path / "q.csv")]) == 2
+    assert "a folder with no recording" in capsys.readouterr().err
