@@ -922,9 +922,9 @@ def _stimulus_names(given: str) -> list[str]:
 
     from .errors import ConfigError
 
-    folder = Path(given)
-    if not folder.is_dir():
+    if not os.path.isdir(given):  # (os.path's, which says False for a name too long to be a path)
         return given.split(",")
+    folder = Path(given)
     names = sorted(path.stem for path in folder.iterdir() if path.suffix.lower() == ".wav" and path.is_file())
     if not names:
         raise ConfigError(f"--stimuli {given}: a folder with no recording (NAME.wav) in it")
