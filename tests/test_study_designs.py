@@ -413,3 +413,19 @@ def test_plan_takes_the_folder_of_recordings_as_stimuli(tmp_path, capsys) -> Non
     (tmp_path / "empty").mkdir()
     assert main(["study", "plan", "--stimuli", str(tmp_path / "empty"), "-o", str(tmp_path / "q.csv")]) == 2
     assert "a folder with no recording" in capsys.readouterr().err
+
+
+def test_drawing_a_report_figure_leaves_pyplot_and_its_backend_alone(tmp_path) -> None:
+    # a notebook user's backend must not be switched by a library call
+    import subprocess
+    import sys
+
+    code = ("import sys, matplotlib; matplotlib.use('svg'); "
+            "from prosody.evaluation.ratings import plot_means; "
+            "entry = {'n': 3, 'mean': 3.0, 'sd': 1.0, 'ci_low': 2.0, 'ci_high': 4.0}; "
+            f"plot_means({{'conditions': {{'a': entry, 'b': entry}}}}, {str(tmp_path / 'm.png')!r}); "
+            "print(matplotlib.get_backend(), 'matplotlib.pyplot' in sys.modules)")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["svg", "False"]
+    assert (tmp_path / "m.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

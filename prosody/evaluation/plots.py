@@ -25,13 +25,15 @@ CONDITION_COLOURS = {"NO_PROSODY": "0.6", "RANDOM": "tab:orange", "SPEECH_DRIVEN
                      "GROUND_TRUTH": "black"}
 
 
-def _pyplot():
-    import matplotlib
+def _figure(**options):
+    """A figure drawn by matplotlib's Agg canvas directly: pyplot and its backend, which a caller (a notebook)
+    may have chosen, are left alone."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    return plt
+    figure = Figure(**options)
+    FigureCanvasAgg(figure)
+    return figure
 
 
 def _save(figure, path: str | os.PathLike[str], *, tight: bool = False) -> None:
@@ -49,66 +51,60 @@ def _shade_raises(axis, comparison: Comparison) -> None:
 
 def plot_features(comparison: Comparison, path: str | os.PathLike[str]) -> None:
     """F0, energy and eyebrow raises of the recording, with the rule's thresholds, as a PNG."""
-    plt = _pyplot()
     features = comparison.features
     times = features.f0.times_s
-    figure, (f0_axis, energy_axis, brow_axis) = plt.subplots(3, 1, sharex=True, figsize=(10, 7))
-    try:
-        f0_axis.plot(times, features.f0_conditioned.values, color="tab:blue", linewidth=1.2,
-                     label="conditioned F0")
-        f0_axis.plot(times, features.f0.values, ".", color="black", markersize=2.5, label="Praat F0 (voiced)")
-        raises = comparison.eyebrows
-        if np.isfinite(raises.f0_threshold_hz):
-            f0_axis.axhline(raises.f0_threshold_hz, color="tab:red", linestyle="--", linewidth=1,
-                            label=f"raise threshold {raises.f0_threshold_hz:.0f} Hz")
-        f0_axis.set_ylabel("F0 (Hz)")
-        f0_axis.legend(loc="upper right", fontsize=8)
-        energy_axis.plot(times, features.energy.values, color="tab:purple", linewidth=1)
-        if np.isfinite(raises.energy_threshold_db):
-            what = "loudness a raise needs" if raises.rule == "accent" else "hold threshold"
-            energy_axis.axhline(raises.energy_threshold_db, color="tab:red", linestyle="--",
-                                linewidth=1, label=f"{what} {raises.energy_threshold_db:.0f} dB")
-        energy_axis.set_ylabel("energy (dB)")
-        energy_axis.legend(loc="upper right", fontsize=8)
-        for condition, stream in comparison.streams.items():
-            if stream.mask[:, 30].any():
-                brow_axis.plot(times, stream.curve(31), color=CONDITION_COLOURS[condition.value], linewidth=1,
-                               label=condition.value)
-        brow_axis.set_ylabel("inner brow, FAP 31 (ENS)")
-        brow_axis.set_xlabel("time (s)")
-        brow_axis.legend(loc="upper right", fontsize=8)
-        for axis in (f0_axis, energy_axis, brow_axis):
-            _shade_raises(axis, comparison)
-            axis.grid(alpha=0.3)
-        f0_axis.set_title(f"{os.path.basename(comparison.source)}: acoustics and eyebrow raises (shaded)")
-        figure.tight_layout()
-        _save(figure, path)
-    finally:
-        plt.close(figure)
+    figure = _figure(figsize=(10, 7))
+    f0_axis, energy_axis, brow_axis = figure.subplots(3, 1, sharex=True)
+    f0_axis.plot(times, features.f0_conditioned.values, color="tab:blue", linewidth=1.2,
+                 label="conditioned F0")
+    f0_axis.plot(times, features.f0.values, ".", color="black", markersize=2.5, label="Praat F0 (voiced)")
+    raises = comparison.eyebrows
+    if np.isfinite(raises.f0_threshold_hz):
+        f0_axis.axhline(raises.f0_threshold_hz, color="tab:red", linestyle="--", linewidth=1,
+                        label=f"raise threshold {raises.f0_threshold_hz:.0f} Hz")
+    f0_axis.set_ylabel("F0 (Hz)")
+    f0_axis.legend(loc="upper right", fontsize=8)
+    energy_axis.plot(times, features.energy.values, color="tab:purple", linewidth=1)
+    if np.isfinite(raises.energy_threshold_db):
+        what = "loudness a raise needs" if raises.rule == "accent" else "hold threshold"
+        energy_axis.axhline(raises.energy_threshold_db, color="tab:red", linestyle="--",
+                            linewidth=1, label=f"{what} {raises.energy_threshold_db:.0f} dB")
+    energy_axis.set_ylabel("energy (dB)")
+    energy_axis.legend(loc="upper right", fontsize=8)
+    for condition, stream in comparison.streams.items():
+        if stream.mask[:, 30].any():
+            brow_axis.plot(times, stream.curve(31), color=CONDITION_COLOURS[condition.value], linewidth=1,
+                           label=condition.value)
+    brow_axis.set_ylabel("inner brow, FAP 31 (ENS)")
+    brow_axis.set_xlabel("time (s)")
+    brow_axis.legend(loc="upper right", fontsize=8)
+    for axis in (f0_axis, energy_axis, brow_axis):
+        _shade_raises(axis, comparison)
+        axis.grid(alpha=0.3)
+    f0_axis.set_title(f"{os.path.basename(comparison.source)}: acoustics and eyebrow raises (shaded)")
+    figure.tight_layout()
+    _save(figure, path)
 
 
 def plot_head(comparison: Comparison, path: str | os.PathLike[str]) -> None:
     """Head pitch, yaw and roll (degrees) of every condition, ground truth in black, as a PNG."""
-    plt = _pyplot()
     times = comparison.features.f0.times_s
-    figure, axes = plt.subplots(3, 1, sharex=True, figsize=(10, 7))
-    try:
-        for axis, fap in zip(axes, HEAD_FAPS, strict=False):
-            for condition, stream in comparison.streams.items():
-                if condition.value == "NO_PROSODY" or not stream.mask[:, fap - 1].any():
-                    continue
-                degrees = np.degrees(stream.curve(fap) * RADIANS_PER_AU)
-                axis.plot(times, degrees, color=CONDITION_COLOURS[condition.value],
-                          linewidth=1.6 if condition.value == "GROUND_TRUTH" else 1.0, label=condition.value)
-            axis.axhline(0, color=CONDITION_COLOURS["NO_PROSODY"], linewidth=0.8)
-            info = BY_NUMBER[fap]
-            axis.set_ylabel(f"{info.name}\n(deg, + {info.positive_motion})", fontsize=9)
-            axis.grid(alpha=0.3)
-        axes[0].legend(loc="upper right", fontsize=8, ncol=3)
-        axes[-1].set_xlabel("time (s)")
-        normalised = " (normalised)" if comparison.metrics.get("normalized") else ""
-        axes[0].set_title(f"{os.path.basename(comparison.source)}: head rotation per condition{normalised}")
-        figure.tight_layout()
-        _save(figure, path)
-    finally:
-        plt.close(figure)
+    figure = _figure(figsize=(10, 7))
+    axes = figure.subplots(3, 1, sharex=True)
+    for axis, fap in zip(axes, HEAD_FAPS, strict=False):
+        for condition, stream in comparison.streams.items():
+            if condition.value == "NO_PROSODY" or not stream.mask[:, fap - 1].any():
+                continue
+            degrees = np.degrees(stream.curve(fap) * RADIANS_PER_AU)
+            axis.plot(times, degrees, color=CONDITION_COLOURS[condition.value],
+                      linewidth=1.6 if condition.value == "GROUND_TRUTH" else 1.0, label=condition.value)
+        axis.axhline(0, color=CONDITION_COLOURS["NO_PROSODY"], linewidth=0.8)
+        info = BY_NUMBER[fap]
+        axis.set_ylabel(f"{info.name}\n(deg, + {info.positive_motion})", fontsize=9)
+        axis.grid(alpha=0.3)
+    axes[0].legend(loc="upper right", fontsize=8, ncol=3)
+    axes[-1].set_xlabel("time (s)")
+    normalised = " (normalised)" if comparison.metrics.get("normalized") else ""
+    axes[0].set_title(f"{os.path.basename(comparison.source)}: head rotation per condition{normalised}")
+    figure.tight_layout()
+    _save(figure, path)

@@ -446,12 +446,12 @@ def identification_markdown(results: dict, *, figure: str | None = None) -> str:
 
 def plot_means(results: dict, path: str | os.PathLike[str]) -> Path:
     """Mean score per condition with its 95% interval, as a PNG."""
-    from .plots import _pyplot, _save
+    from .plots import _figure, _save
 
-    plt = _pyplot()
     names = list(results["conditions"])
     entries = [results["conditions"][name] for name in names]
-    figure, axes = plt.subplots(figsize=(max(4.0, 1.1 * len(names) + 1.5), 3.6), layout="tight")
+    figure = _figure(figsize=(max(4.0, 1.1 * len(names) + 1.5), 3.6), layout="tight")
+    axes = figure.subplots()
     means = [entry["mean"] for entry in entries]
     errors = [[0 if e["ci_low"] is None else e["mean"] - e["ci_low"] for e in entries],
               [0 if e["ci_high"] is None else e["ci_high"] - e["mean"] for e in entries]]
@@ -460,10 +460,7 @@ def plot_means(results: dict, path: str | os.PathLike[str]) -> Path:
     axes.set_ylim(1, 5)
     axes.set_ylabel("mean score (1–5)")
     axes.set_title("Opinion scores, 95% intervals")
-    try:
-        _save(figure, path, tight=True)
-    finally:
-        plt.close(figure)
+    _save(figure, path, tight=True)
     return Path(path)
 
 
@@ -487,15 +484,15 @@ def plot_confusion(results: dict, path: str | os.PathLike[str]) -> Path:
     """The confusion matrix as a PNG: each row's share of answers as colour, the counts written in; past
     :data:`MAX_CONFUSION_CLASSES` classes, the rows and columns of those shown most often (a row's share is
     still of all its answers)."""
-    from .plots import _pyplot, _save
+    from .plots import _figure, _save
 
-    plt = _pyplot()
     names, kept = confusion_shown(results)
     every = np.asarray(results["confusion"], float)
     counts = every[np.ix_(kept, kept)]
     shares = counts / np.maximum(every[kept].sum(axis=1, keepdims=True), 1)
     size = max(3.6, 0.8 * len(names) + 2.0)
-    figure, axes = plt.subplots(figsize=(size + 0.8, size), layout="tight")
+    figure = _figure(figsize=(size + 0.8, size), layout="tight")
+    axes = figure.subplots()
     image = axes.imshow(shares, vmin=0, vmax=1, cmap="Blues")
     for i, j in itertools.product(range(len(names)), repeat=2):
         axes.text(j, i, f"{int(counts[i, j])}", ha="center", va="center",
@@ -508,8 +505,5 @@ def plot_confusion(results: dict, path: str | os.PathLike[str]) -> Path:
         f", the {len(kept)} classes shown most often of {len(results['classes'])}"
     axes.set_title(f"Identification (chance {results['chance']:.0%}{part})")
     figure.colorbar(image, ax=axes, fraction=0.046, label="share of the row")
-    try:
-        _save(figure, path, tight=True)
-    finally:
-        plt.close(figure)
+    _save(figure, path, tight=True)
     return Path(path)
