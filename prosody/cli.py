@@ -1745,41 +1745,54 @@ def _run(handler: Callable[[argparse.Namespace], int], args: argparse.Namespace)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``prosody`` command. Called from Python (a test, a notebook), it leaves the process as it found it:
+    the message mode, the SIGTERM handler and a closed standard error are restored when it returns."""
+    import signal
     import warnings
 
-    if sys.stderr is None:  # started with standard error closed (2>&-): messages go nowhere, work goes on
-        sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - for the life of the process
     parser = build_parser()
     args = parser.parse_args(argv)
-    _MESSAGES.mode = "json" if getattr(args, "messages", None) == "json" else (
-        "quiet" if getattr(args, "quiet", False) else "text")
-
-    def show(message, category, filename, lineno, file=None, line=None):
-        # a warning is a note to the user, one line, not a source listing
-        _MESSAGES.emit("warning", f"prosody {args.command}: warning: {_as_flags(str(message))}")
-
-    import signal
-
-    def terminated(signum, frame):
-        # SIGTERM unwinds like Ctrl-C, so that temporary files are removed and nothing is left half-written
-        raise KeyboardInterrupt
-
-    with contextlib.suppress(ValueError):  # only the main thread may set handlers
-        signal.signal(signal.SIGTERM, terminated)
+    mode = _MESSAGES.mode
+    stderr = sys.stderr
+    previous: Any = None
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("default")
-            warnings.showwarning = show
-            return _run(args.handler, args)
-    except KeyboardInterrupt:
-        _MESSAGES.emit("error", f"prosody {args.command}: interrupted", exit=130)
-        return 130
-    except BrokenPipeError:
-        # the reader went away (`prosody inspect F.fap | head -1`): not an error of ours
-        with contextlib.suppress(OSError):
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, sys.stdout.fileno())
-        return EXIT_OK
+        if sys.stderr is None:  # started with standard error closed (2>&-): messages go nowhere, work goes on
+            sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - closed below
+        _MESSAGES.mode = "json" if getattr(args, "messages", None) == "json" else (
+            "quiet" if getattr(args, "quiet", False) else "text")
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            # a warning is a note to the user, one line, not a source listing
+            _MESSAGES.emit("warning", f"prosody {args.command}: warning: {_as_flags(str(message))}")
+
+        def terminated(signum, frame):
+            # SIGTERM unwinds like Ctrl-C, so that temporary files are removed and nothing is left half-written
+            raise KeyboardInterrupt
+
+        with contextlib.suppress(ValueError):  # only the main thread may set handlers
+            previous = signal.signal(signal.SIGTERM, terminated)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("default")
+                warnings.showwarning = show
+                return _run(args.handler, args)
+        except KeyboardInterrupt:
+            _MESSAGES.emit("error", f"prosody {args.command}: interrupted", exit=130)
+            return 130
+        except BrokenPipeError:
+            # the reader went away (`prosody inspect F.fap | head -1`): not an error of ours
+            with contextlib.suppress(OSError):
+                devnull = os.open(os.devnull, os.O_WRONLY)
+                os.dup2(devnull, sys.stdout.fileno())
+            return EXIT_OK
+    finally:
+        if previous is not None:
+            with contextlib.suppress(ValueError):
+                signal.signal(signal.SIGTERM, previous)
+        _MESSAGES.mode = mode
+        if stderr is None and sys.stderr is not None:
+            sys.stderr.close()
+            sys.stderr = stderr
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -220,3 +220,22 @@ def test_batch_warnings_name_batchs_own_options_not_python(tmp_path, capsys) -> 
     assert main(["batch", str(folder), "-o", str(tmp_path / "out2"), "--condition", "speech", "--seeds", "1",
                  "--lips", "none", "--brow-semitones", "1"]) == 0
     assert "no eyebrow raise" not in capsys.readouterr().err
+
+
+def test_main_leaves_the_process_as_it_found_it(tmp_path, speech, capsys) -> None:
+    import signal
+
+    from prosody import cli
+
+    def mine(signum, frame):
+        pass
+
+    before = signal.signal(signal.SIGTERM, mine)
+    try:
+        assert main(["convert", str(speech), "-o", str(tmp_path / "x.fap"), "--lips", "none", "--messages",
+                     "json"]) == 0
+        assert signal.getsignal(signal.SIGTERM) is mine  # the caller's handler is back
+        assert cli._MESSAGES.mode == "text"  # and the message mode
+    finally:
+        signal.signal(signal.SIGTERM, before)
+    capsys.readouterr()
