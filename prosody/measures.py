@@ -10,7 +10,7 @@ import numpy as np
 
 from .errors import ConfigError
 from .fap.stream import FapStream
-from .fap.table import HEAD_FAPS, PROSODY_FAPS
+from .fap.table import HEAD_FAPS, PROSODY_FAPS, RADIANS_PER_AU
 
 #: Spread below which a curve counts as constant (correlations are then undefined).
 _CONSTANT = 1e-9
@@ -318,8 +318,8 @@ def head_metrics(generated_au: np.ndarray, recorded_au: np.ndarray, *, fps: floa
         offsets how far from its median pose each holds (deg; :func:`speed_distribution`); None where
         undefined (a still head has no correlation).
     """
-    generated = np.asarray(generated_au, float) * 1e-5
-    recorded = np.asarray(recorded_au, float) * 1e-5
+    generated = np.asarray(generated_au, float) * RADIANS_PER_AU
+    recorded = np.asarray(recorded_au, float) * RADIANS_PER_AU
     if generated.shape != recorded.shape or generated.ndim != 2 or generated.shape[1] != len(HEAD_FAPS):
         raise ConfigError(f"head motion must be (n_frames, 3) on one grid, got {generated.shape} and "
                           f"{recorded.shape}")

@@ -35,7 +35,7 @@ from audio_features.atomic import atomic_path, atomic_write, interrupts_held
 
 from ..errors import ConfigError, PreviewError
 from ..fap.stream import FapStream
-from ..fap.table import RADIANS_PER_AU
+from ..fap.table import HEAD_FAPS, RADIANS_PER_AU
 
 #: Frame widths drawn, in pixels (3840: a 4K frame; drawing is done at twice the size).
 MIN_WIDTH, MAX_WIDTH = 64, 3840
@@ -155,7 +155,7 @@ def poses(stream: FapStream, *, exaggerate: float = 1.0, brow_scale: float = BRO
             fap = fallback
         return stream.curve(fap) * exaggerate  # 0 where masked off: neutral
 
-    head = [curve(fap) * RADIANS_PER_AU for fap in (48, 49, 50)]
+    head = [curve(fap) * RADIANS_PER_AU for fap in HEAD_FAPS]
     # outer brows follow the middle ones when a stream has no FAP 35/36, as in the Live Link export
     left = [brow_scale * curve(31), brow_scale * curve(33), brow_scale * curve(35, fallback=33)]
     right = [brow_scale * curve(32), brow_scale * curve(34), brow_scale * curve(36, fallback=34)]
@@ -357,7 +357,7 @@ class CurveStrip:
         self.half_window = max(1, round(STRIP_WINDOW_S * stream.fps))
 
         brows = stream.curve(31)  # 0 where masked off
-        head = stream.curves((48, 49, 50))
+        head = stream.curves(HEAD_FAPS)
         # each group on its own scale (its largest magnitude), so both fill the strip; strips shown side by
         # side share the scales they are given, so that equal heights mean equal motion
         brow_scale, head_scale = scales if scales is not None else strip_scales([stream])
@@ -413,7 +413,7 @@ class CurveStrip:
 def strip_scales(streams: list[FapStream]) -> tuple[float, float]:
     """The strip's (brow ENS, head AU) scales that fit every stream: their largest magnitudes (at least 1)."""
     brow = max([float(np.max(np.abs(s.curve(31)), initial=0.0)) for s in streams] + [1.0])
-    head = max([float(np.max(np.abs(s.curves((48, 49, 50))), initial=0.0)) for s in streams] + [1.0])
+    head = max([float(np.max(np.abs(s.curves(HEAD_FAPS)), initial=0.0)) for s in streams] + [1.0])
     return brow, head
 
 

@@ -7,7 +7,7 @@ import os
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
-from ..fap.table import BY_NUMBER, PROSODY_FAPS
+from ..fap.table import BY_NUMBER, HEAD_FAPS, PROSODY_FAPS, RADIANS_PER_AU
 
 if TYPE_CHECKING:
     from .compare import Comparison
@@ -36,7 +36,7 @@ def _shown(fap: int, value: float | None) -> float | None:
     """A FAP-unit value in the unit of :func:`_unit`, without a negative zero."""
     if value is None:
         return None
-    shown = math.degrees(value * 1e-5) if BY_NUMBER[fap].fapu == "AU" else value
+    shown = math.degrees(value * RADIANS_PER_AU) if BY_NUMBER[fap].fapu == "AU" else value
     return shown + 0.0 if round(shown, 2) != 0 else 0.0
 
 
@@ -326,7 +326,7 @@ def batch_markdown(summary: Mapping) -> str:
         if not metrics or condition not in metrics["conditions"]:
             return "–"
         stats = metrics["conditions"][condition]
-        return " / ".join(_number(stats[str(fap)]["pearson_r"], 2) for fap in (48, 49, 50))
+        return " / ".join(_number(stats[str(fap)]["pearson_r"], 2) for fap in HEAD_FAPS)
 
     def cca(metrics: Mapping | None, condition: str) -> str:
         if not metrics:

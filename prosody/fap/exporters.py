@@ -40,7 +40,7 @@ from audio_features.atomic import atomic_write
 
 from ..errors import ConfigError, FapWriteError
 from .stream import FapStream
-from .table import BY_NUMBER, RADIANS_PER_AU
+from .table import BY_NUMBER, HEAD_FAPS, RADIANS_PER_AU
 
 Writer = Callable[[FapStream, "str | os.PathLike[str]"], None]
 
@@ -171,9 +171,9 @@ def _degrees(stream: FapStream, fap: int) -> np.ndarray:
 
 def write_bvh(stream: FapStream, path: str | os.PathLike[str]) -> None:
     """A one-joint BVH: the head's rotation in degrees (see the module docstring for axes and signs)."""
-    if not any(stream.mask[:, fap - 1].any() for fap in (48, 49, 50)):
+    if not any(stream.mask[:, fap - 1].any() for fap in HEAD_FAPS):
         raise FapWriteError("the stream has no head rotation (FAP 48-50) to write as BVH")
-    pitch, yaw, roll = (_degrees(stream, fap) for fap in (48, 49, 50))
+    pitch, yaw, roll = (_degrees(stream, fap) for fap in HEAD_FAPS)
     lines = ["HIERARCHY", "ROOT Head", "{", "\tOFFSET 0.0 0.0 0.0",
              "\tCHANNELS 3 Zrotation Yrotation Xrotation", "\tEnd Site", "\t{", "\t\tOFFSET 0.0 20.0 0.0", "\t}",
              "}", "MOTION", f"Frames: {stream.n_frames}", f"Frame Time: {1 / stream.fps:.8f}"]

@@ -32,8 +32,6 @@ from .table import N_FAPS
 
 #: Frame rate assumed for a stream with no header (MPEG-4 FAP streams are most often 25 fps).
 DEFAULT_HEADERLESS_FPS = 25.0
-#: Largest magnitude an integer FAP value may have in a written file (players parse 32-bit ints).
-MAX_FAP_VALUE = 2**31 - 1
 #: Longest line read: a mask is 137 bytes and a full value line well under 2 kB; a longer line is not a .fap.
 MAX_LINE_BYTES = 1 << 16
 #: Largest .fap file read (two hours of every FAP at 30 fps is under 100 MB).
@@ -432,7 +430,7 @@ def format_fap(stream: FapStream, *, name: str | None = None) -> str:
     Raises
     ------
     FapWriteError
-        For a non-integer frame rate, or a value beyond the 32-bit integer range.
+        For a non-integer frame rate, no frame, or a value beyond :data:`MAX_PLAYABLE_VALUE` (2^24).
     """
     return "".join(_fap_lines(stream, name=name))
 

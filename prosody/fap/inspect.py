@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .fapfile import FapFile
-from .table import BY_NUMBER
+from .table import BY_NUMBER, RADIANS_PER_AU
 
 
 def _plain(value: float) -> int | float:
@@ -44,7 +44,8 @@ def inspect_summary(fap: FapFile) -> str:
         active = stream.values[stream.mask[:, number - 1], number - 1]
         share = active.size / max(1, stream.n_frames)
         if info.fapu == "AU":
-            low, high, unit = np.degrees(active.min() * 1e-5), np.degrees(active.max() * 1e-5), "deg"
+            low, high = np.degrees(active.min() * RADIANS_PER_AU), np.degrees(active.max() * RADIANS_PER_AU)
+            unit = "deg"
         else:
             low, high, unit = active.min(), active.max(), info.fapu
         lines.append(f"  {number:>2} {info.name:<24} {low:+10.4g} .. {high:+10.4g} {unit:<6} "

@@ -29,7 +29,7 @@ from audio_features.atomic import atomic_write
 from audio_features.inputs import file_sha256
 
 from ..errors import ConfigError, ProsodyError, VisualProsodyError
-from ..fap.table import PROSODY_FAPS
+from ..fap.table import HEAD_FAPS, PROSODY_FAPS
 from ..motion.conditions import CONDITION_ORDER, Condition
 from ..motion.expressivity import NEUTRAL, Expressivity
 
@@ -534,7 +534,7 @@ def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions,
             driven = fitted_features(features[other], own.n_frames)
             for seed in seeds:
                 curves = head_motion(model, driven, seed=seed)
-                rows.append(head_metrics(np.column_stack([curves[fap] for fap in (48, 49, 50)]), recorded,
+                rows.append(head_metrics(np.column_stack([curves[fap] for fap in HEAD_FAPS]), recorded,
                                          fps=own.fps, measured=measured))
         result[outcome.file] = average_head_metrics(rows) if rows else empty_head_metrics()
     return result

@@ -12,7 +12,7 @@ from audio_features import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_F
 from ..errors import ConfigError
 from ..fap.fapfile import read_fap
 from ..fap.stream import FapStream
-from ..fap.table import EYEBROW_FAPS
+from ..fap.table import EYEBROW_FAPS, HEAD_FAPS
 from ..motion.conditions import Condition, condition_stream
 from ..motion.expressions import ExpressionSegment
 from ..motion.expressivity import Expressivity
@@ -27,7 +27,8 @@ from ..motion.pad_head import PadHeadModel
 from ..motion.perlin import PerlinSettings
 
 #: Channels of the intensity controls and the FAPs each one drives.
-CHANNELS = {"pitch": (48,), "yaw": (49,), "roll": (50,), "brows": (31, 32, 33, 34), "lips": LIP_FAPS}
+CHANNELS = {"pitch": HEAD_FAPS[:1], "yaw": HEAD_FAPS[1:2], "roll": HEAD_FAPS[2:], "brows": EYEBROW_FAPS,
+            "lips": LIP_FAPS}
 
 
 class BaseResampledWarning(UserWarning):

@@ -22,6 +22,7 @@ import numpy as np
 from audio_features import Features
 
 from ..errors import ConfigError
+from ..fap.table import EYEBROW_FAPS
 
 
 class NoRaiseWarning(UserWarning):
@@ -157,7 +158,7 @@ class EyebrowRaises:
 
     def curves(self) -> dict[int, np.ndarray]:
         """FAP 31 = 32 (inner) and 33 = 34 (middle): both sides and both points move together."""
-        return {fap: self.displacement_ens.copy() for fap in (31, 32, 33, 34)}
+        return {fap: self.displacement_ens.copy() for fap in EYEBROW_FAPS}
 
 
 def eyebrow_raises(features: Features, rule: EyebrowRule | None = None) -> EyebrowRaises:

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from ..fap.table import EYEBROW_FAPS
 
 #: Per-clip standard deviation of head rotation in ../shared/data/talking-heads (median pose removed),
 #: averaged over its seven clips, in AU: pitch 4281, yaw 7196, roll 5437.
@@ -132,7 +133,7 @@ def perlin_curves(n_frames: int, *, fps: float, seed: int = 0, settings: PerlinS
     brows = np.maximum(fractal_noise(n_frames, fps=fps, seed=seed, settings=settings,
                                      channel=CHANNEL_KEYS["brows"]), 0.0)
     brows = _scaled(brows, eyebrow_std_ens)
-    curves = {fap: brows.copy() for fap in (31, 32, 33, 34)}
+    curves = {fap: brows.copy() for fap in EYEBROW_FAPS}
     for fap, offset in HEAD_OFFSETS_FRAMES.items():
         head = fractal_noise(n_frames, fps=fps, seed=seed, offset_frames=offset, settings=settings,
                              channel=CHANNEL_KEYS[fap])
