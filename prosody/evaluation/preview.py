@@ -35,7 +35,7 @@ from audio_features.atomic import atomic_path, atomic_write, interrupts_held
 
 from ..errors import ConfigError, PreviewError
 from ..fap.stream import FapStream
-from ..fap.table import HEAD_FAPS, RADIANS_PER_AU
+from ..fap.table import DISTANCE_UNITS_PER_REFERENCE, HEAD_FAPS, RADIANS_PER_AU
 
 #: Frame widths drawn, in pixels (3840: a 4K frame; drawing is done at twice the size).
 MIN_WIDTH, MAX_WIDTH = 64, 3840
@@ -90,7 +90,7 @@ class FaceModel:
     def eyelids(self, top_fap: float, bottom_fap: float) -> tuple[float, float]:
         """Heights (y) of the upper and lower eyelid of an eye, from its closing FAPs (19/20 top, 21/22 bottom,
         IRISD; positive closes): within the eye, and never past each other."""
-        shift = self.irisd0 / 1024
+        shift = self.irisd0 / DISTANCE_UNITS_PER_REFERENCE
         low, high = self.eye_y - self.eye_radius, self.eye_y + self.eye_radius
         top = min(high, max(low, self.eye_y + self.lid_rest * self.eye_radius - top_fap * shift))
         bottom = min(high, max(low, self.eye_y - self.lid_rest * self.eye_radius + bottom_fap * shift))
@@ -230,7 +230,7 @@ class FaceRenderer:
 
     def brow_points(self, pose: FacePose) -> dict[str, np.ndarray]:
         """Pixel polylines (inner, middle, outer) of the ``left`` and ``right`` brow (the character's)."""
-        model, unit = self.model, self.model.ens0 / 1024.0
+        model, unit = self.model, self.model.ens0 / DISTANCE_UNITS_PER_REFERENCE
         brows = {}
         for side, sign, raises in (("left", 1.0, pose.left_brow_ens), ("right", -1.0, pose.right_brow_ens)):
             points = np.array([(sign * x, y + raise_ens * unit, model.surface_z(x, y) + 0.01)
@@ -247,8 +247,8 @@ class FaceRenderer:
         """
         m = self.model
         lips = dict(pose.lip_faps)
-        mns = (m.nose_bottom_y - m.mouth_y) / 1024
-        mw = 2 * m.mouth_half_width / 1024
+        mns = (m.nose_bottom_y - m.mouth_y) / DISTANCE_UNITS_PER_REFERENCE
+        mw = 2 * m.mouth_half_width / DISTANCE_UNITS_PER_REFERENCE
         left = (m.mouth_half_width + lips.get(6, 0.0) * mw, m.mouth_y + lips.get(12, 0.0) * mns)
         right = (-(m.mouth_half_width + lips.get(7, 0.0) * mw), m.mouth_y + lips.get(13, 0.0) * mns)
         upper_middle = m.mouth_y - lips.get(4, 0.0) * mns

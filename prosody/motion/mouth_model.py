@@ -20,6 +20,7 @@ from audio_features import Audio
 from audio_features.spectral import N_SPECTRAL, cepstra, on_grid
 
 from ..errors import ModelError
+from ..fap.table import DISTANCE_UNITS_PER_REFERENCE
 from .lips import MNS_PER_EYE_WIDTH, MouthShape
 from .model_files import MAX_MODEL_MAGNITUDE, read_model_json, write_model_json
 
@@ -96,7 +97,8 @@ def context_features(frames: np.ndarray, n_frames: int, *, fps: float) -> np.nda
 
 def mouth_training_clip(audio: Audio, mouth, *, fps: float, name: str = "") -> MouthTrainingClip:
     """A training clip from audio and a :class:`~prosody.motion.ground_truth.RecordedMouth` on its grid."""
-    opening = (mouth.lip_opening - np.nanquantile(mouth.lip_opening, 0.05)) / MNS_PER_EYE_WIDTH * 1024
+    opening = (mouth.lip_opening - np.nanquantile(mouth.lip_opening, 0.05)) / MNS_PER_EYE_WIDTH \
+        * DISTANCE_UNITS_PER_REFERENCE
     rounding = mouth.rounding - np.nanquantile(mouth.rounding, 0.05)
     spread = mouth.mouth_width / np.nanmedian(mouth.mouth_width) - 1
     return MouthTrainingClip(name or audio.source, context_features(cepstra(audio), mouth.n_frames, fps=fps),
