@@ -364,7 +364,8 @@ class LiveMouth:
         if not frames.size:
             return
         gates = []
-        for db in frame_db(frames):
+        levels = frame_db(frames)
+        for db in levels:
             # the loud level of the last minute (its 95th percentile), as the whole recording's offline, taken
             # anew every LOUD_EVERY_FRAMES frames (0.1 s: a minute's level moves little in that time)
             self._recent_db.append(float(db))
@@ -375,7 +376,7 @@ class LiveMouth:
             gates.append(float(voice_gate(np.array(db), self._loud)))
         self._frames = np.vstack([self._frames, self._standardizer.push(frames)])
         self._gates = np.concatenate([self._gates, gates])
-        self._db = np.concatenate([self._db, frame_db(frames)])
+        self._db = np.concatenate([self._db, levels])
 
     def push(self, samples: np.ndarray) -> None:
         self._add(self._cepstra.push(samples))
