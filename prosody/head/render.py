@@ -1,0 +1,81 @@
+"""Frames of the head: a FAP frame -> the deformed, turned head -> a perspective view -> an RGB image.
+
+The camera looks at the head from the front, 95 cm away, framing it from the top of the hair to the
+shoulders; the image is drawn at :data:`SUPERSAMPLE` times its size and box-averaged down (smooth edges).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import sparse
+
+from ..errors import ConfigError
+from ..fap.table import N_FAPS
+from .raster import Canvas, downsample, rasterise
+from .rig import HeadRig, head_rig
+
+#: Camera distance from the head's origin and the point it looks at, in cm; half the view's height there.
+CAMERA_DISTANCE_CM = 95.0
+LOOK_AT_Y_CM = -2.5
+HALF_VIEW_CM = 16.5
+SUPERSAMPLE = 2
+BACKGROUND = (0.925, 0.933, 0.949)
+
+
+class HeadRenderer:
+    """Draws the head of ``rig`` in frames of ``width`` x ``height`` pixels.
+
+    Parameters
+    ----------
+    width, height : int >= 16
+        Image size in pixels; the view's height is fixed (the head fills about 70 % of it), a wider frame
+        shows more to the sides.
+    rig : HeadRig, optional
+        The head (default: the canonical one).
+    """
+
+    def __init__(self, width: int, height: int, *, rig: HeadRig | None = None) -> None:
+        if not (isinstance(width, (int, np.integer)) and isinstance(height, (int, np.integer))
+                and width >= 16 and height >= 16):
+            raise ConfigError(f"a head frame needs at least 16 x 16 pixels, got {width!r} x {height!r}")
+        self.width, self.height = int(width), int(height)
+        self.rig = rig or head_rig()
+        mesh = self.rig.mesh
+        self.triangles = mesh.triangles
+        n, m = mesh.n_vertices, len(mesh.triangles)
+        rows = mesh.triangles.reshape(-1)
+        columns = np.repeat(np.arange(m), 3)
+        # vertex normal = sum of its triangles' (area-weighted) normals
+        self._incidence = sparse.csr_matrix((np.ones(3 * m), (rows, columns)), shape=(n, m))
+        self._colors = mesh.colors.astype(np.float64)
+        self._canvas = Canvas(self.width * SUPERSAMPLE, self.height * SUPERSAMPLE)
+        self._triangles32 = np.ascontiguousarray(mesh.triangles, np.int32)
+
+    def project(self, vertices: np.ndarray, *, scale: int = 1) -> np.ndarray:
+        """Pixel x, y (from the top-left corner) and depth of head-axes ``vertices`` (n, 3)."""
+        w, h = self.width * scale, self.height * scale
+        focal = (h / 2) / (HALF_VIEW_CM / CAMERA_DISTANCE_CM)
+        depth = CAMERA_DISTANCE_CM - vertices[:, 2]
+        return np.column_stack([w / 2 + focal * vertices[:, 0] / depth,
+                                h / 2 - focal * (vertices[:, 1] - LOOK_AT_Y_CM) / depth, depth])
+
+    def normals(self, vertices: np.ndarray) -> np.ndarray:
+        t = self.triangles
+        face_normals = np.cross(vertices[t[:, 1]] - vertices[t[:, 0]], vertices[t[:, 2]] - vertices[t[:, 0]])
+        summed = self._incidence @ face_normals
+        return summed / np.maximum(np.linalg.norm(summed, axis=1, keepdims=True), 1e-12)
+
+    def render_vertices(self, vertices: np.ndarray) -> np.ndarray:
+        """RGB uint8 (height, width, 3) of the head with its vertices at ``vertices``."""
+        s = SUPERSAMPLE
+        image = rasterise(self.project(vertices, scale=s), self._triangles32, self.normals(vertices),
+                          self._colors, width=self.width * s, height=self.height * s, background=BACKGROUND,
+                          canvas=self._canvas)
+        return downsample(image, s)
+
+    def render(self, values: np.ndarray) -> np.ndarray:
+        """RGB uint8 (height, width, 3) of one frame's FAP values (68, FAP units; NaN and 0 are neutral)."""
+        values = np.asarray(values, float)
+        if values.shape != (N_FAPS,):
+            raise ConfigError(f"a head frame takes {N_FAPS} FAP values, got shape {values.shape}")
+        return self.render_vertices(self.rig.deform(values))
