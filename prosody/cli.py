@@ -474,6 +474,35 @@ def _frame_progress(output: str, verb: str = "drawn") -> Callable[[int, int], No
     return bar if bar.enabled else None
 
 
+def _say_unshown(stream, face: str, source: str) -> None:
+    """One line naming the FAPs of ``stream`` that ``face`` does not show (none: nothing said)."""
+    import numpy as np
+
+    present = [int(f) + 1 for f in np.flatnonzero(stream.mask.any(axis=0))]
+    if face == "head":
+        from .head.rig import head_rig
+
+        missing = head_rig().unsupported(present)
+    else:
+        from .evaluation.preview import DRAWN_FAPS
+
+        missing = [f for f in present if f not in DRAWN_FAPS]
+    if missing:
+        shown = "3D head" if face == "head" else "drawn face"
+        _say(f"{source}: the {shown} does not show FAP {_fap_ranges(missing)} (in the stream; left out)")
+
+
+def _fap_ranges(faps: list[int]) -> str:
+    """[1, 2, 3, 5] -> '1-3, 5'."""
+    runs: list[list[int]] = []
+    for fap in sorted(faps):
+        if runs and fap == runs[-1][-1] + 1:
+            runs[-1].append(fap)
+        else:
+            runs.append([fap])
+    return ", ".join(f"{run[0]}-{run[-1]}" if len(run) > 2 else ", ".join(map(str, run)) for run in runs)
+
+
 def _cmd_preview(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -507,9 +536,10 @@ def _cmd_preview(args: argparse.Namespace) -> int:
         except ValueError:
             raise ConfigError(f"--strip-scale takes BROW_ENS,HEAD_DEG (e.g. 30,10), got {args.strip_scale!r}") from None
         scales = (brow_ens, math.radians(head_deg) * 1e5)
+    _say_unshown(stream, args.face, args.input)
     write_preview(stream, args.output, audio=audio, width=args.width, exaggerate=args.exaggerate,
                   brow_scale=args.brow_scale, start_s=args.start, duration_s=args.duration,
-                  progress=_frame_progress(args.output), scales=scales)
+                  progress=_frame_progress(args.output), scales=scales, face=args.face, strip=not args.no_strip)
     sound = " with sound" if audio is not None and Path(args.output).suffix.lower() == ".mp4" else ""
     shown = stream.duration_s - min(args.start, stream.duration_s)
     if args.duration is not None:
@@ -1208,14 +1238,16 @@ def build_parser() -> argparse.ArgumentParser:
     convert.set_defaults(handler=_cmd_convert)
 
     preview = commands.add_parser(
-        "preview", help="draw the motion on a simple face, as an MP4 (with the audio) or a GIF",
-        description="Animate a drawn face from one condition's stream (as 'prosody convert' makes it), from "
-                    "a .fap file, or from this package's .json or stream .jsonl output: the head outline turns and "
-                    "tilts (FAP 48-50), the brows rise (FAP 31-36, drawn 4 times larger unless --brow-scale 1), "
-                    "the lips part and round (FAP 3-7, 12-13), the head and lips at true scale unless "
-                    "--exaggerate; a strip below plots the brow and head curves around the current frame. .mp4 "
-                    "(H.264, with the recording's audio) needs ffmpeg on PATH or the imageio-ffmpeg package; .gif "
-                    "(no sound, at most 1 minute at 30 fps) always works.",
+        "preview", help="play the motion on a 3D head, as an MP4 (with the audio) or a GIF",
+        description="Animate a 3D head from one condition's stream (as 'prosody convert' makes it), from any "
+                    ".fap file (Greta's, Xface's, SEMAINE's: the FAPs the head has no part for are named once), "
+                    "or from this package's .json or stream .jsonl output: the head turns about the neck (FAP "
+                    "48-50), the jaw, lips, lids, eyeballs, brows, cheeks, nose and tongue move by their FAPs "
+                    "(3-46, 51-64) in MPEG-4's units measured on the head, the brows drawn 4 times larger unless "
+                    "--brow-scale 1, all else at true scale unless --exaggerate; a strip below plots the brow and "
+                    "head curves around the current frame. --face drawn shows the older drawn face (head, brows, "
+                    "lips, lids), a diagnostic. .mp4 (H.264, with the recording's audio) needs ffmpeg on PATH or "
+                    "the imageio-ffmpeg package; .gif (no sound, at most 1 minute at 30 fps) always works.",
     )
     preview.add_argument("input", help="speech recording, or a .fap, .json or .jsonl stream to show as it is")
     preview.add_argument("-o", "--output", required=True, metavar="OUT.mp4|OUT.gif", help="video to write")
@@ -1229,6 +1261,9 @@ def build_parser() -> argparse.ArgumentParser:
     preview.add_argument("--brow-scale", type=_exaggeration, default=4.0, metavar="X",
                          help="draw the brow raises X times larger again (default 4, said on every frame: a brow "
                               "raise of speech is under a millimetre, invisible at true scale; 1: true size)")
+    preview.add_argument("--face", choices=("head", "drawn"), default="head",
+                         help="the 3D head (default) or the drawn diagnostic face")
+    preview.add_argument("--no-strip", action="store_true", help="the face alone, without the curve strip")
     preview.add_argument("--start", type=_seconds, default=0.0, metavar="S", help="first second shown (default 0)")
     preview.add_argument("--strip-scale", default=None, metavar="BROW_ENS,HEAD_DEG",
                          help="full scale of the curve strip: brow raise in ENS and head angle in degrees (default: "

@@ -130,6 +130,8 @@ class FacePose:
 DRAWN_LIP_FAPS = (3, 4, 5, 6, 7, 12, 13)
 #: Eyelid FAPs the drawn eyes show (top left, top right, bottom left, bottom right).
 EYELID_FAPS = (19, 20, 21, 22)
+#: Every FAP the drawn face shows.
+DRAWN_FAPS = DRAWN_LIP_FAPS + EYELID_FAPS + (31, 32, 33, 34, 35, 36) + HEAD_FAPS
 
 
 def rotation(pitch_rad: float, yaw_rad: float, roll_rad: float) -> np.ndarray:
@@ -338,11 +340,16 @@ class FaceRenderer:
             for points in self.brow_points(pose).values():
                 draw.line(flat(points), fill=BROW_COLOR, width=5 * s, joint="curve")
 
-        face = image.reduce(s)  # box average of s x s pixels
-        frame = Image.new("RGB", (w, self.height), _BACKGROUND)
-        frame.paste(face, (0, 0))
+        return self.compose(np.asarray(image.reduce(s)), strip=strip, caption=caption)  # box average of s x s
+
+    def compose(self, face: np.ndarray, *, strip: np.ndarray | None = None, caption: str = "") -> np.ndarray:
+        """The frame: ``face`` (face_height, width, 3) on top, the strip below it, the caption over the face."""
+        from PIL import Image, ImageDraw
+
+        frame = Image.new("RGB", (self.width, self.height), _BACKGROUND)
+        frame.paste(Image.fromarray(face), (0, 0))
         if strip is not None:
-            frame.paste(Image.fromarray(strip), (0, fh))
+            frame.paste(Image.fromarray(strip), (0, self.face_height))
         if caption:
             ImageDraw.Draw(frame).text((6, 4), caption, fill=(60, 60, 60))
         return np.asarray(frame)
@@ -417,11 +424,28 @@ def strip_scales(streams: list[FapStream]) -> tuple[float, float]:
     return brow, head
 
 
+#: The faces a preview can show: the 3D head (every FAP it has a part for) or the drawn diagnostic face.
+FACES = ("head", "drawn")
+
+
+def head_values(stream: FapStream, *, exaggerate: float = 1.0, brow_scale: float = 1.0) -> np.ndarray:
+    """The (frames, 68) FAP values the head shows: masked-off FAPs 0 (neutral); head angles and brow raises
+    times ``exaggerate``, the brows ``brow_scale`` times more; outer brows following the middle ones where the
+    stream has none (as in the Live Link export)."""
+    values = np.where(stream.mask, np.nan_to_num(stream.values), 0.0)
+    for outer, middle in ((35, 33), (36, 34)):
+        if not stream.mask[:, outer - 1].any():
+            values[:, outer - 1] = values[:, middle - 1]
+    values[:, 30:36] *= exaggerate * brow_scale
+    values[:, 47:50] *= exaggerate
+    return values
+
+
 def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.0,
                   brow_scale: float = BROW_VIEW_SCALE,
                   first_frame: int = 0, n_frames: int | None = None, strip: bool = True,
                   label: str | None = None, scales: tuple[float, float] | None = None,
-                  captioned: bool = True) -> Iterator[np.ndarray]:
+                  captioned: bool = True, face: str = "head") -> Iterator[np.ndarray]:
     """Frames of the preview of ``stream``, one RGB array (height, width, 3) uint8 per stream frame.
 
     Parameters
@@ -444,6 +468,9 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
         The strip's brow (ENS) and head (AU) scales; default: this stream's largest magnitudes.
     captioned : bool
         Write the name, time and drawing scale at the top (False: the face alone, as a study shows it).
+    face : {"head", "drawn"}
+        The 3D head (:mod:`prosody.head`, every FAP it has a part for) or the drawn face (head, brows, lips
+        and lids only; a diagnostic).
 
     Examples
     --------
@@ -456,6 +483,8 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
         raise ConfigError(f"exaggerate must be a positive number, got {exaggerate!r}")
     if not (math.isfinite(brow_scale) and brow_scale > 0):
         raise ConfigError(f"brow_scale must be a positive number, got {brow_scale!r}")
+    if face not in FACES:
+        raise ConfigError(f"the face is one of {', '.join(FACES)}, not {face!r}")
     renderer = FaceRenderer(width, strip=strip)
     curves = CurveStrip(stream, width=renderer.width, height=max(1, renderer.height - renderer.face_height),
                         scales=scales)
@@ -463,10 +492,21 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
     excerpt = FapStream(stream.values[first_frame:last], stream.mask[first_frame:last], stream.fps, stream.name)
     note = (f"  x{exaggerate:g}" if exaggerate != 1 else "") + (
         f"  brows x{exaggerate * brow_scale:g}" if brow_scale != 1 and stream.mask[:, 30:36].any() else "")
-    for offset, pose in enumerate(poses(excerpt, exaggerate=exaggerate, brow_scale=brow_scale)):
+    def caption(frame: int) -> str:
+        return f"{label or stream.name}  {frame / stream.fps:7.2f} s{note}" if captioned else ""
+
+    if face == "drawn":
+        for offset, pose in enumerate(poses(excerpt, exaggerate=exaggerate, brow_scale=brow_scale)):
+            frame = first_frame + offset
+            yield renderer.render(pose, strip=curves.render(frame) if strip else None, caption=caption(frame))
+        return
+    from ..head.render import HeadRenderer
+
+    head = HeadRenderer(renderer.width, renderer.face_height)
+    for offset, values in enumerate(head_values(excerpt, exaggerate=exaggerate, brow_scale=brow_scale)):
         frame = first_frame + offset
-        text = f"{label or stream.name}  {frame / stream.fps:7.2f} s{note}" if captioned else ""
-        yield renderer.render(pose, strip=curves.render(frame) if strip else None, caption=text)
+        yield renderer.compose(head.render(values), strip=curves.render(frame) if strip else None,
+                               caption=caption(frame))
 
 
 def find_ffmpeg() -> str | None:
@@ -552,8 +592,8 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
                   width: int = 480, exaggerate: float = 1.0, start_s: float = 0.0, duration_s: float | None = None,
                   ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None,
                   scales: tuple[float, float] | None = None, brow_scale: float = BROW_VIEW_SCALE,
-                  strip: bool = True, captioned: bool = True) -> Path:
-    """Write the drawn-face preview of ``stream`` to ``output`` (``.mp4`` or ``.gif``).
+                  strip: bool = True, captioned: bool = True, face: str = "head") -> Path:
+    """Write the preview of ``stream`` (the 3D head, or the drawn face) to ``output`` (``.mp4`` or ``.gif``).
 
     Parameters
     ----------
@@ -580,6 +620,8 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
         Give the same scales to previews that will be compared.
     strip, captioned : bool
         Draw the curve strip and the caption (False and False: the face alone, a study's stimulus).
+    face : {"head", "drawn"}
+        The 3D head (default) or the drawn diagnostic face.
 
     Returns
     -------
@@ -589,14 +631,14 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
         raise ConfigError(f"strip scales must be positive numbers, got {scales!r}")
     return _write_video([(None, stream)], output, audio=audio, width=width, exaggerate=exaggerate,
                         brow_scale=brow_scale, start_s=start_s, duration_s=duration_s, ffmpeg=ffmpeg,
-                        progress=progress, scales=scales, strip=strip, captioned=captioned)
+                        progress=progress, scales=scales, strip=strip, captioned=captioned, face=face)
 
 
 def write_side_by_side(streams: Mapping[str, FapStream], output: str | os.PathLike[str], *,
                        audio: str | os.PathLike[str] | None = None, panel_width: int = 320,
                        exaggerate: float = 1.0, start_s: float = 0.0, duration_s: float | None = None,
                        ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None,
-                       brow_scale: float = BROW_VIEW_SCALE) -> Path:
+                       brow_scale: float = BROW_VIEW_SCALE, face: str = "head") -> Path:
     """One video of several streams side by side, each face labelled with its name, with the recording's
     audio: the stimulus of a paired-comparison study, and the quickest way to judge the motion by eye.
 
@@ -607,14 +649,15 @@ def write_side_by_side(streams: Mapping[str, FapStream], output: str | os.PathLi
         raise ConfigError("no stream to draw")
     return _write_video(list(streams.items()), output, audio=audio, width=panel_width, exaggerate=exaggerate,
                         brow_scale=brow_scale, start_s=start_s, duration_s=duration_s, ffmpeg=ffmpeg,
-                        progress=progress, scales=None)
+                        progress=progress, scales=None, face=face)
 
 
 def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.PathLike[str], *,
                  audio: str | os.PathLike[str] | None, width: int, exaggerate: float, brow_scale: float,
                  start_s: float,
                  duration_s: float | None, ffmpeg: str | None, progress: Callable[[int, int], None] | None,
-                 scales: tuple[float, float] | None, strip: bool = True, captioned: bool = True) -> Path:
+                 scales: tuple[float, float] | None, strip: bool = True, captioned: bool = True,
+                 face: str = "head") -> Path:
     """The panels (label, stream) side by side as one .mp4 or .gif; the strips share ``scales`` (default:
     what fits every stream)."""
     path = Path(output)
@@ -632,7 +675,8 @@ def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.Pa
     count = n - first if duration_s is None else min(n - first, max(1, round(duration_s * fps)))
     shared = scales if scales is not None else strip_scales([s for _, s in panels])
     drawn = [render_frames(s, width=width, exaggerate=exaggerate, brow_scale=brow_scale, first_frame=first,
-                           n_frames=count, label=label, scales=shared, strip=strip, captioned=captioned)
+                           n_frames=count, label=label, scales=shared, strip=strip, captioned=captioned,
+                           face=face)
              for label, s in panels]
     frames: Iterator[np.ndarray] = drawn[0] if len(drawn) == 1 else (np.hstack(row) for row in zip(*drawn,
                                                                                                   strict=True))

@@ -1,7 +1,8 @@
 """Frames of the head: a FAP frame -> the deformed, turned head -> a perspective view -> an RGB image.
 
 The camera looks at the head from the front, 95 cm away, framing it from the top of the hair to the
-shoulders; the image is drawn at :data:`SUPERSAMPLE` times its size and box-averaged down (smooth edges).
+shoulders; the image is drawn at :data:`SUPERSAMPLE` times its size and box-averaged down (smooth edges),
+frames larger than :data:`SUPERSAMPLED_PIXELS` at their size (their pixels are small enough).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ CAMERA_DISTANCE_CM = 95.0
 LOOK_AT_Y_CM = -2.5
 HALF_VIEW_CM = 16.5
 SUPERSAMPLE = 2
+SUPERSAMPLED_PIXELS = 1920 * 1080
 BACKGROUND = (0.925, 0.933, 0.949)
 
 
@@ -48,7 +50,8 @@ class HeadRenderer:
         # vertex normal = sum of its triangles' (area-weighted) normals
         self._incidence = sparse.csr_matrix((np.ones(3 * m), (rows, columns)), shape=(n, m))
         self._colors = mesh.colors.astype(np.float64)
-        self._canvas = Canvas(self.width * SUPERSAMPLE, self.height * SUPERSAMPLE)
+        self.supersample = SUPERSAMPLE if self.width * self.height <= SUPERSAMPLED_PIXELS else 1
+        self._canvas = Canvas(self.width * self.supersample, self.height * self.supersample)
         self._triangles32 = np.ascontiguousarray(mesh.triangles, np.int32)
 
     def project(self, vertices: np.ndarray, *, scale: int = 1) -> np.ndarray:
@@ -67,11 +70,11 @@ class HeadRenderer:
 
     def render_vertices(self, vertices: np.ndarray) -> np.ndarray:
         """RGB uint8 (height, width, 3) of the head with its vertices at ``vertices``."""
-        s = SUPERSAMPLE
+        s = self.supersample
         image = rasterise(self.project(vertices, scale=s), self._triangles32, self.normals(vertices),
                           self._colors, width=self.width * s, height=self.height * s, background=BACKGROUND,
                           canvas=self._canvas)
-        return downsample(image, s)
+        return downsample(image, s) if s > 1 else (image * 255.0 + 0.5).astype(np.uint8)
 
     def render(self, values: np.ndarray) -> np.ndarray:
         """RGB uint8 (height, width, 3) of one frame's FAP values (68, FAP units; NaN and 0 are neutral)."""
