@@ -44,6 +44,7 @@ evaluate: $(STAMP)
 	$(BIN)/python benchmarks/live_loco.py
 	$(BIN)/python benchmarks/mouth_loco.py
 	$(BIN)/python benchmarks/train_live_mouth.py
+	$(BIN)/python benchmarks/head_loop.py
 
 clean:
 	rm -rf $(VENV) out build *.egg-info .pytest_cache

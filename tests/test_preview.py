@@ -1,4 +1,4 @@
-"""The drawn-face preview: brow height follows FAP 31-36, head angles move the face with the FAP signs, and
+"""The drawn-face preview (``face="drawn"``; the 3D head is tested in test_head3d.py): brow height follows FAP 31-36, head angles move the face with the FAP signs, and
 the GIF and MP4 writers produce complete files (or none)."""
 
 from __future__ import annotations
@@ -47,7 +47,8 @@ def _brows(frame: np.ndarray, renderer: FaceRenderer) -> tuple[np.ndarray, np.nd
 
 
 def _frames(curves: dict[int, np.ndarray], *, brow_scale: float = 1.0) -> list[np.ndarray]:
-    return list(render_frames(FapStream.from_curves(curves, fps=30), width=WIDTH, strip=False, brow_scale=brow_scale))
+    return list(render_frames(FapStream.from_curves(curves, fps=30), width=WIDTH, strip=False, brow_scale=brow_scale,
+                              face="drawn"))
 
 
 def test_brow_height_follows_fap_31_to_36_at_true_scale() -> None:
@@ -67,7 +68,7 @@ def test_fap_31_raises_the_inner_end_of_the_characters_left_brow_only() -> None:
     width = 640
     renderer = FaceRenderer(width)
     frames = list(render_frames(FapStream.from_curves({31: np.array([0.0, 800.0]), 32: np.zeros(2)}, fps=30),
-                                width=width, strip=False, brow_scale=1))
+                                width=width, strip=False, brow_scale=1, face="drawn"))
     rise_px = 800 / 1024 * renderer.ens_pixels
     inner_x, middle_x, outer_x = renderer.brow_points(FacePose())["left"][:, 0]
     neutral_left, neutral_right = _brows(frames[0], renderer)
@@ -266,7 +267,7 @@ def test_brows_are_drawn_four_times_larger_by_default_and_every_frame_says_so() 
     renderer = FaceRenderer(WIDTH)
     true_size = _frames({fap: raises for fap in (31, 32, 33, 34)})
     default = list(render_frames(FapStream.from_curves({fap: raises for fap in (31, 32, 33, 34)}, fps=30),
-                                 width=WIDTH, strip=False))
+                                 width=WIDTH, strip=False, face="drawn"))
     rise = [_centroid(_brows(f[0], renderer)[0])[1] - _centroid(_brows(f[1], renderer)[0])[1]
             for f in (true_size, default)]
     assert rise[1] == pytest.approx(4 * rise[0], rel=0.1)

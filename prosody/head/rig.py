@@ -166,7 +166,8 @@ def build_rig(mesh: HeadMesh) -> HeadRig:
     supported.add(3)
     put(14, jaw)
     put(15, jaw)
-    put(18, jaw * _falloff(np.linalg.norm(layout - mesh.point("2.10"), axis=1), 2.2) * (y < lips.mouth_y(x) - 0.6))
+    chin_boss = layout[mesh.feature_points["2.10"]]
+    put(18, jaw * _falloff(np.linalg.norm(layout - chin_boss, axis=1), 2.2) * (y < lips.mouth_y(x) - 0.6))
 
     # the lips
     inner = np.zeros(n)
@@ -180,30 +181,45 @@ def build_rig(mesh: HeadMesh) -> HeadRig:
     lower = np.zeros(n)
     lower[:N_FACE_VERTICES] = np.where(lips.in_lips, ~lips.upper, face_jaw)
     on_face = face.astype(float)
-    corner = lips.corner_x
-    knots = [-corner, float(mesh.point("2.7")[0]), 0.0, float(mesh.point("2.6")[0]), corner]
-    along = _hats(x, knots)
-    beyond = _falloff(np.maximum(np.abs(x) - corner, 0.0), 1.6)  # past the corners the corner's hat fades
-    along[0] *= np.where(x < -corner, beyond, 1.0)
-    along[-1] *= np.where(x > corner, beyond, 1.0)
-    # vertical: (upper middle, upper midpoints, lower middle, lower midpoints, corners) inner then outer
-    for depth, faps in ((inner, (4, 8, 9, 5, 10, 11, 12, 13)), (skin, (51, 55, 56, 52, 57, 58, 59, 60))):
+
+    def point(name: str) -> np.ndarray:
+        return layout[mesh.feature_points[name]]
+
+    def hats_through(names: tuple[str, str, str, str, str]) -> tuple[np.ndarray, float]:
+        """Hats through (right corner, right midpoint, middle, left midpoint, left corner), faded past the
+        corners; and the corners' distance from the middle."""
+        knots = [float(point(name)[0]) for name in names]
+        corner_x = (knots[-1] - knots[0]) / 2
+        along = _hats(x, knots)
+        past = _falloff(np.maximum(np.abs(x) - corner_x, 0.0), 1.6)  # past the corners the corner's hat fades
+        along[0] *= np.where(x < -corner_x, past, 1.0)
+        along[-1] *= np.where(x > corner_x, past, 1.0)
+        return along, corner_x
+
+    # vertical: (upper middle, upper midpoints, lower middle, lower midpoints, corners) inner, then outer
+    rings = ((inner, (4, 8, 9, 5, 10, 11, 12, 13), ("2.5", "2.7", "2.2", "2.6", "2.4"),
+              ("2.5", "2.9", "2.3", "2.8", "2.4"), (6, 7)),
+             (skin, (51, 55, 56, 52, 57, 58, 59, 60), ("8.4", "8.6", "8.1", "8.5", "8.3"),
+              ("8.4", "8.8", "8.2", "8.7", "8.3"), (53, 54)))
+    for depth, faps, upper_points, lower_points, (stretch_l, stretch_r) in rings:
         t_mid, t_l, t_r, b_mid, b_l, b_r, c_l, c_r = faps
-        put(t_mid, depth * upper * along[2])
-        put(t_l, depth * upper * along[3])
-        put(t_r, depth * upper * along[1])
-        put(b_mid, depth * lower * along[2])
-        put(b_l, depth * lower * along[3])
-        put(b_r, depth * lower * along[1])
-        put(c_l, depth * on_face * along[4])
-        put(c_r, depth * on_face * along[0])
-    # horizontal: the corners stretch the lip evenly from the middle
-    for depth, (left, right) in ((inner, (6, 7)), (skin, (53, 54))):
-        spread = np.clip(np.abs(x) / corner, 0, 1) * np.where(np.abs(x) > corner, beyond, 1.0)
-        put(left, depth * on_face * spread * (x > 0))
-        put(right, depth * on_face * spread * (x < 0))
-    put(16, lower * on_face * _falloff(np.linalg.norm(layout - mesh.point("2.3"), axis=1), 2.2))
-    put(17, upper * on_face * _falloff(np.linalg.norm(layout - mesh.point("2.2"), axis=1), 2.2))
+        top, corner_x = hats_through(upper_points)
+        bottom, _ = hats_through(lower_points)
+        put(t_mid, depth * upper * top[2])
+        put(t_l, depth * upper * top[3])
+        put(t_r, depth * upper * top[1])
+        put(b_mid, depth * lower * bottom[2])
+        put(b_l, depth * lower * bottom[3])
+        put(b_r, depth * lower * bottom[1])
+        put(c_l, depth * on_face * np.maximum(upper * top[4], lower * bottom[4]))
+        put(c_r, depth * on_face * np.maximum(upper * top[0], lower * bottom[0]))
+        # horizontal: the corners stretch the lip evenly from the middle
+        past = _falloff(np.maximum(np.abs(x) - corner_x, 0.0), 1.6)
+        spread = np.clip(np.abs(x) / corner_x, 0, 1) * np.where(np.abs(x) > corner_x, past, 1.0)
+        put(stretch_l, depth * on_face * spread * (x > 0))
+        put(stretch_r, depth * on_face * spread * (x < 0))
+    put(16, lower * on_face * _falloff(np.linalg.norm(layout - point("2.3"), axis=1), 2.2))
+    put(17, upper * on_face * _falloff(np.linalg.norm(layout - point("2.2"), axis=1), 2.2))
 
     # the eyelids: the edge in proportion to its opening, the lid above (or below) it following
     for fap_top, fap_bottom, (upper_ring, lower_ring) in ((19, 21, LIDS_LEFT), (20, 22, LIDS_RIGHT)):
@@ -232,7 +248,7 @@ def build_rig(mesh: HeadMesh) -> HeadRig:
         edge_up, edge_down = layout[list(brow_upper)], layout[list(brow_lower)]
         side = sign * x
         names = ("4.1", "4.3", "4.5") if sign > 0 else ("4.2", "4.4", "4.6")
-        positions = [abs(float(mesh.point(name)[0])) for name in names]
+        positions = [abs(float(layout[mesh.feature_points[name], 0])) for name in names]
         hats = _hats(side, positions)  # inner, middle, outer; flat past both ends
         hats[0] *= np.clip(0.5 + side / (2 * positions[0]), 0, 1)  # across the middle: half each side
         order_up, order_down = np.argsort(sign * edge_up[:, 0]), np.argsort(sign * edge_down[:, 0])
@@ -250,9 +266,9 @@ def build_rig(mesh: HeadMesh) -> HeadRig:
         put(squeeze, region)
 
     # cheeks, nose
-    for fap, point, radius in ((39, "5.1", 2.2), (40, "5.2", 2.2), (41, "5.3", 2.2), (42, "5.4", 2.2),
+    for fap, where, radius in ((39, "5.1", 2.2), (40, "5.2", 2.2), (41, "5.3", 2.2), (42, "5.4", 2.2),
                                (61, "9.1", 0.9), (62, "9.2", 0.9), (63, "9.3", 1.4), (64, "9.3", 1.4)):
-        distance = np.linalg.norm(layout - mesh.point(point), axis=1)
+        distance = np.linalg.norm(layout - layout[mesh.feature_points[where]], axis=1)
         weights = _falloff(distance, radius) * face
         if fap in (41, 42):
             weights *= 1.0 - jaw

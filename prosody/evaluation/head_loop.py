@@ -1,0 +1,106 @@
+"""The head's closed loop: known motion -> ``prosody preview`` -> ``prosody track`` -> the motion measured back.
+
+A FAP stream with known motion (the head turning on three axes with different periods, the jaw opening and
+closing, the brows rising and falling, each on its own period so that no two are alike) is rendered on the 3D
+head at true scale and tracked back with the face tracker. The tracked head angles are compared with the FAP
+angles per axis (correlation and spread ratio: true amplitude gives 1), the tracked lip opening with the jaw,
+the tracked brow heights with the raises, and the share of frames where the face was found is counted.
+
+Pass marks (issue 37): |r| >= 0.9 per head axis with a spread ratio in 0.75-1.33, r >= 0.9 for the lips,
+r >= 0.8 for the brows, the face found in >= 98 % of frames.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..fap.stream import FapStream
+from ..fap.table import RADIANS_PER_AU
+
+#: Periods (s) and amplitudes of the known motion: pitch, yaw, roll in degrees; jaw in MNS; brows in ENS.
+PERIODS_S = {"pitch": 4.1, "yaw": 5.3, "roll": 3.3, "jaw": 1.7, "brows": 2.3}
+AMPLITUDES = {"pitch": 10.0, "yaw": 15.0, "roll": 8.0, "jaw": 500.0, "brows": 250.0}
+PASS = {"head_r": 0.9, "spread": (0.75, 1.33), "lips_r": 0.9, "brows_r": 0.8, "found": 0.98}
+
+
+def known_motion(duration_s: float, *, fps: float = 30.0) -> FapStream:
+    """The loop's FAP stream: head sinusoids, a jaw opening 0..amplitude, brows raised and lowered."""
+    t = np.arange(round(duration_s * fps)) / fps
+    degrees_to_au = math.radians(1.0) / RADIANS_PER_AU
+
+    def wave(name: str, phase: float = 0.0) -> np.ndarray:
+        return np.sin(2 * np.pi * t / PERIODS_S[name] + phase)
+
+    curves = {48: AMPLITUDES["pitch"] * degrees_to_au * wave("pitch"),
+              49: AMPLITUDES["yaw"] * degrees_to_au * wave("yaw", 0.7),
+              50: AMPLITUDES["roll"] * degrees_to_au * wave("roll", 1.9),
+              3: AMPLITUDES["jaw"] * 0.5 * (1 - np.cos(2 * np.pi * t / PERIODS_S["jaw"]))}
+    brows = AMPLITUDES["brows"] * wave("brows", 0.3)
+    for fap in range(31, 37):
+        curves[fap] = brows
+    return FapStream.from_curves(curves, fps=fps, name="head loop")
+
+
+def _read(path: Path) -> dict[str, np.ndarray]:
+    with open(path, newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    names = rows[0].keys() if rows else []
+    return {name: np.array([float(row[name]) if row[name] else np.nan for row in rows]) for name in names}
+
+
+@dataclass(frozen=True)
+class LoopResult:
+    """What came back: correlation and spread ratio per head axis, lips and brows r, share of frames found."""
+
+    head_r: dict[str, float]
+    head_spread: dict[str, float]
+    lips_r: float
+    brows_r: float
+    found: float
+    frames: int
+
+    @property
+    def passed(self) -> bool:
+        low, high = PASS["spread"]
+        return (all(abs(r) >= PASS["head_r"] for r in self.head_r.values())
+                and all(low <= s <= high for s in self.head_spread.values())
+                and self.lips_r >= PASS["lips_r"] and self.brows_r >= PASS["brows_r"] and self.found >= PASS["found"])
+
+    def lines(self) -> list[str]:
+        head = ", ".join(f"{axis} r {self.head_r[axis]:.3f} spread {self.head_spread[axis]:.2f}"
+                         for axis in self.head_r)
+        return [f"frames {self.frames}, face found in {100 * self.found:.1f} %",
+                f"head: {head}", f"lip opening vs jaw r {self.lips_r:.3f}", f"brows r {self.brows_r:.3f}",
+                "pass" if self.passed else "FAIL"]
+
+
+def measure(stream: FapStream, stem: str | Path) -> LoopResult:
+    """Compare ``stream`` with what ``prosody track`` wrote at ``stem`` (``<stem>.head.csv`` and the rest)."""
+    stem = Path(stem)
+    head = _read(stem.with_name(stem.name + ".head.csv"))
+    brows = _read(stem.with_name(stem.name + ".brows.csv"))
+    mouth = _read(stem.with_name(stem.name + ".mouth.csv"))
+    n = min(stream.n_frames, len(head["rx_rad"]))
+    found = np.isfinite(head["rx_rad"][:n])
+
+    def pair(truth: np.ndarray, tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        keep = found & np.isfinite(tracked[:n])
+        return truth[:n][keep], tracked[:n][keep]
+
+    head_r, head_spread = {}, {}
+    for axis, fap, column in (("pitch", 48, "rx_rad"), ("yaw", 49, "ry_rad"), ("roll", 50, "rz_rad")):
+        truth, tracked = pair(stream.curve(fap) * RADIANS_PER_AU, head[column])
+        head_r[axis] = float(np.corrcoef(truth, tracked)[0, 1])
+        head_spread[axis] = float(np.std(tracked) / np.std(truth))
+    truth, tracked = pair(stream.curve(3), mouth["lip_opening"])
+    lips_r = float(np.corrcoef(truth, tracked)[0, 1])
+    heights = np.mean([brows[name] for name in ("inner_height_l", "inner_height_r", "outer_height_l",
+                                                 "outer_height_r")], axis=0)
+    truth, tracked = pair(stream.curve(31), heights)
+    brows_r = float(np.corrcoef(truth, tracked)[0, 1])
+    return LoopResult(head_r, head_spread, lips_r, brows_r, float(found.mean()), n)
