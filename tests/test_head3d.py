@@ -3,6 +3,7 @@ standard's direction, the head turning with the FAP signs, frames that show it, 
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -211,3 +212,44 @@ def test_the_closed_loop_tracks_back_the_motion_the_head_was_given(tmp_path: Pat
     result = measure(stream, tmp_path / "tracked" / "loop")
     assert result.passed, "\n".join(result.lines())
     assert result.frames == stream.n_frames
+
+
+def test_convert_writes_an_animated_gltf_head_that_a_reader_opens(tmp_path: Path) -> None:
+    pygltflib = pytest.importorskip("pygltflib", reason="the glTF reader of the tests (pip install pygltflib)")
+    from prosody.fap.exporters import write_stream
+    from prosody.head.gltf import target_scale
+
+    frames = 12
+    stream = FapStream.from_curves({3: np.linspace(0, 600, frames), 31: np.full(frames, 120.0),
+                                    49: np.linspace(0, 30000, frames)}, fps=25)
+    assert write_stream(stream, tmp_path / "talk.glb") == "gltf"
+    gltf = pygltflib.GLTF2().load(str(tmp_path / "talk.glb"))
+    blob = gltf.binary_blob()
+
+    def read(index: int, width: int) -> np.ndarray:
+        accessor = gltf.accessors[index]
+        view = gltf.bufferViews[accessor.bufferView]
+        dtype = np.uint32 if accessor.componentType == 5125 else np.float32
+        data = np.frombuffer(blob, dtype, count=accessor.count * width, offset=view.byteOffset + (
+            accessor.byteOffset or 0))
+        return data.reshape(accessor.count, width) if width > 1 else data
+
+    head = gltf.meshes[0]
+    names = head.extras["targetNames"]
+    assert len(head.primitives[0].targets) == len(names) >= 10
+    animation = gltf.animations[0]
+    times = read(animation.samplers[0].input, 1)
+    assert times[-1] == pytest.approx((frames - 1) / 25) and len(times) == frames
+    weights = read(animation.samplers[0].output, 1).reshape(frames, len(names))
+    jaw = names.index("open_jaw")
+    assert weights[:, jaw] == pytest.approx(np.linspace(0, 600, frames) / target_scale(3), rel=1e-6)
+    assert weights[:, names.index("raise_l_i_eyebrow")] == pytest.approx(np.full(frames, 120 / 1024), rel=1e-6)
+    # the jaw's target moves the chin down by 1024 MNS units (in metres)
+    chin_target = read(head.primitives[0].targets[jaw]["POSITION"], 3)
+    rotates = np.flatnonzero(MESH.rotates)
+    chin = int(np.flatnonzero(rotates == MESH.feature_points["2.1"])[0])
+    assert chin_target[chin, 1] == pytest.approx(-MESH.units.mns0 / 100, rel=1e-5)
+    # the last frame's head rotation: yaw 0.3 rad about +y
+    rotation_keys = read(animation.samplers[1].output, 4)
+    assert rotation_keys[-1] == pytest.approx([0.0, math.sin(0.15), 0.0, math.cos(0.15)], abs=1e-6)
+    assert [c.target.path for c in animation.channels] == ["weights", "rotation"]

@@ -9,7 +9,8 @@ import pytest
 from conftest import REPO
 
 #: The layers, lowest first: a module may import its own layer and the ones before it.
-LAYERS = ("prosody", "prosody.errors", "prosody.fap", "prosody.measures", "prosody.motion", "prosody.tracking",
+LAYERS = ("prosody", "prosody.errors", "prosody.fap", "prosody.head", "prosody.measures", "prosody.motion",
+          "prosody.tracking",
           "prosody.evaluation", "prosody.jobs", "prosody.cli", "prosody.__main__")
 
 

@@ -12,6 +12,7 @@ Formats and their mapping from FAP units (SPEC section 1; AU = 1e-5 rad, ENS = e
   ``Zrotation Yrotation Xrotation`` in degrees: Xrotation = head pitch (FAP 48, + bows down), Yrotation = head
   yaw (FAP 49, + turns to the character's left), Zrotation = head roll (FAP 50, + tilts to the character's
   right); the order composes R = Rz Ry Rx like the recordings of SPEC section 9. Brows are not in BVH.
+- ``gltf``: the 3D head animated by the stream, as binary glTF 2.0 (``.glb``; :mod:`prosody.head.gltf`).
 - ``livelink``: Live Link Face style CSV (``*.livelink.csv``): ``Timecode,BlendShapeCount`` then the 52 ARKit
   blendshape columns and ``HeadYaw,HeadPitch,HeadRoll`` plus the six eye angles. Head angles in radians with
   the FAPs' signs (HeadYaw + to the character's left, HeadPitch + down, HeadRoll + to its right); BrowInnerUp is
@@ -264,14 +265,29 @@ WRITERS: dict[str, tuple[Writer, tuple[str, ...]]] = {
 }
 
 
+#: Writers of higher layers (the 3D head), named by "module:function" and loaded when first used, so that
+#: this layer imports nothing above it.
+DEFERRED_WRITERS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "gltf": ("prosody.head.gltf:write_glb", (".glb",)),
+}
+
+
+def _deferred(reference: str) -> Writer:
+    import importlib
+
+    module, _, function = reference.partition(":")
+    return getattr(importlib.import_module(module), function)
+
+
 def format_for(path: str | os.PathLike[str], format_name: str | None = None) -> str:
     """The format name for an output path (from ``format_name`` when given, else from the extension)."""
+    known_formats = {**WRITERS, **DEFERRED_WRITERS}
     if format_name is not None:
-        if format_name not in WRITERS:
-            raise ConfigError(f"unknown output format {format_name!r}; choose one of {', '.join(WRITERS)}")
+        if format_name not in known_formats:
+            raise ConfigError(f"unknown output format {format_name!r}; choose one of {', '.join(known_formats)}")
         return format_name
     name = str(path).lower()
-    endings = sorted(((ending, fmt) for fmt, (_, ends) in WRITERS.items() for ending in ends),
+    endings = sorted(((ending, fmt) for fmt, (_, ends) in known_formats.items() for ending in ends),
                      key=lambda item: -len(item[0]))
     for ending, candidate in endings:
         if name.endswith(ending):
@@ -284,5 +300,6 @@ def format_for(path: str | os.PathLike[str], format_name: str | None = None) -> 
 def write_stream(stream: FapStream, path: str | os.PathLike[str], format_name: str | None = None) -> str:
     """Write ``stream`` to ``path`` in the named (or extension-implied) format; returns the format name."""
     chosen = format_for(path, format_name)
-    WRITERS[chosen][0](stream, Path(path))
+    writer = WRITERS[chosen][0] if chosen in WRITERS else _deferred(DEFERRED_WRITERS[chosen][0])
+    writer(stream, Path(path))
     return chosen
