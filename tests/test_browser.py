@@ -97,27 +97,77 @@ def test_page_reconnects_when_the_server_comes_back(browser):
         second.close(drain_s=0.1)
 
 
-def test_page_draws_an_open_mouth_apart_from_a_closed_one(frame_server, browser, tmp_path):
+def _show(driver, server, faps: dict, first: int) -> np.ndarray:
+    """Publish three frames of ``faps`` and return the face square once the page has drawn them."""
+    server.publish([LiveFrame(k, k / 30, faps) for k in range(first, first + 3)])
+    _wait_for(driver, f"return window.prosodyStats.inputFrames >= {first + 3}")
+    time.sleep(0.3)  # a few animation frames
+    return _face(driver)
+
+
+def _pixels(points: np.ndarray, size: int) -> np.ndarray:
+    """Head-axes points (n, 3) -> (x, y) pixels of a size x size view of the head, as the page draws it."""
+    from prosody.head.render import HeadRenderer
+
+    return HeadRenderer(size, size).project(points)[:, :2]
+
+
+def test_page_draws_the_head_as_the_cpu_renderer_does(frame_server, browser, tmp_path):
+    from prosody.head.render import HeadRenderer
+
     browser.get(frame_server.url)
-    _wait_for(browser, "return window.prosodyStats && window.prosodyStats.connected")
-    closed = {3: 0.0, 4: 0.0, 5: 0.0, 48: 0.0}
-    frame_server.publish([LiveFrame(k, k / 30, closed) for k in range(3)])
-    _wait_for(browser, "return window.prosodyStats.inputFrames >= 3")
-    time.sleep(0.3)
-    shut = _face(browser)
-    opened = {3: 300.0, 4: -75.0, 5: -125.0, 6: -40.0, 7: -40.0, 48: 0.0}  # an open, slightly rounded /o/
-    frame_server.publish([LiveFrame(k, k / 30, opened) for k in range(3, 6)])
-    _wait_for(browser, "return window.prosodyStats.inputFrames >= 6")
-    time.sleep(0.3)
-    open_mouth = _face(browser)
+    _wait_for(browser, "return window.prosodyStats.face === 'head' && window.prosodyStats.connected")
+    pose = {3: 300.0, 12: 60.0, 13: 60.0, 19: 200.0, 20: 200.0, 48: 3000.0, 49: 14000.0, 50: 6000.0}
+    web = _show(browser, frame_server, pose, 0)
+    (tmp_path / "webgl.png").write_bytes(browser.find_element("id", "face").screenshot_as_png)
+    values = np.zeros(68)
+    for fap, value in pose.items():
+        values[fap - 1] = value
+    cpu = HeadRenderer(web.shape[1], web.shape[1]).render(values)
+    difference = np.abs(web.astype(int) - cpu.astype(int)).max(axis=2)
+    assert difference.mean() < 3.0  # one head: the same mesh, fields, camera and lights
+    assert (difference > 60).mean() < 0.01  # edges may differ by a pixel
+
+
+def test_page_draws_an_open_mouth_apart_from_a_closed_one(frame_server, browser, tmp_path):
+    from prosody.head.rig import head_rig
+
+    browser.get(frame_server.url)
+    _wait_for(browser, "return window.prosodyStats.face === 'head' && window.prosodyStats.connected")
+    shut = _show(browser, frame_server, {3: 0.0, 4: 0.0, 5: 0.0, 48: 0.0}, 0)
+    open_mouth = _show(browser, frame_server, {3: 300.0, 4: -75.0, 5: -125.0, 6: -40.0, 7: -40.0, 48: 0.0}, 3)
     (tmp_path / "open.png").write_bytes(browser.find_element("id", "face").screenshot_as_png)
     changed = np.any(np.abs(shut.astype(int) - open_mouth.astype(int)) > 30, axis=2)
     rows = np.flatnonzero(changed.any(axis=1))
     assert changed.sum() > 100  # the mouth's inside shows
-    size = shut.shape[0]
-    assert rows.min() > 0.6 * size and rows.max() < 0.85 * size  # and only the mouth changed
+    mesh = head_rig().mesh
+    nose, chin = _pixels(mesh.vertices[[mesh.feature_points["9.15"], mesh.feature_points["2.1"]]], shut.shape[0])
+    assert rows.min() > nose[1] and rows.max() < chin[1] + 0.1 * shut.shape[0]  # only the mouth and jaw changed
     dark = np.all(open_mouth < [120, 60, 70], axis=2) & changed
     assert dark.sum() > 50  # dark red: the inside of the mouth
+
+
+def test_page_raises_the_brows_and_turns_the_head(frame_server, browser, tmp_path):
+    from prosody.head.rig import head_rig
+
+    browser.get(frame_server.url)
+    _wait_for(browser, "return window.prosodyStats.face === 'head' && window.prosodyStats.connected")
+    rest = _show(browser, frame_server, {48: 0.0}, 0)
+    raised = _show(browser, frame_server, {31: 60.0, 32: 60.0, 33: 60.0, 34: 60.0, 48: 0.0}, 3)
+    changed = np.any(np.abs(rest.astype(int) - raised.astype(int)) > 20, axis=2)
+    rows = np.flatnonzero(changed.any(axis=1))
+    mesh = head_rig().mesh
+    brow, eye = _pixels(mesh.vertices[[mesh.feature_points["4.3"], mesh.feature_points["3.3"]]], rest.shape[0])
+    assert changed.sum() > 100 and rows.max() < eye[1]  # the brows and the forehead, above the eyes
+    assert abs(np.median(rows) - brow[1]) < 0.08 * rest.shape[0]
+    turned = _show(browser, frame_server, {48: 0.0, 49: 25000.0}, 6)
+    (tmp_path / "turned.png").write_bytes(browser.find_element("id", "face").screenshot_as_png)
+    skin = np.abs(turned.astype(int) - [215, 165, 135]).max(axis=2) < 60
+    frontal = np.abs(rest.astype(int) - [215, 165, 135]).max(axis=2) < 60
+    upper = slice(0, int(0.45 * rest.shape[0]))  # the face, above the neck
+    # turned to its own left (the viewer's right): the face's skin moves right, and much of the head changes
+    assert np.nonzero(skin[upper])[1].mean() > np.nonzero(frontal[upper])[1].mean() + 4
+    assert np.any(np.abs(turned.astype(int) - rest.astype(int)) > 30, axis=2)[upper].mean() > 0.03
 
 
 def test_expressivity_sliders_change_the_controls_on_the_server(frame_server, browser, tmp_path):
@@ -143,27 +193,25 @@ def test_expressivity_sliders_change_the_controls_on_the_server(frame_server, br
 
 
 def test_page_closes_the_eyelids_by_fap_19_to_22(frame_server, browser, tmp_path):
+    from prosody.head.mesh import EYEBALL_RADIUS_CM
+    from prosody.head.rig import head_rig
+
     browser.get(frame_server.url)
-    _wait_for(browser, "return window.prosodyStats && window.prosodyStats.connected")
-    frame_server.publish([LiveFrame(k, k / 30, {48: 0.0}) for k in range(3)])
-    _wait_for(browser, "return window.prosodyStats.inputFrames >= 3")
-    time.sleep(0.3)
-    opened = _face(browser)
-    shut = {19: 600.0, 20: 600.0, 21: 600.0, 22: 600.0, 48: 0.0}  # the lids meet: 2 x 600 > 1024 IRISD
-    frame_server.publish([LiveFrame(k, k / 30, shut) for k in range(3, 6)])
-    _wait_for(browser, "return window.prosodyStats.inputFrames >= 6")
-    time.sleep(0.3)
-    closed = _face(browser)
+    _wait_for(browser, "return window.prosodyStats.face === 'head' && window.prosodyStats.connected")
+    opened = _show(browser, frame_server, {48: 0.0}, 0)
+    # the lids meet: 2 x 600 > 1024 IRISD
+    closed = _show(browser, frame_server, {19: 600.0, 20: 600.0, 21: 600.0, 22: 600.0, 48: 0.0}, 3)
     (tmp_path / "closed.png").write_bytes(browser.find_element("id", "face").screenshot_as_png)
-    size = opened.shape[1]
-    scale, cx, cy = 0.30 * size, size / 2, 0.47 * size  # the page's drawing geometry
-    for sign in (1, -1):  # both pupils: dark when open, skin when shut
-        u, v = int(cx + scale * sign * 0.30), int(cy - scale * 0.09)
-        assert opened[v, u].max() < 100
-        assert np.abs(closed[v + 3, u].astype(int) - [236, 200, 170]).max() < 30
+    mesh = head_rig().mesh
+    pupils = _pixels(mesh.eye_centres + [0.0, 0.0, EYEBALL_RADIUS_CM], opened.shape[0])
+    for u, v in np.round(pupils).astype(int):  # both pupils: dark when open, skin when shut
+        assert opened[v - 1:v + 2, u - 1:u + 2].max() < 90
+        red, _, blue = closed[v, u].astype(int)
+        assert red > 110 and red > blue + 30  # skin, shaded where the lids meet
     changed = np.any(np.abs(opened.astype(int) - closed.astype(int)) > 30, axis=2)
     rows = np.flatnonzero(changed.any(axis=1))
-    assert rows.min() > cy - scale * 0.21 and rows.max() < cy + 1  # only the eyes (y 0 to 0.2) changed
+    brow, cheek = _pixels(mesh.vertices[[mesh.feature_points["4.3"], mesh.feature_points["5.3"]]], opened.shape[0])
+    assert rows.min() > brow[1] and rows.max() < cheek[1]  # only the eyes changed
 
 
 def test_the_input_sound_plays_and_the_face_moves_in_step_with_it(frame_server, browser):

@@ -500,10 +500,18 @@ def _polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
     return np.linalg.norm(points[:, None, :] - nearest, axis=-1).min(axis=1)
 
 
+def _inside(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Which 2D ``points`` lie inside the closed ``polygon`` (even-odd rule)."""
+    x, y = points[:, 0:1], points[:, 1:2]
+    a, b = polygon, np.roll(polygon, -1, axis=0)
+    straddles = (a[:, 1] > y) != (b[:, 1] > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        crossing_x = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
+    return (straddles & (x < crossing_x)).sum(axis=1) % 2 == 1
+
+
 def lip_coordinates(face: np.ndarray) -> LipCoordinates:
     """:class:`LipCoordinates` of the 468 face vertices ``face`` (lips apart, as the source mesh has them)."""
-    from matplotlib.path import Path as Polygon
-
     xy = face[:, :2]
     upper_inner, lower_inner = face[list(LIP_INNER_UPPER), :2], face[list(LIP_INNER_LOWER), :2]
     corner_x = float((abs(upper_inner[0, 0]) + abs(upper_inner[-1, 0])) / 2)
@@ -516,7 +524,7 @@ def lip_coordinates(face: np.ndarray) -> LipCoordinates:
         return np.where(np.abs(x) <= corner_x, inside, corner_y - 0.35 * (np.abs(x) - corner_x))
 
     outer = np.vstack([face[list(LIP_OUTER_UPPER), :2], face[list(LIP_OUTER_LOWER[::-1][1:-1]), :2]])
-    in_lips = Polygon(outer).contains_points(xy, radius=1e-6)
+    in_lips = _inside(xy, outer)
     in_lips[list(LIP_OUTER_UPPER + LIP_OUTER_LOWER + LIP_INNER_UPPER + LIP_INNER_LOWER)] = True
     outer_line = np.vstack([outer, outer[:1]])
     inner_line = np.vstack([upper_inner, lower_inner[::-1]])

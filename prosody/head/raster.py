@@ -12,12 +12,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-#: Light directions (towards the lights, camera axes: x right, y up, z towards the viewer) and strengths.
-KEY_LIGHT = (-0.45, 0.55, 0.70)
-FILL_LIGHT = (0.60, 0.05, 0.80)
-KEY, FILL, AMBIENT, SPECULAR = 0.70, 0.28, 0.26, 0.10
-#: The highlight's sharpness: cosine ** (2 ** SHININESS_DOUBLINGS).
-SHININESS_DOUBLINGS = 5
+from .view import AMBIENT, FILL, KEY, SHININESS_DOUBLINGS, SPECULAR, light_directions
+
+
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -141,12 +138,7 @@ def downsample(image: np.ndarray, factor: int) -> np.ndarray:
     return out
 
 
-def _unit(vector: tuple[float, float, float]) -> np.ndarray:
-    v = np.asarray(vector, np.float64)
-    return v / np.linalg.norm(v)
-
-
-_LIGHTS = np.vstack([_unit(KEY_LIGHT), _unit(FILL_LIGHT)])
+_LIGHTS = light_directions()
 _STRENGTHS = np.array([KEY, FILL, AMBIENT, SPECULAR])
 
 

@@ -1,7 +1,6 @@
 """Frames of the head: a FAP frame -> the deformed, turned head -> a perspective view -> an RGB image.
 
-The camera looks at the head from the front, 95 cm away, framing it from the top of the hair to the
-shoulders; the image is drawn at :data:`SUPERSAMPLE` times its size and box-averaged down (smooth edges),
+The camera and the lights are those of :mod:`.view` (the browser's too); the image is drawn at :data:`SUPERSAMPLE` times its size and box-averaged down (smooth edges),
 frames larger than :data:`SUPERSAMPLED_PIXELS` at their size (their pixels are small enough).
 """
 
@@ -14,14 +13,10 @@ from ..errors import ConfigError
 from ..fap.table import N_FAPS
 from .raster import Canvas, downsample, rasterise
 from .rig import HeadRig, head_rig
+from .view import BACKGROUND, CAMERA_DISTANCE_CM, HALF_VIEW_CM, LOOK_AT_Y_CM
 
-#: Camera distance from the head's origin and the point it looks at, in cm; half the view's height there.
-CAMERA_DISTANCE_CM = 95.0
-LOOK_AT_Y_CM = -2.5
-HALF_VIEW_CM = 16.5
 SUPERSAMPLE = 2
 SUPERSAMPLED_PIXELS = 1920 * 1080
-BACKGROUND = (0.925, 0.933, 0.949)
 
 
 class HeadRenderer:

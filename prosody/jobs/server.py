@@ -356,10 +356,16 @@ class FrameServer:
                         "connect (allow another with --allow-origin ORIGIN)")
             return connection.respond(403, "forbidden: this stream is only for the page served here\n")
         path = request.path.split("?", 1)[0]
-        if path in ("/", "/index.html"):
-            headers = Headers([("Content-Type", "text/html; charset=utf-8"), ("Cache-Control", "no-store"),
-                               ("Content-Length", str(len(self._page)))])
-            return Response(200, "OK", headers, self._page)
+        from ..head.web import head_script, model_json  # the head's model is built on the first request
+
+        served = {"/": (self._page, "text/html; charset=utf-8"), "/index.html": (self._page, "text/html; charset=utf-8"),
+                  "/head.js": (head_script(), "text/javascript; charset=utf-8"),
+                  "/head.json": (model_json(), "application/json")}
+        if path in served:
+            body, kind = served[path]
+            headers = Headers([("Content-Type", kind), ("Cache-Control", "no-store"),
+                               ("Content-Length", str(len(body)))])
+            return Response(200, "OK", headers, body)
         return connection.respond(404, "not found: the page is at /\n")
 
     def _allowed(self, origin: str, host_header: str) -> bool:

@@ -1,0 +1,144 @@
+"use strict";
+// The 3D head of prosody.head drawn with WebGL from FAP frames: the mesh, fields, camera and lights of the CPU
+// renderer (prosody/head/render.py), read from the model JSON the server sends (prosody/head/web.py).
+// A frame's FAP values deform the mesh here (rest + sum of value x field, in cm per FAP unit); the head turns
+// in the vertex shader about the top of the spine, R = Rz(roll) Ry(yaw) Rx(pitch) from FAP 48-50 (1e-5 rad);
+// the fragment shader lights it as the CPU renderer does (two lights, ambient, a weak highlight, both sides).
+(function () {
+  const AU = 1e-5;
+  const VERTEX = `
+    attribute vec3 position; attribute vec3 normal; attribute vec3 color; attribute float rotates;
+    uniform mat3 turn; uniform vec3 pivot; uniform vec4 camera; uniform vec2 halfSize;
+    varying vec3 vNormal; varying vec3 vColor;
+    void main() {
+      vec3 p = position, n = normal;
+      if (rotates > 0.5) { p = turn * (position - pivot) + pivot; n = turn * normal; }
+      float depth = camera.x - p.z;  // camera.x: distance, .y: look-at height, .z: focal (px), .w: far
+      float x = camera.z * p.x / halfSize.x, y = camera.z * (p.y - camera.y) / halfSize.y;
+      float z = (depth / camera.w) * 2.0 - 1.0;
+      gl_Position = vec4(x, y, z * depth, depth);
+      vNormal = n; vColor = color;
+    }`;
+  const FRAGMENT = `
+    precision mediump float;
+    uniform vec3 light0; uniform vec3 light1; uniform vec4 strengths; uniform float shininess;
+    varying vec3 vNormal; varying vec3 vColor;
+    void main() {
+      vec3 n = normalize(vNormal);
+      if (n.z < 0.0) n = -n;  // lit from both sides, as the CPU renderer
+      float diffuse = strengths.z, specular = 0.0;
+      vec3 lights[2]; lights[0] = light0; lights[1] = light1;
+      float power[2]; power[0] = strengths.x; power[1] = strengths.y;
+      for (int k = 0; k < 2; k++) {
+        float lambert = dot(n, lights[k]);
+        if (lambert > 0.0) {
+          diffuse += power[k] * lambert;
+          float c = dot(n, normalize(lights[k] + vec3(0.0, 0.0, 1.0)));
+          if (c > 0.0) specular += power[k] * pow(c, shininess);
+        }
+      }
+      gl_FragColor = vec4(min(vColor * diffuse + strengths.w * specular, vec3(1.0)), 1.0);
+    }`;
+
+  function rotation(p, y, r) {  // R = Rz(r) Ry(y) Rx(p), column-major for WebGL
+    const [cx, sx, cy, sy, cz, sz] = [Math.cos(p), Math.sin(p), Math.cos(y), Math.sin(y), Math.cos(r), Math.sin(r)];
+    const m = [[cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx],
+               [sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx],
+               [-sy, cy * sx, cy * cx]];
+    return new Float32Array([m[0][0], m[1][0], m[2][0], m[0][1], m[1][1], m[2][1], m[0][2], m[1][2], m[2][2]]);
+  }
+
+  class HeadView {
+    constructor(canvas, model) {
+      const gl = canvas.getContext("webgl", { antialias: true, preserveDrawingBuffer: true });
+      if (!gl) throw new Error("WebGL is not available in this browser");
+      this.gl = gl; this.canvas = canvas; this.model = model;
+      this.rest = new Float32Array(model.vertices);
+      this.positions = new Float32Array(this.rest.length);
+      this.normals = new Float32Array(this.rest.length);
+      this.triangles = new Uint16Array(model.triangles);
+      this.fields = {};
+      for (const [fap, field] of Object.entries(model.fields)) {
+        this.fields[fap] = { vertices: Int32Array.from(field.vertices), offsets: Float32Array.from(field.offsets) };
+      }
+      const program = gl.createProgram();
+      for (const [kind, source] of [[gl.VERTEX_SHADER, VERTEX], [gl.FRAGMENT_SHADER, FRAGMENT]]) {
+        const shader = gl.createShader(kind);
+        gl.shaderSource(shader, source); gl.compileShader(shader);
+        if (!gl.getShaderParameter(shader, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(shader));
+        gl.attachShader(program, shader);
+      }
+      gl.linkProgram(program);
+      if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
+      this.program = program;
+      gl.useProgram(program);
+      const buffer = (name, data, size, usage) => {
+        const b = gl.createBuffer();
+        gl.bindBuffer(gl.ARRAY_BUFFER, b); gl.bufferData(gl.ARRAY_BUFFER, data, usage);
+        const at = gl.getAttribLocation(program, name);
+        gl.enableVertexAttribArray(at); gl.vertexAttribPointer(at, size, gl.FLOAT, false, 0, 0);
+        return b;
+      };
+      this.positionBuffer = buffer("position", this.positions, 3, gl.DYNAMIC_DRAW);
+      this.normalBuffer = buffer("normal", this.normals, 3, gl.DYNAMIC_DRAW);
+      buffer("color", new Float32Array(model.colors), 3, gl.STATIC_DRAW);
+      buffer("rotates", new Float32Array(model.rotates), 1, gl.STATIC_DRAW);
+      const index = gl.createBuffer();
+      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, index);
+      gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, this.triangles, gl.STATIC_DRAW);
+      const u = (name) => gl.getUniformLocation(program, name);
+      this.uniforms = { turn: u("turn"), pivot: u("pivot"), camera: u("camera"), halfSize: u("halfSize") };
+      const lights = model.lights;
+      gl.uniform3fv(u("light0"), lights.directions[0]); gl.uniform3fv(u("light1"), lights.directions[1]);
+      gl.uniform4f(u("strengths"), lights.key, lights.fill, lights.ambient, lights.specular);
+      gl.uniform1f(u("shininess"), lights.shininess);
+      gl.uniform3fv(this.uniforms.pivot, model.pivot);
+      gl.enable(gl.DEPTH_TEST);
+    }
+
+    // Draw one frame: faps maps FAP numbers to values (FAP units); absent is neutral.
+    draw(faps) {
+      const gl = this.gl, pos = this.positions, nrm = this.normals;
+      pos.set(this.rest);
+      for (const [fap, value] of Object.entries(faps || {})) {
+        const field = this.fields[fap];
+        if (!field || !value) continue;
+        const { vertices, offsets } = field;
+        for (let i = 0; i < vertices.length; i++) {
+          const v = 3 * vertices[i], o = 3 * i;
+          pos[v] += value * offsets[o]; pos[v + 1] += value * offsets[o + 1]; pos[v + 2] += value * offsets[o + 2];
+        }
+      }
+      nrm.fill(0);
+      const t = this.triangles;
+      for (let i = 0; i < t.length; i += 3) {
+        const a = 3 * t[i], b = 3 * t[i + 1], c = 3 * t[i + 2];
+        const ux = pos[b] - pos[a], uy = pos[b + 1] - pos[a + 1], uz = pos[b + 2] - pos[a + 2];
+        const vx = pos[c] - pos[a], vy = pos[c + 1] - pos[a + 1], vz = pos[c + 2] - pos[a + 2];
+        const nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
+        for (const k of [a, b, c]) { nrm[k] += nx; nrm[k + 1] += ny; nrm[k + 2] += nz; }
+      }
+      gl.bindBuffer(gl.ARRAY_BUFFER, this.positionBuffer); gl.bufferSubData(gl.ARRAY_BUFFER, 0, pos);
+      gl.bindBuffer(gl.ARRAY_BUFFER, this.normalBuffer); gl.bufferSubData(gl.ARRAY_BUFFER, 0, nrm);
+      const angle = (n) => ((faps && faps[n]) || 0) * AU;
+      gl.uniformMatrix3fv(this.uniforms.turn, false, rotation(angle(48), angle(49), angle(50)));
+      const w = this.canvas.width, h = this.canvas.height, cam = this.model.camera;
+      const focal = (h / 2) / (cam.half_view_cm / cam.distance_cm);
+      gl.uniform4f(this.uniforms.camera, cam.distance_cm, cam.look_at_y_cm, focal, 2 * cam.distance_cm);
+      gl.uniform2f(this.uniforms.halfSize, w / 2, h / 2);
+      gl.viewport(0, 0, w, h);
+      const bg = this.model.background;
+      gl.clearColor(bg[0], bg[1], bg[2], 1);
+      gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+      gl.drawElements(gl.TRIANGLES, t.length, gl.UNSIGNED_SHORT, 0);
+    }
+  }
+
+  // Load the model and make a view on the canvas; rejects when WebGL or the model is unavailable.
+  async function load(canvas, url) {
+    const response = await fetch(url || "/head.json");
+    if (!response.ok) throw new Error(`the head model could not be loaded (${response.status})`);
+    return new HeadView(canvas, await response.json());
+  }
+  window.ProsodyHead = { HeadView, load };
+})();

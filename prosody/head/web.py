@@ -1,0 +1,65 @@
+"""The head for the browser: the model the pages' WebGL code (``head.js``) draws, as JSON.
+
+The JSON holds what :class:`~prosody.head.render.HeadRenderer` uses, so both draw one head: the rest
+vertices, triangles, colours and which vertices turn with the head; every FAP's field as sparse
+(vertex, dx, dy, dz) lists in cm per FAP unit; the neck pivot; the camera (distance, look-at height, half view)
+and the lights. ``head.js`` deforms the mesh on the CPU (rest + sum of value x field), turns the head in the
+vertex shader (R = Rz(roll) Ry(yaw) Rx(pitch) about the pivot) and shades per pixel as the CPU renderer does.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from importlib import resources
+
+import numpy as np
+
+from ..fap.table import HEAD_FAPS
+from . import view
+from .mesh import NECK_PIVOT
+from .rig import HeadRig, head_rig
+
+#: Decimal places kept: 1e-4 cm for positions, 1e-8 cm per unit for fields (their values times ~1000).
+_POSITION_DIGITS, _FIELD_DIGITS = 4, 8
+
+
+def model_document(rig: HeadRig | None = None) -> dict:
+    """The head model as a JSON-ready dict (see the module doc)."""
+    rig = rig or head_rig()
+    mesh = rig.mesh
+    fields = {}
+    for fap in rig.supported:
+        if fap in HEAD_FAPS:
+            continue
+        field = rig.fields[fap - 1].astype(np.float64)
+        moved = np.flatnonzero(np.abs(field).max(axis=1) > 1e-9)
+        if moved.size:
+            fields[str(fap)] = {"vertices": moved.tolist(),
+                                "offsets": np.round(field[moved], _FIELD_DIGITS).reshape(-1).tolist()}
+    return {
+        "format": "visual-prosody-head", "version": 1,
+        "vertices": np.round(mesh.vertices.astype(np.float64), _POSITION_DIGITS).reshape(-1).tolist(),
+        "triangles": mesh.triangles.reshape(-1).tolist(),
+        "colors": np.round(mesh.colors.astype(np.float64), 4).reshape(-1).tolist(),
+        "rotates": mesh.rotates.astype(int).tolist(),
+        "fields": fields,
+        "supported": list(rig.supported),
+        "pivot": list(NECK_PIVOT),
+        "camera": {"distance_cm": view.CAMERA_DISTANCE_CM, "look_at_y_cm": view.LOOK_AT_Y_CM,
+                   "half_view_cm": view.HALF_VIEW_CM},
+        "background": list(view.BACKGROUND),
+        "lights": {"directions": view.light_directions().tolist(), "key": view.KEY, "fill": view.FILL,
+                   "ambient": view.AMBIENT, "specular": view.SPECULAR, "shininess": 2 ** view.SHININESS_DOUBLINGS},
+    }
+
+
+@functools.lru_cache(maxsize=1)
+def model_json() -> bytes:
+    """:func:`model_document` of the canonical head, encoded once."""
+    return json.dumps(model_document(), separators=(",", ":")).encode("utf-8")
+
+
+def head_script() -> bytes:
+    """The WebGL drawing code (``head.js``) the pages load."""
+    return resources.files("prosody.head").joinpath("head.js").read_bytes()
