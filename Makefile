@@ -33,6 +33,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench.py
 	$(BIN)/python benchmarks/live_bench.py
 	$(BIN)/python benchmarks/track_bench.py
+	$(BIN)/python benchmarks/head_bench.py
 
 evaluate: $(STAMP)
 	$(BIN)/python benchmarks/head_loco.py

@@ -53,18 +53,34 @@ def _cover_band(screen, triangles, nearest, weights, depth, band_top, band_botto
         if top > bottom:
             continue
         inverse = 1.0 / area
+        # the barycentric weights are linear along a row: w_i = slope_i * cx + offset_i; each row's span is
+        # where all three are >= 0
+        slope0, slope1 = (y1 - y2) * inverse, (y2 - y0) * inverse
+        slope2 = -(slope0 + slope1)
         for py in range(top, bottom + 1):
             cy = py + 0.5
-            for px in range(left, right + 1):
+            offset0 = (x1 * (y2 - cy) - x2 * (y1 - cy)) * inverse
+            offset1 = (x2 * (y0 - cy) - x0 * (y2 - cy)) * inverse
+            offset2 = 1.0 - offset0 - offset1
+            low, high = left + 0.5, right + 0.5
+            empty = False
+            for slope, offset in ((slope0, offset0), (slope1, offset1), (slope2, offset2)):
+                if slope > 0:
+                    low = max(low, -offset / slope)
+                elif slope < 0:
+                    high = min(high, -offset / slope)
+                elif offset < 0:
+                    empty = True
+            if empty or low > high:
+                continue
+            first = max(left, int(np.ceil(low - 0.5)))
+            last = min(right, int(np.floor(high - 0.5)))
+            for px in range(first, last + 1):
                 cx = px + 0.5
-                w0 = ((x1 - cx) * (y2 - cy) - (x2 - cx) * (y1 - cy)) * inverse
-                if w0 < 0:
-                    continue
-                w1 = ((x2 - cx) * (y0 - cy) - (x0 - cx) * (y2 - cy)) * inverse
-                if w1 < 0:
-                    continue
+                w0 = slope0 * cx + offset0
+                w1 = slope1 * cx + offset1
                 w2 = 1.0 - w0 - w1
-                if w2 < 0:
+                if w0 < 0 or w1 < 0 or w2 < 0:
                     continue
                 z = w0 * z0 + w1 * z1 + w2 * z2
                 if z < depth[py, px]:
@@ -74,68 +90,81 @@ def _cover_band(screen, triangles, nearest, weights, depth, band_top, band_botto
                     weights[py, px, 1] = w1
 
 
-@njit(cache=True, nogil=True, parallel=True)
-def _shade(triangles, normals, colors, nearest, weights, image, lights, strengths,
-           background):  # pragma: no cover - compiled
-    height, width = nearest.shape
-    for py in prange(height):
-        for px in range(width):
-            t = nearest[py, px]
-            if t < 0:
-                for channel in range(3):
-                    image[py, px, channel] = background[channel]
-                continue
-            a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
-            w0, w1 = weights[py, px, 0], weights[py, px, 1]
-            w2 = 1.0 - w0 - w1
-            nx = w0 * normals[a, 0] + w1 * normals[b, 0] + w2 * normals[c, 0]
-            ny = w0 * normals[a, 1] + w1 * normals[b, 1] + w2 * normals[c, 1]
-            nz = w0 * normals[a, 2] + w1 * normals[b, 2] + w2 * normals[c, 2]
-            norm = np.sqrt(nx * nx + ny * ny + nz * nz)
-            if norm > 0:
-                nx, ny, nz = nx / norm, ny / norm, nz / norm
-            if nz < 0:  # lit from both sides
-                nx, ny, nz = -nx, -ny, -nz
-            diffuse = strengths[2]
-            specular = 0.0
-            for k in range(2):
-                lx, ly, lz = lights[k, 0], lights[k, 1], lights[k, 2]
-                lambert = nx * lx + ny * ly + nz * lz
-                if lambert > 0:
-                    diffuse += strengths[k] * lambert
-                    hx, hy, hz = lx, ly, lz + 1.0
-                    hn = np.sqrt(hx * hx + hy * hy + hz * hz)
-                    cosine = (nx * hx + ny * hy + nz * hz) / hn
-                    if cosine > 0:
-                        for _ in range(SHININESS_DOUBLINGS):  # cosine ** 32
-                            cosine *= cosine
-                        specular += strengths[k] * cosine
-            for channel in range(3):
-                albedo = w0 * colors[a, channel] + w1 * colors[b, channel] + w2 * colors[c, channel]
-                value = albedo * diffuse + strengths[3] * specular
-                image[py, px, channel] = min(value, 1.0)
+@njit(cache=True, nogil=True, inline="always")
+def _shade_sample(t, w0, w1, triangles, normals, colors, lights, strengths, rgb):  # pragma: no cover
+    """Add the shaded colour of the point (w0, w1) of triangle t to ``rgb``."""
+    a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
+    w2 = 1.0 - w0 - w1
+    nx = w0 * normals[a, 0] + w1 * normals[b, 0] + w2 * normals[c, 0]
+    ny = w0 * normals[a, 1] + w1 * normals[b, 1] + w2 * normals[c, 1]
+    nz = w0 * normals[a, 2] + w1 * normals[b, 2] + w2 * normals[c, 2]
+    norm = np.sqrt(nx * nx + ny * ny + nz * nz)
+    if norm > 0:
+        nx, ny, nz = nx / norm, ny / norm, nz / norm
+    if nz < 0:  # lit from both sides
+        nx, ny, nz = -nx, -ny, -nz
+    diffuse = strengths[2]
+    specular = 0.0
+    for k in range(2):
+        lx, ly, lz = lights[k, 0], lights[k, 1], lights[k, 2]
+        lambert = nx * lx + ny * ly + nz * lz
+        if lambert > 0:
+            diffuse += strengths[k] * lambert
+            hx, hy, hz = lx, ly, lz + 1.0
+            cosine = (nx * hx + ny * hy + nz * hz) / np.sqrt(hx * hx + hy * hy + hz * hz)
+            if cosine > 0:
+                for _ in range(SHININESS_DOUBLINGS):  # cosine ** 32
+                    cosine *= cosine
+                specular += strengths[k] * cosine
+    for channel in range(3):
+        albedo = w0 * colors[a, channel] + w1 * colors[b, channel] + w2 * colors[c, channel]
+        rgb[channel] += min(albedo * diffuse + strengths[3] * specular, 1.0)
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _downsample(image, factor, out):  # pragma: no cover - compiled
+def _resolve(triangles, normals, colors, nearest, weights, factor, out, lights, strengths,
+             background):  # pragma: no cover - compiled
+    """Shade and box-average each output pixel's factor x factor samples into ``out`` (uint8). A pixel whose
+    samples all lie on one triangle is shaded once, at their mean barycentric coordinates (its centre)."""
     height, width = out.shape[0], out.shape[1]
-    scale = 255.0 / (factor * factor)
+    samples = factor * factor
     for py in prange(height):
+        rgb = np.zeros(3)
         for px in range(width):
-            for channel in range(3):
-                total = 0.0
+            top, left = py * factor, px * factor
+            first = nearest[top, left]
+            uniform = True
+            for dy in range(factor):
+                for dx in range(factor):
+                    if nearest[top + dy, left + dx] != first:
+                        uniform = False
+            rgb[:] = 0.0
+            if uniform and first < 0:
+                for channel in range(3):
+                    rgb[channel] = background[channel]
+            elif uniform:
+                w0 = 0.0
+                w1 = 0.0
                 for dy in range(factor):
                     for dx in range(factor):
-                        total += image[py * factor + dy, px * factor + dx, channel]
-                out[py, px, channel] = np.uint8(min(total * scale + 0.5, 255.0))
-
-
-def downsample(image: np.ndarray, factor: int) -> np.ndarray:
-    """Box-average ``factor`` x ``factor`` blocks of a float image in 0..1 into an RGB uint8 image."""
-    height, width = image.shape[0] // factor, image.shape[1] // factor
-    out = np.empty((height, width, 3), np.uint8)
-    _downsample(image, factor, out)
-    return out
+                        w0 += weights[top + dy, left + dx, 0]
+                        w1 += weights[top + dy, left + dx, 1]
+                _shade_sample(first, w0 / samples, w1 / samples, triangles, normals, colors, lights, strengths,
+                              rgb)
+            else:
+                for dy in range(factor):
+                    for dx in range(factor):
+                        t = nearest[top + dy, left + dx]
+                        if t < 0:
+                            for channel in range(3):
+                                rgb[channel] += background[channel]
+                        else:
+                            _shade_sample(t, weights[top + dy, left + dx, 0], weights[top + dy, left + dx, 1],
+                                          triangles, normals, colors, lights, strengths, rgb)
+                for channel in range(3):
+                    rgb[channel] /= samples
+            for channel in range(3):
+                out[py, px, channel] = np.uint8(min(rgb[channel] * 255.0 + 0.5, 255.0))
 
 
 _LIGHTS = light_directions()
@@ -143,26 +172,27 @@ _STRENGTHS = np.array([KEY, FILL, AMBIENT, SPECULAR])
 
 
 class Canvas:
-    """The buffers one image size needs (depth, nearest triangle, barycentric weights, colour), kept between
-    frames."""
+    """The buffers one image size needs (depth, nearest triangle and barycentric weights per sample), kept
+    between frames."""
 
-    def __init__(self, width: int, height: int) -> None:
-        self.width, self.height = width, height
-        self.depth = np.empty((height, width), np.float32)
-        self.nearest = np.empty((height, width), np.int32)
-        self.weights = np.empty((height, width, 2), np.float32)
-        self.image = np.empty((height, width, 3), np.float32)
+    def __init__(self, width: int, height: int, factor: int) -> None:
+        self.width, self.height, self.factor = width, height, factor
+        samples = (height * factor, width * factor)
+        self.depth = np.empty(samples, np.float32)
+        self.nearest = np.empty(samples, np.int32)
+        self.weights = np.empty((*samples, 2), np.float32)
 
 
 def rasterise(screen: np.ndarray, triangles: np.ndarray, normals: np.ndarray, colors: np.ndarray, *,
-              width: int, height: int, background: tuple[float, float, float],
+              width: int, height: int, background: tuple[float, float, float], factor: int = 1,
               canvas: Canvas | None = None) -> np.ndarray:
-    """Draw a triangle mesh; returns float32 (height, width, 3) in 0..1 (the canvas's own image buffer).
+    """Draw a triangle mesh; returns RGB uint8 (height, width, 3).
 
     Parameters
     ----------
     screen : float (n, 3)
-        Vertex pixel coordinates (x right, y down, from the top-left corner) and depth (> 0, smaller is nearer).
+        Vertex sample coordinates (x right, y down, from the top-left corner, in pixels x ``factor``) and depth
+        (> 0, smaller is nearer).
     triangles : int32 (m, 3)
         Vertex indices.
     normals : float (n, 3)
@@ -173,14 +203,16 @@ def rasterise(screen: np.ndarray, triangles: np.ndarray, normals: np.ndarray, co
         Image size in pixels.
     background : (r, g, b) in 0..1
         Where no triangle is.
+    factor : int >= 1
+        Samples per pixel along each axis (2: four samples per pixel, box-averaged: smooth edges).
     canvas : Canvas, optional
-        Buffers of this size to draw in (reused between frames); a new one by default.
+        Buffers of this size to draw in (reused between frames); new ones by default.
     """
-    if canvas is None or (canvas.width, canvas.height) != (width, height):
-        canvas = Canvas(width, height)
-    _cover(np.ascontiguousarray(screen, np.float64), np.ascontiguousarray(triangles, np.int32), canvas.nearest,
-           canvas.weights, canvas.depth)
-    _shade(np.ascontiguousarray(triangles, np.int32), np.ascontiguousarray(normals, np.float64),
-           np.ascontiguousarray(colors, np.float64), canvas.nearest, canvas.weights, canvas.image, _LIGHTS,
-           _STRENGTHS, np.asarray(background, np.float64))
-    return canvas.image
+    if canvas is None or (canvas.width, canvas.height, canvas.factor) != (width, height, factor):
+        canvas = Canvas(width, height, factor)
+    triangles = np.ascontiguousarray(triangles, np.int32)
+    _cover(np.ascontiguousarray(screen, np.float64), triangles, canvas.nearest, canvas.weights, canvas.depth)
+    out = np.empty((height, width, 3), np.uint8)
+    _resolve(triangles, np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(colors, np.float64),
+             canvas.nearest, canvas.weights, factor, out, _LIGHTS, _STRENGTHS, np.asarray(background, np.float64))
+    return out

@@ -11,7 +11,7 @@ from scipy import sparse
 
 from ..errors import ConfigError
 from ..fap.table import N_FAPS
-from .raster import Canvas, downsample, rasterise
+from .raster import Canvas, rasterise
 from .rig import HeadRig, head_rig
 from .view import BACKGROUND, CAMERA_DISTANCE_CM, HALF_VIEW_CM, LOOK_AT_Y_CM
 
@@ -46,7 +46,7 @@ class HeadRenderer:
         self._incidence = sparse.csr_matrix((np.ones(3 * m), (rows, columns)), shape=(n, m))
         self._colors = mesh.colors.astype(np.float64)
         self.supersample = SUPERSAMPLE if self.width * self.height <= SUPERSAMPLED_PIXELS else 1
-        self._canvas = Canvas(self.width * self.supersample, self.height * self.supersample)
+        self._canvas = Canvas(self.width, self.height, self.supersample)
         self._triangles32 = np.ascontiguousarray(mesh.triangles, np.int32)
 
     def project(self, vertices: np.ndarray, *, scale: int = 1) -> np.ndarray:
@@ -66,10 +66,9 @@ class HeadRenderer:
     def render_vertices(self, vertices: np.ndarray) -> np.ndarray:
         """RGB uint8 (height, width, 3) of the head with its vertices at ``vertices``."""
         s = self.supersample
-        image = rasterise(self.project(vertices, scale=s), self._triangles32, self.normals(vertices),
-                          self._colors, width=self.width * s, height=self.height * s, background=BACKGROUND,
-                          canvas=self._canvas)
-        return downsample(image, s) if s > 1 else (image * 255.0 + 0.5).astype(np.uint8)
+        return rasterise(self.project(vertices, scale=s), self._triangles32, self.normals(vertices), self._colors,
+                         width=self.width, height=self.height, background=BACKGROUND, factor=s,
+                         canvas=self._canvas)
 
     def render(self, values: np.ndarray) -> np.ndarray:
         """RGB uint8 (height, width, 3) of one frame's FAP values (68, FAP units; NaN and 0 are neutral)."""

@@ -1,0 +1,73 @@
+"""Head rendering speed (part of ``make bench``): frames per second of the 3D head's CPU renderer at 640x480
+and 1280x720, beside FFmpeg encoding the same frames to H.264 (``prosody preview``'s settings: libx264,
+veryfast, CRF 20), measured side by side in this run on the same frames.
+
+The motion is the sample recording's (``samples/arctic_a0009.wav``, all of the default stream's FAPs), looped
+to :data:`FRAMES` frames. Aims: 60 frames/s at 640x480 on 2 cores; rendering within 4x of the encoding.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from prosody.evaluation.preview import find_ffmpeg, head_values
+from prosody.head.render import HeadRenderer
+from prosody.jobs.pipeline import convert
+
+REPO = Path(__file__).resolve().parents[1]
+FRAMES = 300
+SIZES = {"640x480": (640, 480), "1280x720": (1280, 720)}
+AIM_FPS = 60.0
+AIM_RATIO = 4.0
+
+
+def encode_fps(frames: list[np.ndarray], ffmpeg: str) -> float:
+    height, width = frames[0].shape[:2]
+    command = [ffmpeg, "-hide_banner", "-loglevel", "error", "-y", "-f", "rawvideo", "-pix_fmt", "rgb24",
+               "-s", f"{width}x{height}", "-framerate", "30", "-i", "pipe:0", "-c:v", "libx264",
+               "-preset", "veryfast", "-crf", "20", "-pix_fmt", "yuv420p", "-f", "mp4", "/dev/null"]
+    start = time.perf_counter()
+    process = subprocess.Popen(command, stdin=subprocess.PIPE)
+    assert process.stdin is not None
+    for frame in frames:
+        process.stdin.write(frame.tobytes())
+    process.stdin.close()
+    if process.wait() != 0:
+        raise RuntimeError("ffmpeg failed")
+    return len(frames) / (time.perf_counter() - start)
+
+
+def main() -> int:
+    ffmpeg = find_ffmpeg()
+    if ffmpeg is None:
+        print("head bench: needs ffmpeg (pip install imageio-ffmpeg)")
+        return 1
+    stream = convert(REPO / "samples" / "arctic_a0009.wav", None)
+    values = head_values(stream)
+    rows = [values[k % len(values)] for k in range(FRAMES)]
+    print(f"3D head rendering, {FRAMES} frames of the sample's motion (FAPs "
+          f"{int(stream.mask.any(axis=0).sum())}), one process:")
+    failed = False
+    for name, (width, height) in SIZES.items():
+        renderer = HeadRenderer(width, height)
+        renderer.render(rows[0])  # compiled (or loaded from Numba's cache) before timing
+        start = time.perf_counter()
+        frames = [renderer.render(row) for row in rows]
+        render_fps = FRAMES / (time.perf_counter() - start)
+        encoding_fps = encode_fps(frames, ffmpeg)
+        ratio = encoding_fps / render_fps
+        print(f"  {name:>9}: render {render_fps:6.1f} frames/s   ffmpeg H.264 {encoding_fps:6.1f} frames/s   "
+              f"render takes {ratio:4.2f} x the encoding (aim <= {AIM_RATIO:g} x)")
+        failed |= ratio > AIM_RATIO
+        if name == "640x480":
+            print(f"             aim >= {AIM_FPS:g} frames/s at 640x480: {'met' if render_fps >= AIM_FPS else 'not met'}")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
