@@ -10,6 +10,7 @@ imageio-ffmpeg package); skipped with a reason where they are missing.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import os
 import signal
@@ -19,6 +20,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 import soundfile
 from conftest import REPO, headless_chromium, needs_chromium, wait_in_page
@@ -130,6 +132,19 @@ def test_two_participants_a_closed_tab_and_a_killed_server_lose_nothing(study, b
     browser.get(url)
     _wait_for(browser, "return window.studyState.screen === 'welcome'")
     browser.find_element("id", "start").click()
+    # the page draws both heads itself with WebGL, from the stimuli's frames, in step with the videos' clocks
+    _wait_for(browser, "const s = window.studyState; return s.screen === 'trial' && s.heads === 2 && s.drawn > 4")
+    assert browser.execute_script("return window.studyState.face") == "head"
+    canvases = browser.find_elements("css selector", "#videos canvas")
+    assert len(canvases) == 2
+    from PIL import Image
+
+    for canvas in canvases:
+        image = np.asarray(Image.open(io.BytesIO(canvas.screenshot_as_png)).convert("RGB")).astype(int)
+        skin = (np.abs(image - [215, 165, 135]).max(axis=2) < 50).mean()
+        assert skin > 0.05  # a face, not an empty canvas
+    assert all("sound-only" in video.get_attribute("class")
+               for video in browser.find_elements("css selector", "#videos video"))
     for answered in range(TRIALS):
         _answer(browser, answered, "left")
     _wait_for(browser, "return window.studyState.screen === 'thanks'")

@@ -54,6 +54,18 @@ def model_document(rig: HeadRig | None = None) -> dict:
     }
 
 
+HEAD_FRAMES_FORMAT = "visual-prosody-head-frames"
+
+
+def head_frames_document(values: np.ndarray, *, fps: float) -> dict:
+    """The frames a page plays on the head: ``values`` (frames, 68), as the head shows them (brow and head
+    scaling applied), kept for the FAPs that move; ``{"format", "version", "fps", "faps", "frames"}``."""
+    values = np.asarray(values, float)
+    moving = [int(f) + 1 for f in np.flatnonzero(np.any(values != 0, axis=0))]
+    frames = np.round(values[:, [f - 1 for f in moving]], 3) if moving else np.zeros((len(values), 0))
+    return {"format": HEAD_FRAMES_FORMAT, "version": 1, "fps": fps, "faps": moving, "frames": frames.tolist()}
+
+
 @functools.lru_cache(maxsize=1)
 def model_json() -> bytes:
     """:func:`model_document` of the canonical head, encoded once."""

@@ -8,8 +8,9 @@ answer before showing the next trial, and retries while the server is away. The 
 - ``GET /``: the page; ``GET /api/study``: the design, the question and the answer options;
 - ``POST /api/participants``: a new participant; ``GET /api/state?participant=ID``: where they are;
 - ``POST /api/answer`` ``{"participant", "position", "answer", "seconds"}``: one answer, one transaction;
-- ``GET /stimuli/<sha256 prefix>.mp4``: the videos listed in the stimuli manifest (and nothing else), named by
-  their content so that the address does not say the condition, with byte ranges;
+- ``GET /stimuli/<sha256 prefix>.mp4`` and ``.json``: the videos listed in the stimuli manifest and their head
+  frames (and nothing else), named by their content so that the address does not say the condition, with byte
+  ranges; ``GET /head.js`` and ``/head.json``: the WebGL head and its model;
 - ``GET /admin/export.csv`` and ``/admin/progress`` with the organiser's token (``Authorization: Bearer TOKEN``
   or ``?token=TOKEN``), printed when the server starts.
 
@@ -109,6 +110,15 @@ class StudyServer:
         self.files = {f"{str(entry['sha256'])[:24]}.mp4": self.folder / str(entry["file"])
                       for entry in manifest["videos"].values()}
         self.videos = {key: f"/stimuli/{str(entry['sha256'])[:24]}.mp4" for key, entry in manifest["videos"].items()}
+        # the head's frames of each video (manifests made before they were written have none: videos only)
+        self.motions: dict[str, str | None] = {}
+        for key, entry in manifest["videos"].items():
+            motion, digest = entry.get("motion"), entry.get("motion_sha256")
+            if motion and digest and (self.folder / str(motion)).is_file():
+                self.files[f"{str(digest)[:24]}.json"] = self.folder / str(motion)
+                self.motions[key] = f"/stimuli/{str(digest)[:24]}.json"
+            else:
+                self.motions[key] = None
         self.labels = {name: str(entry.get("label", name)) for name, entry in manifest["conditions"].items()}
         self.break_every = break_every
         self.allow_origins = frozenset(normalize_origin(origin) for origin in allow_origins)
@@ -159,8 +169,9 @@ class StudyServer:
     def with_videos(self, state: dict) -> dict:
         trial = state.pop("trial", None)
         if trial is not None:
-            state["trial"] = {"position": trial["position"],
-                              "videos": [self.videos[f"{trial['stimulus']}/{name}"] for name in trial["conditions"]]}
+            keys = [f"{trial['stimulus']}/{name}" for name in trial["conditions"]]
+            state["trial"] = {"position": trial["position"], "videos": [self.videos[key] for key in keys],
+                              "motion": [self.motions[key] for key in keys]}
         return state
 
 
@@ -355,6 +366,12 @@ class _Handler(BaseHTTPRequestHandler):
                     "Content-Security-Policy": "default-src 'self'; script-src 'self' 'unsafe-inline'; "
                                                "style-src 'self' 'unsafe-inline'; media-src 'self'; "
                                                "connect-src 'self'; frame-ancestors 'none'"})
+            elif path in ("/head.js", "/head.json"):
+                from ..head.web import head_script, model_json
+
+                body, kind = ((head_script(), "text/javascript; charset=utf-8") if path == "/head.js"
+                              else (model_json(), "application/json"))
+                self._send(200, body, kind)
             elif path == "/api/study":
                 self._json(200, study.study_info())
             elif path == "/api/state":
@@ -445,7 +462,8 @@ class _Handler(BaseHTTPRequestHandler):
                 status = 206
                 headers["Content-Range"] = f"bytes {start}-{end}/{size}"
             self.send_response(status)
-            for key, value in {"Content-Type": "video/mp4", "Content-Length": str(end - start + 1),
+            kind = "application/json" if name.endswith(".json") else "video/mp4"
+            for key, value in {"Content-Type": kind, "Content-Length": str(end - start + 1),
                                "Cache-Control": "no-store", "X-Content-Type-Options": "nosniff",
                                "Referrer-Policy": "no-referrer", **headers}.items():
                 self.send_header(key, value)

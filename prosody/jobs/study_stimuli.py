@@ -1,8 +1,11 @@
 """The videos of a perceptual study (``prosody study stimuli``): one per stimulus and condition of a plan.
 
-Each video is the drawn face (``prosody preview``'s, without the curve strip and without a caption, so nothing
+Each video is the 3D head (``prosody preview``'s, without the curve strip and without a caption, so nothing
 on screen names the condition) animated by one condition, with the recording's audio: ``DIR/<stimulus>/
-<condition>.mp4``. Paired trials show two of them side by side; the study page plays them together.
+<condition>.mp4``, and beside it the same frames for the study page's WebGL head, ``<condition>.head.json``
+(the FAP values the video shows). Paired trials show two of them side by side; the study page plays them
+together, drawing the head itself from the frames (the video gives the sound and the clock) or, where WebGL is
+off, showing the videos.
 
 A condition is what ``prosody convert`` would make with some options: the thesis's four (``none``, ``random``,
 ``speech``, ``truth``) need no options; a study's own are given in a conditions file (JSON)::
@@ -38,7 +41,8 @@ from audio_features.atomic import atomic_write
 
 from ..errors import ConfigError
 from ..evaluation.designs import StudyPlan
-from ..evaluation.preview import write_preview
+from ..evaluation.preview import BROW_VIEW_SCALE, head_values, write_preview
+from ..head.web import head_frames_document
 from ..motion.conditions import Condition
 from .pipeline import convert
 
@@ -235,8 +239,10 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
         key = video_key(stimulus, name)
         path = out / stimulus / f"{name}.mp4"
         previous = old.get(key)
+        motion = path.with_name(f"{name}.head.json")
         kept = (not force and isinstance(previous, dict) and previous.get("settings") == settings and path.is_file()
-                and previous.get("sha256") == _sha256(path))
+                and previous.get("sha256") == _sha256(path) and motion.is_file()
+                and previous.get("motion_sha256") == _sha256(motion))
         if kept:
             manifest["videos"][key] = previous
         else:
@@ -250,7 +256,12 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
                 warnings.warn(f"{key}: {warning.message}", warning.category, stacklevel=2)
             path.parent.mkdir(parents=True, exist_ok=True)
             write_preview(stream, path, audio=audio, width=width, strip=False, captioned=False)
+            # the same frames for the page's WebGL head: the values the video shows (brows drawn as large)
+            frames = head_frames_document(head_values(stream, brow_scale=BROW_VIEW_SCALE), fps=stream.fps)
+            with atomic_write(motion, newline="\n") as handle:
+                json.dump(frames, handle, separators=(",", ":"))
             manifest["videos"][key] = {"file": f"{stimulus}/{name}.mp4", "sha256": _sha256(path),
+                                       "motion": f"{stimulus}/{name}.head.json", "motion_sha256": _sha256(motion),
                                        "seconds": round(stream.n_frames / stream.fps, 3), "settings": settings}
         _write_manifest(out, manifest, old, needed[done:])
         if on_video is not None:
