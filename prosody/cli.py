@@ -1224,10 +1224,11 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("input", help="speech recording")
     convert.add_argument("-o", "--output", required=True,
                          help="output file; the format follows the ending: .fap (MPEG-4), .csv (FAP units), "
-                              ".json, .bvh (head joint, degrees), .livelink.csv (Live Link Face style); - writes "
-                              "to standard output (with --format)")
+                              ".json, .bvh (head joint, degrees), .livelink.csv (Live Link Face style), .glb (the "
+                              "3D head animated, glTF 2.0, for Blender and three.js); - writes to standard output "
+                              "(with --format)")
     convert.add_argument("--format", default=None,
-                         choices=["fap", "csv", "csv-physical", "json", "bvh", "livelink"],
+                         choices=["fap", "csv", "csv-physical", "json", "bvh", "livelink", "gltf"],
                          help="output format, overriding the ending (csv-physical: radians and fractions of "
                               "the reference distances)")
     _add_motion_options(convert)

@@ -418,9 +418,9 @@ def build_head(face: np.ndarray | None = None) -> HeadMesh:
     # the eyes: balls behind the lid openings
     eye_centres = []
     for (upper, lower), part in ((LIDS_LEFT, EYE_LEFT), (LIDS_RIGHT, EYE_RIGHT)):
-        ring = v[list(upper + lower)]
-        opening = ring.mean(axis=0)
-        centre_eye = opening - np.array([0.0, 0.0, EYEBALL_RADIUS_CM - 0.05 + (ring[:, 2].max() - opening[2])])
+        # the ball's front touches the middle of the lids' opening, so the pupil sits in it seen from any side
+        middle = (v[upper[4]] + v[lower[4]]) / 2
+        centre_eye = np.array([middle[0], middle[1], middle[2] - 0.03 - EYEBALL_RADIUS_CM])
         eye_centres.append(centre_eye)
         for vertices, triangles, color in _eye_pieces(centre_eye):
             builder.add(vertices, triangles, color, part)

@@ -106,7 +106,8 @@ def convert(
     fps : float > 0
         Frame rate of the output.
     output_format : str, optional
-        A name of :data:`prosody.fap.exporters.WRITERS` (fap, csv, csv-physical, json, bvh, livelink).
+        A name of :data:`prosody.fap.exporters.WRITERS` (fap, csv, csv-physical, json, bvh, livelink) or of
+        :data:`~prosody.fap.exporters.DEFERRED_WRITERS` (gltf).
     gains : mapping, optional
         Intensity per channel (``pitch``, ``yaw``, ``roll``, ``brows``, ``lips``): 1 leaves it, 0.5 halves it.
     disabled : iterable of str
