@@ -1,5 +1,6 @@
-"""The drawn-face preview (``face="drawn"``; the 3D head is tested in test_head3d.py): brow height follows FAP 31-36, head angles move the face with the FAP signs, and
-the GIF and MP4 writers produce complete files (or none)."""
+"""The drawn-face preview (``face="drawn"``; the 3D head is in test_head3d.py): brow height follows FAP
+31-36, head angles move the face with the FAP signs, and the GIF and MP4 writers produce complete files (or
+none)."""
 
 from __future__ import annotations
 

@@ -25,7 +25,7 @@ from ..fap.table import RADIANS_PER_AU
 #: Periods (s) and amplitudes of the known motion: pitch, yaw, roll in degrees; jaw in MNS; brows in ENS.
 PERIODS_S = {"pitch": 4.1, "yaw": 5.3, "roll": 3.3, "jaw": 1.7, "brows": 2.3}
 AMPLITUDES = {"pitch": 10.0, "yaw": 15.0, "roll": 8.0, "jaw": 500.0, "brows": 250.0}
-PASS = {"head_r": 0.9, "spread": (0.75, 1.33), "lips_r": 0.9, "brows_r": 0.8, "found": 0.98}
+PASS_HEAD_R, PASS_SPREAD, PASS_LIPS_R, PASS_BROWS_R, PASS_FOUND = 0.9, (0.75, 1.33), 0.9, 0.8, 0.98
 
 
 def known_motion(duration_s: float, *, fps: float = 30.0) -> FapStream:
@@ -66,10 +66,10 @@ class LoopResult:
 
     @property
     def passed(self) -> bool:
-        low, high = PASS["spread"]
-        return (all(abs(r) >= PASS["head_r"] for r in self.head_r.values())
+        low, high = PASS_SPREAD
+        return (all(abs(r) >= PASS_HEAD_R for r in self.head_r.values())
                 and all(low <= s <= high for s in self.head_spread.values())
-                and self.lips_r >= PASS["lips_r"] and self.brows_r >= PASS["brows_r"] and self.found >= PASS["found"])
+                and self.lips_r >= PASS_LIPS_R and self.brows_r >= PASS_BROWS_R and self.found >= PASS_FOUND)
 
     def lines(self) -> list[str]:
         head = ", ".join(f"{axis} r {self.head_r[axis]:.3f} spread {self.head_spread[axis]:.2f}"

@@ -18,8 +18,10 @@ import importlib.util
 import math
 import struct
 import zipfile
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -164,12 +166,13 @@ def _varint(data: bytes, at: int) -> tuple[int, int]:
             return value, at
 
 
-def _fields(data: bytes):
+def _fields(data: bytes) -> Iterator[tuple[int, int, Any]]:
     """(field number, wire type, value) of a protocol-buffer message (value: int, or bytes)."""
     at = 0
     while at < len(data):
         key, at = _varint(data, at)
         number, wire = key >> 3, key & 7
+        value: int | bytes
         if wire == 0:
             value, at = _varint(data, at)
         elif wire == 2:
@@ -180,7 +183,7 @@ def _fields(data: bytes):
         elif wire == 1:
             value, at = data[at:at + 8], at + 8
         else:
-            raise ValueError(f"wire type {wire}")
+            raise PreviewError(f"the face model's geometry is not a protocol-buffer message (wire type {wire})")
         yield number, wire, value
 
 
@@ -417,9 +420,9 @@ def build_head(face: np.ndarray | None = None) -> HeadMesh:
 
     # the eyes: balls behind the lid openings
     eye_centres = []
-    for (upper, lower), part in ((LIDS_LEFT, EYE_LEFT), (LIDS_RIGHT, EYE_RIGHT)):
+    for (lid_top, lid_bottom), part in ((LIDS_LEFT, EYE_LEFT), (LIDS_RIGHT, EYE_RIGHT)):
         # the ball's front touches the middle of the lids' opening, so the pupil sits in it seen from any side
-        middle = (v[upper[4]] + v[lower[4]]) / 2
+        middle = (v[lid_top[4]] + v[lid_bottom[4]]) / 2
         centre_eye = np.array([middle[0], middle[1], middle[2] - 0.03 - EYEBALL_RADIUS_CM])
         eye_centres.append(centre_eye)
         for vertices, triangles, color in _eye_pieces(centre_eye):
@@ -455,12 +458,12 @@ def build_head(face: np.ndarray | None = None) -> HeadMesh:
     vertices = np.vstack(builder.vertices).astype(np.float32)
     triangles = np.vstack(builder.triangles).astype(np.int32)
     all_colors = np.vstack(builder.colors).astype(np.float32)
-    part = np.concatenate(builder.parts)
+    parts = np.concatenate(builder.parts)
     units = _measure_units(face_vertices, np.asarray(eye_centres))
     layout = vertices.copy()
     vertices[:N_FACE_VERTICES] = close_lips(face_vertices).astype(np.float32)
-    return HeadMesh(vertices, triangles, all_colors, part, dict(FEATURE_POINTS), units, np.asarray(eye_centres),
-                    layout=layout, rotates=part != NECK)
+    return HeadMesh(vertices, triangles, all_colors, parts, dict(FEATURE_POINTS), units, np.asarray(eye_centres),
+                    layout=layout, rotates=parts != NECK)
 
 
 @dataclass(frozen=True)
@@ -478,7 +481,7 @@ class LipCoordinates:
     outside_cm : float (n,)
         Distance in the face's plane (x, y) from the outer lip line; 0 within the lips.
     mouth_y : callable
-        The mouth line's height at x (between the inner lips, sloping down past the corners).
+        The mouth line's height at x (array in, array out) (between the inner lips, sloping down past the corners).
     corner_x : float
         The inner lip corners' distance from the middle.
     """
@@ -487,7 +490,7 @@ class LipCoordinates:
     in_lips: np.ndarray
     upper: np.ndarray
     outside_cm: np.ndarray
-    mouth_y: object
+    mouth_y: Callable[[np.ndarray], np.ndarray]
     corner_x: float
 
 

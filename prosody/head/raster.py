@@ -15,8 +15,6 @@ from numba import njit, prange
 from .view import AMBIENT, FILL, KEY, SHININESS_DOUBLINGS, SPECULAR, light_directions
 
 
-
-
 @njit(cache=True, nogil=True, parallel=True)
 def _cover(screen, triangles, nearest, weights, depth):  # pragma: no cover - compiled
     height, width = depth.shape

@@ -1,7 +1,8 @@
 """Frames of the head: a FAP frame -> the deformed, turned head -> a perspective view -> an RGB image.
 
-The camera and the lights are those of :mod:`.view` (the browser's too); the image is drawn at :data:`SUPERSAMPLE` times its size and box-averaged down (smooth edges),
-frames larger than :data:`SUPERSAMPLED_PIXELS` at their size (their pixels are small enough).
+The camera and the lights are those of :mod:`.view` (the browser's too); the image is drawn with
+:data:`SUPERSAMPLE` x :data:`SUPERSAMPLE` samples per pixel, box-averaged (smooth edges), frames larger than
+:data:`SUPERSAMPLED_PIXELS` with one (their pixels are small enough).
 """
 
 from __future__ import annotations

@@ -358,11 +358,13 @@ class FrameServer:
         path = request.path.split("?", 1)[0]
         from ..head.web import head_script, model_json  # the head's model is built on the first request
 
-        served = {"/": (self._page, "text/html; charset=utf-8"), "/index.html": (self._page, "text/html; charset=utf-8"),
-                  "/head.js": (head_script(), "text/javascript; charset=utf-8"),
-                  "/head.json": (model_json(), "application/json")}
+        served = {"/": (lambda: self._page, "text/html; charset=utf-8"),
+                  "/index.html": (lambda: self._page, "text/html; charset=utf-8"),
+                  "/head.js": (head_script, "text/javascript; charset=utf-8"),
+                  "/head.json": (model_json, "application/json")}
         if path in served:
-            body, kind = served[path]
+            make, kind = served[path]
+            body = make()
             headers = Headers([("Content-Type", kind), ("Cache-Control", "no-store"),
                                ("Content-Length", str(len(body)))])
             return Response(200, "OK", headers, body)
