@@ -474,6 +474,21 @@ def _frame_progress(output: str, verb: str = "drawn") -> Callable[[int, int], No
     return bar if bar.enabled else None
 
 
+def _forget_interrupt() -> None:
+    """Keep exit code 130 after an interrupt that was handled.
+
+    CPython remembers a KeyboardInterrupt that left a nested top-level evaluation (interrupting the import of
+    some compiled modules, scipy.sparse among them, leaves that record) and then ends the process by SIGINT at
+    exit, whatever code it returns. Evaluating an empty statement at top level clears the record.
+    """
+    if sys.implementation.name != "cpython":
+        return
+    with contextlib.suppress(Exception):
+        import ctypes
+
+        ctypes.pythonapi.PyRun_SimpleString(b"")
+
+
 def _say_unshown(stream, face: str, source: str) -> None:
     """One line naming the FAPs of ``stream`` that ``face`` does not show (none: nothing said)."""
     import numpy as np
@@ -1814,6 +1829,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 return _run(args.handler, args)
         except KeyboardInterrupt:
             _MESSAGES.emit("error", f"prosody {args.command}: interrupted", exit=130)
+            _forget_interrupt()
             return 130
         except BrokenPipeError:
             # the reader went away (`prosody inspect F.fap | head -1`): not an error of ours

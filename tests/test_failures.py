@@ -548,3 +548,20 @@ def test_asymmetries_between_what_is_written_and_what_is_read(tmp_path, capsys) 
     result = subprocess.run([sys.executable, "-m", "prosody", "stream", "-", "-o", "-"], input=mp3,
                             capture_output=True, timeout=120)
     assert result.returncode == 1 and b"MP3 is read from a file" in result.stderr
+
+
+@pytest.mark.parametrize(("forget", "code"), [(False, -2), (True, 0)])
+def test_a_handled_interrupt_keeps_the_exit_code(forget, code) -> None:
+    """CPython ends a process by SIGINT at exit when a KeyboardInterrupt once left a nested top-level
+    evaluation (an interrupted import of scipy.sparse does that), whatever code it returns: after an interrupt
+    it has handled, the command clears that record."""
+    import subprocess
+    import sys
+
+    script = ("import ctypes, sys\n"
+              "ctypes.pythonapi.PyRun_SimpleString(b'raise KeyboardInterrupt')  # leaves the record\n"
+              f"if {forget}:\n"
+              "    from prosody.cli import _forget_interrupt\n"
+              "    _forget_interrupt()\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, timeout=120)
+    assert done.returncode == code

@@ -63,6 +63,9 @@ class LoopResult:
     brows_r: float
     found: float
     frames: int
+    #: The control: the largest |r| of a tracked curve with a motion it was not given (another head axis, the
+    #: jaw for the brows, the brows for the lips): what a channel leaking into another would show.
+    crosstalk_r: float = float("nan")
 
     @property
     def passed(self) -> bool:
@@ -76,6 +79,7 @@ class LoopResult:
                          for axis in self.head_r)
         return [f"frames {self.frames}, face found in {100 * self.found:.1f} %",
                 f"head: {head}", f"lip opening vs jaw r {self.lips_r:.3f}", f"brows r {self.brows_r:.3f}",
+                f"control: largest |r| of a tracked curve with a motion it was not given {self.crosstalk_r:.3f}",
                 "pass" if self.passed else "FAIL"]
 
 
@@ -92,15 +96,19 @@ def measure(stream: FapStream, stem: str | Path) -> LoopResult:
         keep = found & np.isfinite(tracked[:n])
         return truth[:n][keep], tracked[:n][keep]
 
-    head_r, head_spread = {}, {}
-    for axis, fap, column in (("pitch", 48, "rx_rad"), ("yaw", 49, "ry_rad"), ("roll", 50, "rz_rad")):
+    def r(truth: np.ndarray, tracked: np.ndarray) -> float:
+        a, b = pair(truth, tracked)
+        return float(np.corrcoef(a, b)[0, 1])
+
+    axes = (("pitch", 48, "rx_rad"), ("yaw", 49, "ry_rad"), ("roll", 50, "rz_rad"))
+    head_r, head_spread, crosstalk = {}, {}, []
+    for axis, fap, column in axes:
         truth, tracked = pair(stream.curve(fap) * RADIANS_PER_AU, head[column])
         head_r[axis] = float(np.corrcoef(truth, tracked)[0, 1])
         head_spread[axis] = float(np.std(tracked) / np.std(truth))
-    truth, tracked = pair(stream.curve(3), mouth["lip_opening"])
-    lips_r = float(np.corrcoef(truth, tracked)[0, 1])
+        crosstalk += [abs(r(stream.curve(other), head[column])) for _, other, _ in axes if other != fap]
     heights = np.mean([brows[name] for name in ("inner_height_l", "inner_height_r", "outer_height_l",
                                                  "outer_height_r")], axis=0)
-    truth, tracked = pair(stream.curve(31), heights)
-    brows_r = float(np.corrcoef(truth, tracked)[0, 1])
-    return LoopResult(head_r, head_spread, lips_r, brows_r, float(found.mean()), n)
+    lips_r, brows_r = r(stream.curve(3), mouth["lip_opening"]), r(stream.curve(31), heights)
+    crosstalk += [abs(r(stream.curve(31), mouth["lip_opening"])), abs(r(stream.curve(3), heights))]
+    return LoopResult(head_r, head_spread, lips_r, brows_r, float(found.mean()), n, max(crosstalk))

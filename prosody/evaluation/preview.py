@@ -428,7 +428,7 @@ def strip_scales(streams: list[FapStream]) -> tuple[float, float]:
 FACES = ("head", "drawn")
 
 
-def head_values(stream: FapStream, *, exaggerate: float = 1.0, brow_scale: float = 1.0) -> np.ndarray:
+def head_values(stream: FapStream, *, exaggerate: float = 1.0, brow_scale: float = BROW_VIEW_SCALE) -> np.ndarray:
     """The (frames, 68) FAP values the head shows: masked-off FAPs 0 (neutral); head angles and brow raises
     times ``exaggerate``, the brows ``brow_scale`` times more; outer brows following the middle ones where the
     stream has none (as in the Live Link export)."""

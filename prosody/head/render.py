@@ -8,7 +8,6 @@ The camera and the lights are those of :mod:`.view` (the browser's too); the ima
 from __future__ import annotations
 
 import numpy as np
-from scipy import sparse
 
 from ..errors import ConfigError
 from ..fap.table import N_FAPS
@@ -40,11 +39,8 @@ class HeadRenderer:
         self.rig = rig or head_rig()
         mesh = self.rig.mesh
         self.triangles = mesh.triangles
-        n, m = mesh.n_vertices, len(mesh.triangles)
-        rows = mesh.triangles.reshape(-1)
-        columns = np.repeat(np.arange(m), 3)
-        # vertex normal = sum of its triangles' (area-weighted) normals
-        self._incidence = sparse.csr_matrix((np.ones(3 * m), (rows, columns)), shape=(n, m))
+        # a vertex's normal is the sum of its triangles' (area-weighted) normals
+        self._corners = mesh.triangles.reshape(-1)
         self._colors = mesh.colors.astype(np.float64)
         self.supersample = SUPERSAMPLE if self.width * self.height <= SUPERSAMPLED_PIXELS else 1
         self._canvas = Canvas(self.width, self.height, self.supersample)
@@ -61,7 +57,9 @@ class HeadRenderer:
     def normals(self, vertices: np.ndarray) -> np.ndarray:
         t = self.triangles
         face_normals = np.cross(vertices[t[:, 1]] - vertices[t[:, 0]], vertices[t[:, 2]] - vertices[t[:, 0]])
-        summed = self._incidence @ face_normals
+        n = self.rig.mesh.n_vertices
+        repeated = np.repeat(face_normals, 3, axis=0)
+        summed = np.column_stack([np.bincount(self._corners, weights=repeated[:, k], minlength=n) for k in range(3)])
         return summed / np.maximum(np.linalg.norm(summed, axis=1, keepdims=True), 1e-12)
 
     def render_vertices(self, vertices: np.ndarray) -> np.ndarray:
