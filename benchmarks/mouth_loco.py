@@ -11,6 +11,8 @@ and its spread over clips). Rows:
   clips), dominance blending: the default;
 - visemes with shapes fitted on the other speakers (least squares on the dominance weights);
 - acoustic: the acoustic mouth model (spectral features, ridge), trained on the other speakers;
+- Rhubarb cues: the default lips written as Rhubarb Lip Sync's mouth cues (``convert -o X.rhubarb.tsv``), played
+  back as a 2D player shows them: each shape's opening and rounding held for its cue (:data:`CUE_SHAPES`);
 - loudness: the intensity envelope alone (a baseline).
 
 Then the phones against the hand-checked alignment of ``speech/arctic_a0009`` (viseme class agreement per 10 ms
@@ -50,6 +52,23 @@ sys.path.insert(0, str(Path(__file__).parent))
 from shared import talking_heads as default_data  # noqa: E402
 
 FPS = 30.0
+#: What a player of Rhubarb's cues shows, as (opening MNS, rounding): each shape at the visemes' size.
+CUE_SHAPES = {"A": (0.0, 0.0), "X": (0.0, 0.0), "B": (150.0, 0.0), "C": (260.0, 0.0), "D": (330.0, 0.0),
+              "E": (240.0, 0.11), "F": (170.0, 0.2), "G": (45.0, 0.0), "H": (250.0, 0.0)}
+
+
+def cue_curves(faps: dict, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The lips written as mouth cues and played back: (opening MNS, rounding) per frame."""
+    from prosody.fap.mouth_cues import mouth_cues
+    from prosody.fap.stream import FapStream
+
+    cues = mouth_cues(FapStream.from_curves({fap: values[:n] for fap, values in faps.items()}, fps=FPS))
+    opening, rounding = np.zeros(n), np.zeros(n)
+    times = np.arange(n) / FPS
+    for cue in cues:
+        inside = (times >= cue.start_s - 1e-9) & (times < cue.end_s - 1e-9)
+        opening[inside], rounding[inside] = CUE_SHAPES[cue.shape]
+    return opening, rounding
 
 
 def speaker_of(name: str) -> str:
@@ -158,7 +177,7 @@ def main(folder: Path) -> None:
         sys.exit(f"{folder}: no <clip>.wav with a <clip>.mouth.csv beside it (see the README's evaluation section)")
     speakers = sorted({clip["speaker"] for clip in clips})
     print(f"{len(clips)} clips, {len(speakers)} speakers: {', '.join(speakers)}\n")
-    rows: dict[str, list] = {"visemes": [], "shipped": [], "acoustic": [], "loudness": []}
+    rows: dict[str, list] = {"visemes": [], "shipped": [], "acoustic": [], "loudness": [], "cues": []}
     for speaker in speakers:
         held = [clip for clip in clips if clip["speaker"] == speaker]
         rest = [clip for clip in clips if clip["speaker"] != speaker]
@@ -169,6 +188,8 @@ def main(folder: Path) -> None:
             for key, table in (("visemes", visemes), ("shipped", VISEMES)):
                 faps = shape_faps(shapes_from_phones(clip["phones"], n, fps=FPS, visemes=table))
                 rows[key].append(measured(inner_opening(faps), faps[16], clip))
+                if key == "shipped":
+                    rows["cues"].append(measured(*cue_curves(faps, n), clip))
             shape = acoustic.predict(clip["audio"], n, fps=FPS)
             faps = shape_faps(shape)
             rows["acoustic"].append(measured(inner_opening(faps)[:n], faps[16][:n], clip))
@@ -178,6 +199,7 @@ def main(folder: Path) -> None:
     print(row("visemes (default: phones, shipped shapes)", rows["shipped"]))
     print(row("visemes, shapes fitted on the other speakers", rows["visemes"]))
     print(row("acoustic model, trained on the other speakers", rows["acoustic"]))
+    print(row("Rhubarb cues of the default visemes, played back", rows["cues"]))
     print(row("loudness envelope (baseline)", rows["loudness"]))
     order = [c for s in speakers for c in clips if c["speaker"] == s]
     print("\nper clip, default visemes (opening r):",

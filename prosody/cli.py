@@ -1240,10 +1240,12 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("-o", "--output", required=True,
                          help="output file; the format follows the ending: .fap (MPEG-4), .csv (FAP units), "
                               ".json, .bvh (head joint, degrees), .livelink.csv (Live Link Face style), .glb (the "
-                              "3D head animated, glTF 2.0, for Blender and three.js); - writes to standard output "
-                              "(with --format)")
+                              "3D head animated, glTF 2.0, for Blender and three.js), .rhubarb.tsv, .rhubarb.json, "
+                              ".rhubarb.xml, .dat and .prestonblair.dat (the lips as Rhubarb Lip Sync's mouth "
+                              "cues, for its plugins); - writes to standard output (with --format)")
     convert.add_argument("--format", default=None,
-                         choices=["fap", "csv", "csv-physical", "json", "bvh", "livelink", "gltf"],
+                         choices=["fap", "csv", "csv-physical", "json", "bvh", "livelink", "gltf", "rhubarb-tsv",
+                                  "rhubarb-json", "rhubarb-xml", "moho-dat", "prestonblair-dat"],
                          help="output format, overriding the ending (csv-physical: radians and fractions of "
                               "the reference distances)")
     _add_motion_options(convert)

@@ -12,6 +12,9 @@ Formats and their mapping from FAP units (SPEC section 1; AU = 1e-5 rad, ENS = e
   ``Zrotation Yrotation Xrotation`` in degrees: Xrotation = head pitch (FAP 48, + bows down), Yrotation = head
   yaw (FAP 49, + turns to the character's left), Zrotation = head roll (FAP 50, + tilts to the character's
   right); the order composes R = Rz Ry Rx like the recordings of SPEC section 9. Brows are not in BVH.
+- ``rhubarb-tsv``, ``rhubarb-json``, ``rhubarb-xml``, ``moho-dat``, ``prestonblair-dat``: the lips as Rhubarb
+  Lip Sync's mouth cues (A-H, X) in its files (``.rhubarb.tsv``, ``.rhubarb.json``, ``.rhubarb.xml``, ``.dat``,
+  ``.prestonblair.dat``; :mod:`prosody.fap.mouth_cues`).
 - ``gltf``: the 3D head animated by the stream, as binary glTF 2.0 (``.glb``; :mod:`prosody.head.gltf`).
 - ``livelink``: Live Link Face style CSV (``*.livelink.csv``): ``Timecode,BlendShapeCount`` then the 52 ARKit
   blendshape columns and ``HeadYaw,HeadPitch,HeadRoll`` plus the six eye angles. Head angles in radians with
@@ -40,6 +43,13 @@ import numpy as np
 from audio_features.atomic import atomic_write
 
 from ..errors import ConfigError, FapWriteError
+from .mouth_cues import (
+    write_moho_dat,
+    write_preston_blair_dat,
+    write_rhubarb_json,
+    write_rhubarb_tsv,
+    write_rhubarb_xml,
+)
 from .stream import FapStream
 from .table import BY_NUMBER, HEAD_FAPS, RADIANS_PER_AU
 
@@ -262,6 +272,11 @@ WRITERS: dict[str, tuple[Writer, tuple[str, ...]]] = {
     "csv": (write_csv, (".csv",)),
     "json": (write_json, (".json",)),
     "bvh": (write_bvh, (".bvh",)),
+    "rhubarb-tsv": (write_rhubarb_tsv, (".rhubarb.tsv",)),
+    "rhubarb-json": (write_rhubarb_json, (".rhubarb.json",)),
+    "rhubarb-xml": (write_rhubarb_xml, (".rhubarb.xml",)),
+    "moho-dat": (write_moho_dat, (".dat",)),
+    "prestonblair-dat": (write_preston_blair_dat, (".prestonblair.dat",)),
 }
 
 

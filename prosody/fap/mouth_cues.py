@@ -1,0 +1,207 @@
+"""A FAP stream's lips as Rhubarb Lip Sync's mouth cues, and the files its plugins read.
+
+Rhubarb's mouth shapes (its documentation): A closed (P, B, M, slight pressure), B slightly open with clenched
+teeth (most consonants, the EE of "bee"), C open (EH, AE), D wide open (AA), E slightly rounded (AO, ER), F
+puckered (UW, OW, W); the extended G (upper teeth on the lower lip: F, V), H (long L, the tongue raised) and X
+(idle: closed and relaxed, in pauses). Without the extended shapes Rhubarb shows G as A, H as C and X as A.
+
+Each frame's shape is read from the lip FAPs, whatever made them (visemes, the acoustic model, a Greta file):
+the inner-lip opening ``FAP 3 - FAP 4 - FAP 5`` in MNS, the rounding ``(FAP 16 + FAP 17) / 2`` over
+:data:`PUCKER_MNS`; then, in this order: opening below :data:`CLOSED_MNS` is A (X where the mouth stays closed
+for :data:`IDLE_S` or more, or at the start and end, or where the stream has no lips); rounding from
+:data:`PUCKERED` is F, from :data:`ROUNDED` E; opening from :data:`WIDE_MNS` is D, from :data:`OPEN_MNS` C;
+else B. The thresholds sit between the shapes of the project's visemes (``prosody.motion.lips``: /a/ 330 MNS,
+/e/ 260, /i/ and the consonants 110-190, /p b m/ 0; /u/ rounded 0.2, /o/ and /r/ 0.1-0.12). G and H are never
+given: lip FAPs do not tell the lower lip under the teeth (/f v/, 45 MNS open) from a mouth half closed, nor
+carry the tongue; a player with the extended shapes shows ours as they are. A shape held for a single frame
+joins the cue before it (the first: the one after), closures excepted, so that no cue flickers.
+
+Files (Rhubarb's own layouts, so that the plugins of Blender, Godot, Unity, Spine, OpenToonz, After Effects and
+Moho read them): ``.rhubarb.tsv`` (``start<TAB>shape`` per cue, then the end of the recording with the closed
+mouth), ``.rhubarb.json`` (``metadata`` with ``soundFile`` and ``duration``, ``mouthCues`` of ``start``,
+``end``, ``value``), ``.rhubarb.xml`` (``rhubarbResult`` with ``metadata`` and ``mouthCue`` elements), and the
+Moho switch file ``.dat`` (``MohoSwitch1``, then ``frame shape`` lines at :data:`DAT_FPS` frames a second,
+frames counted from 1; ``.prestonblair.dat`` names the shapes MBP, etc, E, AI, O, U, FV, L and rest, which
+OpenToonz needs). Times are in seconds, at Rhubarb's resolution of 0.01 s; the duration is truncated to it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from xml.sax.saxutils import escape
+
+import numpy as np
+
+from audio_features.atomic import atomic_write
+
+from .stream import FapStream
+
+SHAPES = ("A", "B", "C", "D", "E", "F", "G", "H", "X")
+#: Rhubarb's shape without its extended shapes.
+BASIC_SHAPE = {"G": "A", "H": "C", "X": "A"}
+#: Rhubarb's shape names in the Preston Blair set (its ``--datUsePrestonBlair``).
+PRESTON_BLAIR = {"A": "MBP", "B": "etc", "C": "E", "D": "AI", "E": "O", "F": "U", "G": "FV", "H": "L",
+                 "X": "rest"}
+#: Thresholds of the shapes, in MNS (opening) and fractions of full protrusion (rounding).
+CLOSED_MNS, OPEN_MNS, WIDE_MNS = 30.0, 225.0, 305.0
+ROUNDED, PUCKERED = 0.07, 0.16
+#: Protrusion of each lip (FAP 16, 17) that counts as fully puckered, in MNS.
+PUCKER_MNS = 300.0
+#: A closed mouth held this long is idle (X).
+IDLE_S = 0.3
+#: Frame rate of Moho switch files (Rhubarb's default).
+DAT_FPS = 24.0
+RESOLUTION_S = 0.01
+
+
+@dataclass(frozen=True)
+class MouthCue:
+    """One mouth shape from ``start_s`` to ``end_s``."""
+
+    start_s: float
+    end_s: float
+    shape: str
+
+
+def frame_shapes(stream: FapStream) -> list[str]:
+    """Rhubarb's shape of every frame of ``stream`` (see the module doc)."""
+    curve = stream.curve
+    opening = curve(3) - curve(4) - curve(5)
+    rounding = (curve(16) + curve(17)) / 2 / PUCKER_MNS
+    has_lips = stream.mask[:, [2, 3, 4, 15, 16]].any(axis=1)
+    shapes = np.full(stream.n_frames, "B", dtype="<U1")
+    shapes[opening >= OPEN_MNS] = "C"
+    shapes[opening >= WIDE_MNS] = "D"
+    shapes[rounding >= ROUNDED] = "E"
+    shapes[rounding >= PUCKERED] = "F"
+    shapes[(opening < CLOSED_MNS) | ~has_lips] = "A"
+    out = shapes.tolist()
+    _merge_single_frames(out)
+    # closed for long, at the ends, or without lips: idle
+    idle_frames = max(1, math.ceil(IDLE_S * stream.fps - 1e-9))
+    k = 0
+    while k < len(out):
+        if out[k] != "A":
+            k += 1
+            continue
+        end = k
+        while end < len(out) and out[end] == "A":
+            end += 1
+        if end - k >= idle_frames or k == 0 or end == len(out) or not has_lips[k:end].any():
+            out[k:end] = ["X"] * (end - k)
+        k = end
+    return out
+
+
+def _merge_single_frames(shapes: list[str]) -> None:
+    """A shape held one frame between two others joins the one before it (the first frame: the one after)."""
+    k = 0
+    while k < len(shapes):
+        end = k + 1
+        while end < len(shapes) and shapes[end] == shapes[k]:
+            end += 1
+        if end - k == 1 and len(shapes) > 1 and shapes[k] != "A":  # closures are kept, however short
+            shapes[k] = shapes[k - 1] if k > 0 else shapes[end]
+        k = end
+
+
+def mouth_cues(stream: FapStream) -> list[MouthCue]:
+    """The stream's mouth cues: runs of one shape, on Rhubarb's 0.01 s grid, covering the whole recording."""
+    shapes = frame_shapes(stream)
+    duration = _truncated(stream.n_frames / stream.fps)
+    cues: list[MouthCue] = []
+    for k, shape in enumerate(shapes):
+        start = round(k / stream.fps, 2)
+        if cues and cues[-1].shape == shape:
+            continue
+        if cues and start <= cues[-1].start_s:  # two frames within 0.01 s: the later shape wins
+            cues[-1] = MouthCue(cues[-1].start_s, cues[-1].end_s, shape)
+            continue
+        if cues:
+            cues[-1] = MouthCue(cues[-1].start_s, start, cues[-1].shape)
+        cues.append(MouthCue(start, duration, shape))
+    merged: list[MouthCue] = []
+    for cue in cues:
+        if merged and merged[-1].shape == cue.shape:
+            merged[-1] = MouthCue(merged[-1].start_s, cue.end_s, cue.shape)
+        elif cue.end_s > cue.start_s or not merged:
+            merged.append(cue)
+    if not merged:
+        merged = [MouthCue(0.0, 0.0, "X")]
+    return merged
+
+
+def _sound_name(stream: FapStream) -> str:
+    """The recording's name for the metadata: the stream's, without the ``.rhubarb`` of the file's ending."""
+    return stream.name.removesuffix(".rhubarb")
+
+
+def _truncated(seconds: float) -> float:
+    return math.floor(seconds / RESOLUTION_S + 1e-9) * RESOLUTION_S
+
+
+def _seconds(value: float) -> str:
+    return f"{value:.2f}"
+
+
+def write_rhubarb_tsv(stream: FapStream, path: str | os.PathLike[str]) -> None:
+    cues = mouth_cues(stream)
+    lines = [f"{_seconds(cue.start_s)}\t{cue.shape}" for cue in cues]
+    lines.append(f"{_seconds(_truncated(stream.n_frames / stream.fps))}\tX")
+    with atomic_write(Path(path), newline="\n") as handle:
+        handle.write("\n".join(lines) + "\n")
+
+
+def write_rhubarb_json(stream: FapStream, path: str | os.PathLike[str]) -> None:
+    cues = mouth_cues(stream)
+    document = {"metadata": {"soundFile": _sound_name(stream), "duration": round(_truncated(stream.n_frames / stream.fps),
+                                                                           2)},
+                "mouthCues": [{"start": round(cue.start_s, 2), "end": round(cue.end_s, 2), "value": cue.shape}
+                              for cue in cues]}
+    with atomic_write(Path(path), newline="\n") as handle:
+        json.dump(document, handle, indent=2)
+        handle.write("\n")
+
+
+def write_rhubarb_xml(stream: FapStream, path: str | os.PathLike[str]) -> None:
+    cues = mouth_cues(stream)
+    lines = ['<?xml version="1.0" encoding="utf-8"?>', "<rhubarbResult>", "  <metadata>",
+             f"    <soundFile>{escape(_sound_name(stream))}</soundFile>",
+             f"    <duration>{_seconds(_truncated(stream.n_frames / stream.fps))}</duration>", "  </metadata>",
+             "  <mouthCues>"]
+    lines += [f'    <mouthCue start="{_seconds(cue.start_s)}" end="{_seconds(cue.end_s)}">{cue.shape}</mouthCue>'
+              for cue in cues]
+    lines += ["  </mouthCues>", "</rhubarbResult>"]
+    with atomic_write(Path(path), newline="\n") as handle:
+        handle.write("\n".join(lines) + "\n")
+
+
+def dat_lines(stream: FapStream, *, fps: float = DAT_FPS, preston_blair: bool = False) -> list[str]:
+    """The Moho switch file's lines: each cue from the frame it starts in (1-based), the closed mouth at the
+    end; a cue that starts in the frame of the one before is left out."""
+    name = PRESTON_BLAIR.get if preston_blair else (lambda shape: shape)
+    lines, last = ["MohoSwitch1"], 0
+    cues = mouth_cues(stream)
+    for cue in cues:
+        frame = 1 + int(fps * cue.start_s + 1e-9)
+        if frame == last:
+            continue
+        lines.append(f"{frame} {name(cue.shape)}")
+        last = frame
+    end = 1 + int(fps * cues[-1].end_s + 1e-9)
+    lines.append(f"{end if end != last else end + 1} {name('X')}")
+    return lines
+
+
+def write_moho_dat(stream: FapStream, path: str | os.PathLike[str]) -> None:
+    with atomic_write(Path(path), newline="\n") as handle:
+        handle.write("\n".join(dat_lines(stream)) + "\n")
+
+
+def write_preston_blair_dat(stream: FapStream, path: str | os.PathLike[str]) -> None:
+    with atomic_write(Path(path), newline="\n") as handle:
+        handle.write("\n".join(dat_lines(stream, preston_blair=True)) + "\n")

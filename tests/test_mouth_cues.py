@@ -1,0 +1,122 @@
+"""The lips as Rhubarb Lip Sync's mouth cues: shapes with known answers from designed lip FAPs, and each file
+read back by a parser written from Rhubarb's description of its formats (README, "Output formats" and the
+Moho switch file of its ``dat`` exporter)."""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ElementTree
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from prosody.cli import main
+from prosody.fap.exporters import format_for, write_stream
+from prosody.fap.mouth_cues import PRESTON_BLAIR, mouth_cues
+from prosody.fap.stream import FapStream
+
+FPS = 30.0
+#: (frames, opening MNS, rounding 0..1) -> the shape it must give.
+SEGMENTS = [(10, 0.0, 0.0, "X"), (6, 330.0, 0.0, "D"), (2, 0.0, 0.0, "A"), (6, 260.0, 0.0, "C"),
+            (6, 170.0, 0.2, "F"), (6, 280.0, 0.1, "E"), (6, 150.0, 0.0, "B"), (12, 0.0, 0.0, "X")]
+
+
+def _stream(segments=SEGMENTS) -> FapStream:
+    opening = np.concatenate([np.full(n, value) for n, value, _, _ in segments])
+    rounding = np.concatenate([np.full(n, value) for n, _, value, _ in segments])
+    # the opening shared as the visemes share it: jaw 60 %, top lip up 15 %, bottom lip down 25 %
+    curves = {3: 0.60 * opening, 4: -0.15 * opening, 5: -0.25 * opening, 16: 300 * rounding, 17: 300 * rounding}
+    return FapStream.from_curves(curves, fps=FPS, name="hello")
+
+
+def _expected() -> list[tuple[float, float, str]]:
+    out, frame = [], 0
+    for n, _, _, shape in SEGMENTS:
+        out.append((round(frame / FPS, 2), round((frame + n) / FPS, 2), shape))
+        frame += n
+    return out
+
+
+def test_designed_lips_give_rhubarbs_shapes_at_their_times() -> None:
+    cues = [(cue.start_s, cue.end_s, cue.shape) for cue in mouth_cues(_stream())]
+    expected = _expected()
+    expected[-1] = (expected[-1][0], 1.8, "X")  # the duration, truncated to 0.01 s
+    assert cues == expected
+
+
+def test_a_single_frame_does_not_flicker_but_a_short_closure_stays() -> None:
+    segments = [(6, 150.0, 0.0, "B"), (1, 330.0, 0.0, "-"), (6, 150.0, 0.0, "B"), (1, 0.0, 0.0, "A"),
+                (6, 150.0, 0.0, "B")]
+    shapes = [cue.shape for cue in mouth_cues(_stream(segments))]
+    assert shapes == ["B", "A", "B"]
+
+
+def test_a_stream_without_lips_is_idle() -> None:
+    stream = FapStream.from_curves({48: np.zeros(45)}, fps=FPS)
+    assert [(c.start_s, c.end_s, c.shape) for c in mouth_cues(stream)] == [(0.0, 1.5, "X")]
+
+
+def _read_tsv(path: Path) -> list[tuple[float, str]]:
+    rows = []
+    for line in path.read_text().splitlines():
+        time, shape = line.split("\t")
+        assert len(time.split(".")[1]) == 2  # seconds with two decimals
+        rows.append((float(time), shape))
+    return rows
+
+
+def test_each_file_is_what_rhubarbs_description_says(tmp_path: Path) -> None:
+    stream = _stream()
+    expected = _expected()
+    expected[-1] = (expected[-1][0], 1.8, "X")
+    for ending, name in ((".rhubarb.tsv", "rhubarb-tsv"), (".rhubarb.json", "rhubarb-json"),
+                         (".rhubarb.xml", "rhubarb-xml"), (".dat", "moho-dat"),
+                         (".prestonblair.dat", "prestonblair-dat")):
+        assert format_for(f"talk{ending}") == name
+        write_stream(stream, tmp_path / f"hello{ending}")
+    # TSV: a line per cue from 0.00, then the end of the recording with the closed mouth
+    rows = _read_tsv(tmp_path / "hello.rhubarb.tsv")
+    assert rows[:-1] == [(start, shape) for start, _, shape in expected]
+    assert rows[-1] == (1.8, "X")
+    # JSON: metadata (soundFile, duration) and mouthCues whose ends are the next starts
+    document = json.loads((tmp_path / "hello.rhubarb.json").read_text())
+    assert document["metadata"] == {"soundFile": "hello", "duration": 1.8}
+    assert [(c["start"], c["end"], c["value"]) for c in document["mouthCues"]] == expected
+    # XML: rhubarbResult > metadata, mouthCues > mouthCue(start, end) with the shape as text
+    root = ElementTree.parse(tmp_path / "hello.rhubarb.xml").getroot()
+    assert root.tag == "rhubarbResult"
+    assert root.findtext("metadata/soundFile") == "hello" and root.findtext("metadata/duration") == "1.80"
+    cues = [(float(c.get("start")), float(c.get("end")), c.text) for c in root.iterfind("mouthCues/mouthCue")]
+    assert cues == expected
+    # Moho switch: MohoSwitch1, then "frame shape" at 24 fps from frame 1, the closed mouth at the end
+    lines = (tmp_path / "hello.dat").read_text().splitlines()
+    assert lines[0] == "MohoSwitch1"
+    frames = [(int(line.split()[0]), line.split()[1]) for line in lines[1:]]
+    assert frames[:-1] == [(1 + int(24 * start + 1e-9), shape) for start, _, shape in expected]
+    assert frames[-1] == (1 + int(24 * 1.8 + 1e-9), "X")
+    named = (tmp_path / "hello.prestonblair.dat").read_text().splitlines()
+    assert [line.split()[1] for line in named[1:]] == [PRESTON_BLAIR[shape] for _, shape in frames]
+
+
+def test_convert_writes_rhubarb_cues_of_a_recording(tmp_path: Path) -> None:
+    from conftest import REPO
+
+    out = tmp_path / "a9.rhubarb.tsv"
+    assert main(["convert", str(REPO / "samples" / "arctic_a0009.wav"), "-o", str(out), "-q"]) == 0
+    rows = _read_tsv(out)
+    assert rows[0][0] == 0.0 and rows[-1] == (3.1, "X")
+    assert all(a[0] < b[0] for a, b in zip(rows, rows[1:], strict=False))
+    shapes = {shape for _, shape in rows}
+    assert shapes <= set("ABCDEFX") and len(shapes) >= 4  # speech moves through several shapes
+    assert "A" in shapes  # "Philip": the /p/ closes
+
+
+@pytest.mark.parametrize("ending", [".rhubarb.json", ".dat"])
+def test_convert_can_write_cues_to_standard_output(ending, capsys) -> None:
+    from conftest import REPO
+
+    name = {".rhubarb.json": "rhubarb-json", ".dat": "moho-dat"}[ending]
+    assert main(["convert", str(REPO / "samples" / "arctic_a0009.wav"), "-o", "-", "--format", name, "-q"]) == 0
+    text = capsys.readouterr().out
+    assert text.startswith("{") if ending == ".rhubarb.json" else text.startswith("MohoSwitch1")
