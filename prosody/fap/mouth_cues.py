@@ -158,8 +158,8 @@ def write_rhubarb_tsv(stream: FapStream, path: str | os.PathLike[str]) -> None:
 
 def write_rhubarb_json(stream: FapStream, path: str | os.PathLike[str]) -> None:
     cues = mouth_cues(stream)
-    document = {"metadata": {"soundFile": _sound_name(stream), "duration": round(_truncated(stream.n_frames / stream.fps),
-                                                                           2)},
+    duration = round(_truncated(stream.n_frames / stream.fps), 2)
+    document = {"metadata": {"soundFile": _sound_name(stream), "duration": duration},
                 "mouthCues": [{"start": round(cue.start_s, 2), "end": round(cue.end_s, 2), "value": cue.shape}
                               for cue in cues]}
     with atomic_write(Path(path), newline="\n") as handle:
