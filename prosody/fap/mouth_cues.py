@@ -72,7 +72,7 @@ def frame_shapes(stream: FapStream) -> list[str]:
     curve = stream.curve
     opening = curve(3) - curve(4) - curve(5)
     rounding = (curve(16) + curve(17)) / 2 / PUCKER_MNS
-    has_lips = stream.mask[:, [2, 3, 4, 15, 16]].any(axis=1)
+    has_lips = np.asarray(stream.mask[:, [2, 3, 4, 15, 16]].any(axis=1), dtype=bool)
     shapes = np.full(stream.n_frames, "B", dtype="<U1")
     shapes[opening >= OPEN_MNS] = "C"
     shapes[opening >= WIDE_MNS] = "D"
@@ -180,19 +180,19 @@ def write_rhubarb_xml(stream: FapStream, path: str | os.PathLike[str]) -> None:
         handle.write("\n".join(lines) + "\n")
 
 
-def dat_lines(stream: FapStream, *, fps: float = DAT_FPS, preston_blair: bool = False) -> list[str]:
+def dat_lines(stream: FapStream, *, dat_fps: float = DAT_FPS, preston_blair: bool = False) -> list[str]:
     """The Moho switch file's lines: each cue from the frame it starts in (1-based), the closed mouth at the
     end; a cue that starts in the frame of the one before is left out."""
     name = PRESTON_BLAIR.get if preston_blair else (lambda shape: shape)
     lines, last = ["MohoSwitch1"], 0
     cues = mouth_cues(stream)
     for cue in cues:
-        frame = 1 + int(fps * cue.start_s + 1e-9)
+        frame = 1 + int(dat_fps * cue.start_s + 1e-9)
         if frame == last:
             continue
         lines.append(f"{frame} {name(cue.shape)}")
         last = frame
-    end = 1 + int(fps * cues[-1].end_s + 1e-9)
+    end = 1 + int(dat_fps * cues[-1].end_s + 1e-9)
     lines.append(f"{end if end != last else end + 1} {name('X')}")
     return lines
 
