@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from audio_features import extract_features, load_audio
+from audio_features.espeak import align_transcript
 from audio_features.phones import Phone, recognise_phones
 from prosody.measures import average_mouth_metrics, mouth_metrics
 from prosody.motion.ground_truth import read_mouth_csv
@@ -148,9 +149,13 @@ def labelled_phones(folder: Path) -> None:
         return out
 
     edges = np.array([phone.start_s for phone in truth[1:]])
-    for label, transcript in (("phone loop", None),
-                              ("aligned transcript", "he turned sharply and faced gregson across the table")):
-        phones = recognise_phones(audio, transcript=transcript)
+    words = "he turned sharply and faced gregson across the table"
+    for label, transcript in (("phone loop", None), ("aligned transcript (PocketSphinx)", words),
+                              ("transcript through eSpeak NG (--language en-us)", words)):
+        if label.startswith("transcript through"):
+            phones = align_transcript(audio, words, "en-us")
+        else:
+            phones = recognise_phones(audio, transcript=transcript)
         found = np.array([phone.start_s for phone in phones[1:]])
         error_ms = np.median([np.min(np.abs(found - edge)) for edge in edges]) * 1000
         print(f"| {label} | {np.mean(classes(phones) == classes(truth)):.2f} | {error_ms:.0f} |")

@@ -210,6 +210,10 @@ def _add_face_options(parser: argparse.ArgumentParser) -> None:
                       help="what is said (the text, or a text file): its words are aligned to the audio for the "
                            "visemes; words the pronouncing dictionary lacks are left out, and a text that does "
                            "not fit the audio is ignored with a warning")
+    face.add_argument("--language", default=None, metavar="CODE",
+                      help="the transcript's language, an eSpeak NG code (es, de, fr, cmn, ...; 'prosody "
+                           "languages' lists them): its phones come from eSpeak NG and are aligned to the "
+                           "recording, in any language (default: English, aligned by PocketSphinx)")
     face.add_argument("--mouth-model", default=None, metavar="FILE",
                       help="with --lips acoustic: a mouth model from 'prosody train --kind mouth' (default: the "
                            "shipped one)")
@@ -298,6 +302,14 @@ def _eyebrow_rule(args: argparse.Namespace):
 
 
 # commands -----------------------------------------------------------------------------------------------
+def _cmd_languages(args: argparse.Namespace) -> int:
+    from audio_features.espeak import languages
+
+    for code, voice in languages().items():
+        print(f"{code}\t{voice}")
+    return EXIT_OK
+
+
 def _cmd_features(args: argparse.Namespace) -> int:
     from audio_features import extract_features
 
@@ -329,7 +341,7 @@ def _motion_kwargs(args: argparse.Namespace) -> dict:
     if hasattr(args, "lips"):
         face = {"lips": None if args.lips == "none" else args.lips, "transcript": args.transcript,
                 "expression": args.expression, "mouth_model": args.mouth_model, "pad": args.pad,
-                "pad_map": args.pad_map}
+                "pad_map": args.pad_map, "language": args.language}
     return {"condition": args.condition, "ground_truth": getattr(args, "ground_truth", None), "model": args.model,
             "seed": args.seed, "eyebrow_rule": _eyebrow_rule(args), "gains": gains, "disabled": disabled, **face,
             "expressivity": _expressivity(args),
@@ -370,6 +382,9 @@ def _check_motion_options(args: argparse.Namespace) -> None:
     if getattr(args, "transcript", None) is not None and getattr(args, "lips", None) != "visemes":
         raise ConfigError("--transcript is read by the visemes; it is not used by --lips "
                           f"{getattr(args, 'lips', 'none')}")
+    if getattr(args, "language", None) is not None and getattr(args, "transcript", None) is None:
+        raise ConfigError("--language is the transcript's language: give --transcript too (without one, "
+                          "--lips acoustic follows any language)")
     if getattr(args, "pad_map", None) is not None and args.pad is None:
         raise ConfigError("--pad-map maps the state of --pad to the face; give --pad too")
     if args.condition in ("none", "truth") and _expressivity(args) is not None:
@@ -860,6 +875,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                          seeds=args.seeds, normalize=args.normalize, eyebrow_rule=_eyebrow_rule(args),
                          other_head_models={name: name for name in args.also_model},
                          lips=None if args.lips == "none" else args.lips, transcript=args.transcript,
+                         language=args.language,
                          expression=args.expression, mouth=args.mouth, mouth_model=args.mouth_model,
                          expressivity=_expressivity(args), pad=args.pad, pad_map=args.pad_map,
                          **_analysis_kwargs(args))
@@ -1225,6 +1241,13 @@ def build_parser() -> argparse.ArgumentParser:
     features.add_argument("-o", "--output", required=True, help="CSV file to write (.csv), or - for standard output")
     _add_analysis_options(features)
     features.set_defaults(handler=_cmd_features)
+
+    languages = commands.add_parser(
+        "languages", help="list the transcript languages of --language (eSpeak NG's codes)",
+        description="Print the language codes --language takes with a transcript, one per line with the name of "
+                    "an eSpeak NG voice that speaks it: the transcript's phones come from eSpeak NG and are "
+                    "aligned to the recording, so the lips articulate in any of them.")
+    languages.set_defaults(handler=_cmd_languages)
 
     convert = commands.add_parser(
         "convert", help="turn a speech recording into a FAP stream",

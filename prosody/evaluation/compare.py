@@ -230,6 +230,7 @@ def compare(
     expressivity: Expressivity | None = None,
     pad: str | Sequence[PadSegment] | None = None,
     pad_map: str | os.PathLike[str] | None = None,
+    language: str | None = None,
 ) -> Comparison:
     """Compute every condition for a recording and compare them.
 
@@ -302,7 +303,7 @@ def compare(
     streams: dict[Condition, FapStream] = {}
     # the same lips and expression in every condition: the comparison is about prosody
     face = make_face(audio, features, lips=lips, transcript=transcript, expression=expression,
-                     mouth_model=mouth_model, pad=pad, pad_map=pad_map)
+                     mouth_model=mouth_model, pad=pad, pad_map=pad_map, language=language)
 
     def make(condition: Condition, run_seed: int, source: Features = features) -> FapStream:
         with warnings.catch_warnings():

@@ -82,6 +82,7 @@ def convert(
     expressivity: Expressivity | None = None,
     pad: str | Sequence[PadSegment] | None = None,
     pad_map: str | os.PathLike[str] | None = None,
+    language: str | None = None,
 ) -> FapStream:
     """Convert a speech recording into the FAP stream of one condition, and write it if ``output`` is given.
 
@@ -121,6 +122,9 @@ def convert(
         model, or None for no lip FAPs.
     transcript : str or path, optional
         What is said (text, or a text file), aligned to the audio for the visemes.
+    language : str, optional
+        The transcript's language as an eSpeak NG code (``es``, ``fr``, ``cmn``, ...; ``prosody languages`` lists
+        them); default: English, aligned by PocketSphinx.
     expression : str or sequence of ExpressionSegment, optional
         ``NAME:INTENSITY`` for the whole recording (``joy:0.6``), a CSV file of timed expressions, or segments.
     mouth_model : path, optional
@@ -152,7 +156,7 @@ def convert(
     stream = condition_stream(chosen, features, seed=seed, model=head_model, ground_truth=truth,
                               eyebrow_rule=eyebrow_rule, perlin=perlin, name=name, expressivity=expressivity)
     face = make_face(audio, features, lips=lips, transcript=transcript, expression=expression, gains=gains,
-                     disabled=disabled, mouth_model=mouth_model, pad=states, pad_map=pad_map)
+                     disabled=disabled, mouth_model=mouth_model, pad=states, pad_map=pad_map, language=language)
     recorded = None
     if base is not None:
         # the base must be of this recording: the same length within two frames, like recorded motion

@@ -34,14 +34,15 @@ class FaceLayer:
 
 def face_layer(audio, n_frames: int, *, fps: float, lips: str | None = "visemes", transcript: str | None = None,
                lip_gain: float = 1.0, expressions: Sequence[ExpressionSegment] = (),
-               mouth_model=None, pad: Sequence[PadSegment] = (), pad_map=None) -> FaceLayer:
+               mouth_model=None, pad: Sequence[PadSegment] = (), pad_map=None,
+               language: str | None = None) -> FaceLayer:
     """The lips (``lips``: "visemes", "acoustic" or None), the expressions and the partial expressions of a PAD
     state (:mod:`prosody.motion.pad`) of a recording, mixed by seed 000's Eq. 14 (see
     :mod:`prosody.motion.expressions`)."""
     curves: dict[int, np.ndarray] = {}
     if lips is not None:
         curves = lip_curves(audio, n_frames, fps=fps, method=lips, transcript=transcript, gain=lip_gain,
-                            mouth_model=mouth_model)
+                            mouth_model=mouth_model, language=language)
     shown: dict[int, np.ndarray] = expression_curves(expressions, n_frames, fps=fps) if expressions else {}
     if pad:
         for fap, curve in pad_face_curves(pad, n_frames, fps=fps, face_map=pad_map).items():
@@ -55,10 +56,11 @@ def make_face(audio: str | os.PathLike[str], features, *, lips: str | None = "vi
               expression: str | Sequence[ExpressionSegment] | None = None, gains: Mapping[str, float] | None = None,
               disabled: Iterable[str] = (), mouth_model: str | os.PathLike[str] | None = None,
               pad: str | Sequence[PadSegment] | None = None,
-              pad_map: str | os.PathLike[str] | None = None) -> FaceLayer | None:
+              pad_map: str | os.PathLike[str] | None = None, language: str | None = None) -> FaceLayer | None:
     """The lips and expression layer of a recording on its features' grid (None when there is neither).
 
-    ``transcript`` is the text or the path of a text file; ``expression`` a ``NAME:INTENSITY``, the path of a
+    ``transcript`` is the text or the path of a text file, in ``language`` (an eSpeak NG code; default: English,
+    aligned by PocketSphinx); ``expression`` a ``NAME:INTENSITY``, the path of a
     timed CSV file, or segments; ``gains["lips"]`` scales the lips and ``"lips"`` in ``disabled`` leaves them out;
     ``mouth_model`` is a file from ``prosody train --kind mouth`` for ``lips="acoustic"``; ``pad`` a ``P,A,D``, the
     path of a timed CSV file, or segments, whose partial expressions follow ``pad_map`` (a JSON file; default
@@ -82,7 +84,7 @@ def make_face(audio: str | os.PathLike[str], features, *, lips: str | None = "vi
         model = AcousticMouthModel.load(mouth_model)
     return face_layer(audio, features.n_frames, fps=features.fps, lips=lips, transcript=transcript,
                       lip_gain=float((gains or {}).get("lips", 1.0)), expressions=segments, mouth_model=model,
-                      pad=states, pad_map=face_map)
+                      pad=states, pad_map=face_map, language=language)
 
 
 def stream_mouth(stream: FapStream) -> tuple[np.ndarray, np.ndarray] | None:

@@ -295,7 +295,7 @@ LIP_METHODS = ("visemes", "acoustic")
 
 
 def lip_curves(audio, n_frames: int, *, fps: float, method: str = "visemes", transcript: str | None = None,
-               gain: float = 1.0, mouth_model=None) -> dict[int, np.ndarray]:
+               gain: float = 1.0, mouth_model=None, language: str | None = None) -> dict[int, np.ndarray]:
     """Lip FAPs of a recording on a frame grid.
 
     Parameters
@@ -309,6 +309,10 @@ def lip_curves(audio, n_frames: int, *, fps: float, method: str = "visemes", tra
         mouth model (language independent, ignores ``transcript``).
     transcript : str, optional
         What is said, for ``visemes`` (aligned to the audio; see :func:`audio_features.phones.recognise_phones`).
+    language : str, optional
+        The transcript's language, an eSpeak NG code (``es``, ``de``, ``cmn``, ...): its phones come from eSpeak NG
+        and are aligned by :func:`audio_features.espeak.align_transcript` (any language, no acoustic model);
+        without it the transcript is English, aligned by PocketSphinx.
     gain : float >= 0
         Scale of every lip FAP (0: a still, closed mouth).
     mouth_model : AcousticMouthModel, optional
@@ -325,6 +329,15 @@ def lip_curves(audio, n_frames: int, *, fps: float, method: str = "visemes", tra
 
         model = mouth_model if mouth_model is not None else AcousticMouthModel.load()
         shape = model.predict(audio, n_frames, fps=fps)
+    elif language is not None:
+        if transcript is None:
+            raise ConfigError("a language is the transcript's: give the transcript too (without one, the acoustic "
+                              "lips follow any language)")
+        from audio_features.audio import load_audio
+        from audio_features.espeak import align_transcript
+
+        recording = audio if hasattr(audio, "samples") else load_audio(audio)
+        shape = shapes_from_phones(align_transcript(recording, transcript, language), n_frames, fps=fps)
     else:
         from audio_features.phones import recognise_phones
 

@@ -1,0 +1,100 @@
+"""Lips from a transcript in any language: eSpeak NG's phones, their lip classes, and their alignment to a
+recording whose phone times are known (eSpeak NG itself, at another speaking rate, padded with silence: its
+own phone events give the true times)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from audio_features.audio import Audio
+from audio_features.espeak import EspeakError, align_transcript, languages, phone_classes, speak
+from prosody.cli import main
+from prosody.errors import ConfigError
+from prosody.motion.lips import lip_curves
+
+pytest.importorskip("espeakng_loader", reason="eSpeak NG (pip install espeakng-loader)")
+
+FPS = 100.0
+#: Sentences whose bilabials (p, b, m) must close the lips, one per language.
+SENTENCES = {"es": "Mamá bebe poco vino por la mañana.", "de": "Bitte mach mal eine Pause, Mama.",
+             "fr": "Le bébé mange une pomme avec maman.", "cmn": "妈妈爱宝宝，爸爸不忙。"}
+LEAD_S, TAIL_S = 0.5, 0.3
+
+
+def _recording(text: str, language: str, *, rate_wpm: int = 130) -> tuple[Audio, list[float]]:
+    """eSpeak NG saying ``text`` slower than the aligner's rendering, after 0.5 s of silence, and the true
+    start of each bilabial."""
+    from audio_features.espeak import _engine
+
+    engine = _engine()
+    engine.lib.espeak_SetParameter(1, rate_wpm, 0)
+    try:
+        spoken, phones = speak(text, language)
+    finally:
+        engine.lib.espeak_SetParameter(1, 175, 0)
+    rate = spoken.sample_rate_hz
+    samples = np.concatenate([np.zeros(int(LEAD_S * rate)), spoken.samples, np.zeros(int(TAIL_S * rate))])
+    return Audio(samples, rate), [LEAD_S + p.start_s for p in phones if p.label == "P"]
+
+
+def test_ipa_phones_fall_in_the_classes_that_look_alike() -> None:
+    assert phone_classes("m") == ["P"] and phone_classes("β") == ["P"] and phone_classes("ɸ") == ["P"]
+    assert phone_classes("f") == ["F"] and phone_classes("ð") == ["TH"] and phone_classes("ʁ") == ["K"]
+    assert phone_classes("ˈyː") == ["UW"] and phone_classes("ø") == ["OW"] and phone_classes("ɑ̃") == ["AA"]
+    assert phone_classes("tʃ") == ["CH"] and phone_classes("ts") == ["S"] and phone_classes("ɕ") == ["SH"]
+    assert phone_classes("ai˥˩") == ["AA", "IY"]  # a diphthong with its tone: its vowels
+    assert phone_classes("") == [] and phone_classes("_:") == []
+
+
+def test_the_languages_asked_for_are_spoken() -> None:
+    codes = languages()
+    assert {"es", "de", "fr", "cmn", "en-us"} <= set(codes) and len(codes) > 100
+
+
+@pytest.mark.parametrize("language", sorted(SENTENCES))
+def test_bilabials_land_on_their_true_times_and_close_the_lips(language) -> None:
+    text = SENTENCES[language]
+    recording, truth = _recording(text, language)
+    phones = align_transcript(recording, text, language)
+    found = [p.start_s for p in phones if p.label == "P"]
+    assert len(found) == len(truth) >= 4
+    assert np.max(np.abs(np.array(found) - np.array(truth))) < 0.05  # within 50 ms
+    n = int(recording.samples.size / recording.sample_rate_hz * FPS)
+    curves = lip_curves(recording, n, fps=FPS, transcript=text, language=language)
+    opening = curves[3] - curves[4] - curves[5]
+    bilabials = [p for p in phones if p.label == "P"]
+    for phone in bilabials:  # each closes: the opening at its middle is under a millimetre (~50 MNS)
+        assert opening[int(phone.centre_s * FPS)] < 50, (phone, opening[int(phone.centre_s * FPS)])
+    speaking = opening[int((LEAD_S + 0.1) * FPS):int(bilabials[0].start_s * FPS)]
+    assert speaking.size == 0 or speaking.max() > 100  # and opens between
+
+
+def test_a_sentence_without_bilabials_does_not_close_mid_utterance() -> None:
+    text = "Ella tiene tres casas chicas al lado del lago."
+    recording, truth = _recording(text, "es")
+    assert truth == []
+    n = int(recording.samples.size / recording.sample_rate_hz * FPS)
+    curves = lip_curves(recording, n, fps=FPS, transcript=text, language="es")
+    opening = curves[3] - curves[4] - curves[5]
+    middle = opening[int((LEAD_S + 0.15) * FPS):n - int((TAIL_S + 0.15) * FPS)]
+    assert middle.min() > 40  # never closed between the first and the last sound
+
+
+def test_an_unknown_language_is_refused_with_how_to_list_them(capsys) -> None:
+    with pytest.raises(EspeakError, match="prosody languages"):
+        speak("hola", "xx-nowhere")
+    from conftest import REPO
+
+    assert main(["convert", str(REPO / "samples" / "arctic_a0009.wav"), "-o", "-", "--format", "json",
+                 "--transcript", "hola", "--language", "xx"]) == 2
+    assert "'prosody languages' lists the codes" in capsys.readouterr().err
+    with pytest.raises(ConfigError, match="transcript"):
+        lip_curves(Audio(np.zeros(1600), 16000), 10, fps=FPS, language="es")
+
+
+def test_prosody_languages_lists_the_codes(capsys) -> None:
+    assert main(["languages"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "es\tSpanish (Spain)" in lines or any(line.startswith("es\t") for line in lines)
+    assert len(lines) > 100
