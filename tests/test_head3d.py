@@ -270,7 +270,7 @@ def test_the_players_files_play_on_the_head(shared_data, relative, tmp_path) -> 
         stream = read_fap(shared_data / "fap-files" / relative).stream
     moving = [int(f) + 1 for f in np.flatnonzero(stream.mask.any(axis=0))]
     shown = [f for f in moving if f not in RIG.unsupported(moving)]
-    assert shown  # each moves something the head has
+    assert shown or set(moving) <= {1, 2}  # something the head has, or only the high-level FAPs
     out = tmp_path / "play.gif"
     done = subprocess.run([sys.executable, "-m", "prosody", "preview", str(shared_data / "fap-files" / relative),
                            "-o", str(out), "--width", "96", "--duration", "1"], capture_output=True, text=True,
