@@ -1,0 +1,137 @@
+"""The lips against the mouths of the shared talking videos, leave one speaker out (``make evaluate``).
+
+The 43 public talking-head clips of ``../shared/data/talking-videos`` (about 25 speakers, none of them in
+``talking-heads``) are tracked once by ``prosody track`` into ``out/talking-videos-tracked/`` (kept for the next
+run). For each speaker, every method's lips are measured against that speaker's tracked mouths: the opening r at
+the best lag within +-0.25 s, the closure F1, and beside each the mismatched-audio control (the same lips
+circularly shifted against the recording) and its spread. Figures are means over speakers (each speaker's clips
+averaged first), then again for women and for men apart (``videos_speakers.csv`` gives who speaks; the GRID clips
+count as one speaker of unknown sex). Methods:
+
+- visemes: phones recognised without a transcript (the default lips; the English model, also on the French and
+  German clips);
+- acoustic, shipped: the acoustic mouth model ``prosody`` ships (fitted on the talking-heads clips);
+- acoustic, held out: the same model refitted on the talking-heads clips and every other video speaker;
+- loudness: the intensity envelope alone (a baseline).
+
+Usage: python benchmarks/mouth_videos_loso.py
+"""
+
+from __future__ import annotations
+
+import csv
+import subprocess
+import sys
+import warnings
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from audio_features import extract_features, load_audio
+from audio_features.phones import recognise_phones
+from prosody.motion.ground_truth import read_mouth_csv
+from prosody.motion.lips import inner_opening, shape_faps, shapes_from_phones
+from prosody.motion.mouth_model import AcousticMouthModel, mouth_training_clip
+
+sys.path.insert(0, str(Path(__file__).parent))
+from mouth_loco import measured  # noqa: E402
+from shared import REPO, data_folder  # noqa: E402
+
+FPS = 30.0
+TRACKED = REPO / "out" / "talking-videos-tracked"
+
+
+def speakers() -> dict[str, dict]:
+    with open(Path(__file__).with_name("videos_speakers.csv"), newline="") as handle:
+        return {row["clip"]: row for row in csv.DictReader(handle)}
+
+
+def load_clips(folder: Path) -> list[dict]:
+    TRACKED.mkdir(parents=True, exist_ok=True)
+    subprocess.run([sys.executable, "-m", "prosody", "track", str(folder), "-o", str(TRACKED), "-q", "--jobs", "2"],
+                   check=True)
+    who = speakers()
+    clips = []
+    for mouth_file in sorted(TRACKED.glob("*.mouth.csv")):
+        stem = mouth_file.name[:-len(".mouth.csv")]
+        if stem not in who:
+            continue
+        mouth = read_mouth_csv(mouth_file)
+        if np.isfinite(mouth.lip_opening).mean() < 0.8:  # the face was not found often enough
+            continue
+        audio = load_audio(TRACKED / f"{stem}.wav")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            features = extract_features(audio, fps=FPS)
+        clips.append({"name": stem, "speaker": who[stem]["speaker"], "sex": who[stem]["sex"], "mouth": mouth,
+                      "audio": audio, "energy": np.resize(features.energy.values, mouth.n_frames),
+                      "training": mouth_training_clip(audio, mouth, fps=FPS, name=stem)})
+    return clips
+
+
+def heads_training() -> list:
+    folder = data_folder("talking-heads", needs="the talking-heads clips")
+    out = []
+    for wav in sorted(folder.glob("*.wav")):
+        mouth_file = wav.with_name(wav.stem + ".mouth.csv")
+        if mouth_file.is_file():
+            mouth = read_mouth_csv(mouth_file)
+            out.append(mouth_training_clip(load_audio(wav), mouth, fps=FPS, name=wav.stem))
+    return out
+
+
+def summary(label: str, per_speaker: dict[str, list], sexes: dict[str, str]) -> str:
+    def mean_of(results, key, sub=None):
+        values = [(r[sub] if sub else r)[key] for r in results]
+        values = [v for v in values if v is not None]
+        return float(np.mean(values)) if values else float("nan")
+
+    cells = []
+    for group in ("all", "F", "M"):
+        names = [s for s in per_speaker if group == "all" or sexes[s] == group]
+        speech = [mean_of([r for r, _ in per_speaker[s]], "opening_r") for s in names]
+        control = [mean_of([c for _, c in per_speaker[s]], "opening_r") for s in names]
+        f1 = [mean_of([r for r, _ in per_speaker[s]], "f1", "closures") for s in names]
+        cells.append(f"{np.nanmean(speech):.3f} (control {np.nanmean(control):+.3f} ± {np.nanstd(control):.2f}), "
+                     f"F1 {np.nanmean(f1):.2f}, n {len(names)}")
+    return f"| {label} | " + " | ".join(cells) + " |"
+
+
+def main() -> None:
+    clips = load_clips(data_folder("talking-videos", needs="the talking videos"))
+    heads = heads_training()
+    names = sorted({clip["speaker"] for clip in clips})
+    sexes = {clip["speaker"]: clip["sex"] for clip in clips}
+    print(f"{len(clips)} clips tracked, {len(names)} speakers ({sum(s == 'F' for s in sexes.values())} women, "
+          f"{sum(s == 'M' for s in sexes.values())} men); {len(heads)} talking-heads clips in every training set\n")
+    rows: dict[str, dict[str, list]] = {key: defaultdict(list) for key in ("visemes", "shipped", "held", "loudness")}
+    shipped = AcousticMouthModel.load()
+    for speaker in names:
+        held = [clip for clip in clips if clip["speaker"] == speaker]
+        model = AcousticMouthModel().fit(heads + [c["training"] for c in clips if c["speaker"] != speaker])
+        for clip in held:
+            n = clip["mouth"].n_frames
+            faps = shape_faps(shapes_from_phones(recognise_phones(clip["audio"]), n, fps=FPS))
+            rows["visemes"][speaker].append(measured(inner_opening(faps)[:n], faps[16][:n], clip))
+            for key, chosen in (("shipped", shipped), ("held", model)):
+                faps = shape_faps(chosen.predict(clip["audio"], n, fps=FPS))
+                rows[key][speaker].append(measured(inner_opening(faps)[:n], faps[16][:n], clip))
+            rows["loudness"][speaker].append(measured(clip["energy"], clip["energy"], clip))
+    print("| lips | all speakers: opening r (control ± spread), closure F1 | women | men |")
+    print("|---|---|---|---|")
+    print(summary("visemes (default, phone loop)", rows["visemes"], sexes))
+    print(summary("acoustic, shipped", rows["shipped"], sexes))
+    print(summary("acoustic, refitted without the held-out speaker", rows["held"], sexes))
+    print(summary("loudness envelope (baseline)", rows["loudness"], sexes))
+    print("\nper speaker, visemes / acoustic held out (opening r):")
+    def mean_r(key: str, speaker: str) -> float:
+        values = [r["opening_r"] for r, _ in rows[key][speaker] if r["opening_r"] is not None]
+        return float(np.mean(values)) if values else float("nan")
+
+    for speaker in names:
+        print(f"  {speaker} ({sexes[speaker]}): {mean_r('visemes', speaker):.2f} / {mean_r('held', speaker):.2f}")
+
+
+if __name__ == "__main__":
+    main()
