@@ -46,6 +46,7 @@ evaluate: $(STAMP)
 	$(BIN)/python benchmarks/mouth_loco.py
 	$(BIN)/python benchmarks/train_live_mouth.py
 	$(BIN)/python benchmarks/head_loop.py
+	$(BIN)/python benchmarks/mouth_videos_loso.py
 
 clean:
 	rm -rf $(VENV) out build *.egg-info .pytest_cache
