@@ -12,6 +12,8 @@ count as one speaker of unknown sex). Methods:
   German clips);
 - acoustic, shipped: the acoustic mouth model ``prosody`` ships (fitted on the talking-heads clips);
 - acoustic, held out: the same model refitted on the talking-heads clips and every other video speaker;
+- combined: the mean of the visemes' and the held-out acoustic model's mouths (opening and rounding);
+- combined, closures kept: the same, but where the visemes close the lips (opening under 30 MNS) they stay closed;
 - loudness: the intensity envelope alone (a baseline).
 
 Usage: python benchmarks/mouth_videos_loso.py
@@ -105,7 +107,8 @@ def main() -> None:
     sexes = {clip["speaker"]: clip["sex"] for clip in clips}
     print(f"{len(clips)} clips tracked, {len(names)} speakers ({sum(s == 'F' for s in sexes.values())} women, "
           f"{sum(s == 'M' for s in sexes.values())} men); {len(heads)} talking-heads clips in every training set\n")
-    rows: dict[str, dict[str, list]] = {key: defaultdict(list) for key in ("visemes", "shipped", "held", "loudness")}
+    rows: dict[str, dict[str, list]] = {key: defaultdict(list)
+                                        for key in ("visemes", "shipped", "held", "combined", "closing", "loudness")}
     shipped = AcousticMouthModel.load()
     for speaker in names:
         held = [clip for clip in clips if clip["speaker"] == speaker]
@@ -113,16 +116,26 @@ def main() -> None:
         for clip in held:
             n = clip["mouth"].n_frames
             faps = shape_faps(shapes_from_phones(recognise_phones(clip["audio"]), n, fps=FPS))
-            rows["visemes"][speaker].append(measured(inner_opening(faps)[:n], faps[16][:n], clip))
+            phones_mouth = (inner_opening(faps)[:n], faps[16][:n])
+            rows["visemes"][speaker].append(measured(*phones_mouth, clip))
             for key, chosen in (("shipped", shipped), ("held", model)):
                 faps = shape_faps(chosen.predict(clip["audio"], n, fps=FPS))
                 rows[key][speaker].append(measured(inner_opening(faps)[:n], faps[16][:n], clip))
+            acoustic_mouth = (inner_opening(faps)[:n], faps[16][:n])
+            mean_opening = 0.5 * (phones_mouth[0] + acoustic_mouth[0])
+            mean_rounding = 0.5 * (phones_mouth[1] + acoustic_mouth[1])
+            rows["combined"][speaker].append(measured(mean_opening, mean_rounding, clip))
+            closed = phones_mouth[0] < 30.0
+            rows["closing"][speaker].append(measured(np.where(closed, phones_mouth[0], mean_opening), mean_rounding,
+                                                     clip))
             rows["loudness"][speaker].append(measured(clip["energy"], clip["energy"], clip))
     print("| lips | all speakers: opening r (control ± spread), closure F1 | women | men |")
     print("|---|---|---|---|")
     print(summary("visemes (default, phone loop)", rows["visemes"], sexes))
     print(summary("acoustic, shipped", rows["shipped"], sexes))
     print(summary("acoustic, refitted without the held-out speaker", rows["held"], sexes))
+    print(summary("combined: mean of visemes and acoustic held out", rows["combined"], sexes))
+    print(summary("combined, the visemes' closures kept", rows["closing"], sexes))
     print(summary("loudness envelope (baseline)", rows["loudness"], sexes))
     print("\nper speaker, visemes / acoustic held out (opening r):")
     def mean_r(key: str, speaker: str) -> float:
