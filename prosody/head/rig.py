@@ -89,8 +89,7 @@ class HeadRig:
     def deform(self, values: np.ndarray) -> np.ndarray:
         """Vertices (n, 3) for one frame's 68 FAP values (0 = neutral; NaN counts as 0)."""
         values = np.nan_to_num(np.asarray(values, float).reshape(N_FAPS))
-        active = np.flatnonzero(values)
-        active = active[np.abs(self.fields[active]).max(axis=(1, 2)) > 0] if active.size else active
+        active = np.flatnonzero((values != 0) & self.moving)
         vertices = self.mesh.vertices.astype(np.float64)
         if active.size:
             vertices = vertices + np.tensordot(values[active], self.fields[active], axes=1)
@@ -100,6 +99,11 @@ class HeadRig:
             turning = self.mesh.rotates
             vertices[turning] = (vertices[turning] - pivot) @ rotation(pitch, yaw, roll).T + pivot
         return vertices
+
+    @functools.cached_property
+    def moving(self) -> np.ndarray:
+        """bool (68,): the FAPs whose field moves a vertex."""
+        return np.abs(self.fields).max(axis=(1, 2)) > 0
 
     def unsupported(self, faps: np.ndarray | list[int]) -> list[int]:
         """Of ``faps``, those this head does not show (the high-level 1 and 2 included)."""
@@ -117,9 +121,9 @@ def rotation(pitch_rad: float, yaw_rad: float, roll_rad: float) -> np.ndarray:
     return rz @ ry @ rx
 
 
-@functools.lru_cache(maxsize=4)
-def head_rig(face_key: bytes | None = None) -> HeadRig:
-    """The rig of the canonical head (cached); ``face_key`` is for :func:`rig_for_face`'s cache."""
+@functools.lru_cache(maxsize=1)
+def head_rig() -> HeadRig:
+    """The rig of the canonical head (built once)."""
     return build_rig(build_head())
 
 
