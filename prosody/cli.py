@@ -1580,9 +1580,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     stimuli = study_commands.add_parser(
         "stimuli", help="draw the video of every stimulus and condition of a plan",
-        description="For every stimulus and condition of PLAN, the drawn face animated by that condition with the "
+        description="For every stimulus and condition of PLAN, the 3D head animated by that condition with the "
                     "recording's audio, as OUT/<stimulus>/<condition>.mp4 (no curve strip and no caption, so nothing "
-                    "on screen names the condition), listed in OUT/stimuli.json. Recordings are RECORDINGS/"
+                    "on screen names the condition), with the same frames for the ballot's WebGL head as "
+                    "OUT/<stimulus>/<condition>.head.json, listed in OUT/stimuli.json. Recordings are RECORDINGS/"
                     "<stimulus>.wav (or another audio ending), with <stimulus>.head.csv (or .fap) for the truth "
                     "condition. The thesis's four conditions need no definition; others are defined in a JSON file: "
                     '{"format": "visual-prosody-study-conditions", "version": 1, "conditions": {"calm": {"label": '
