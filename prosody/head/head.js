@@ -50,7 +50,8 @@
 
   class HeadView {
     constructor(canvas, model) {
-      const gl = canvas.getContext("webgl", { antialias: true, preserveDrawingBuffer: true });
+      // no multisampling: where WebGL runs in software (SwiftShader) it costs four times the pixels
+      const gl = canvas.getContext("webgl", { antialias: false, preserveDrawingBuffer: true });
       if (!gl) throw new Error("WebGL is not available in this browser");
       this.gl = gl; this.canvas = canvas; this.model = model;
       this.rest = new Float32Array(model.vertices);
@@ -98,6 +99,7 @@
 
     // Draw one frame: faps maps FAP numbers to values (FAP units); absent is neutral.
     draw(faps) {
+      const started = performance.now();
       const gl = this.gl, pos = this.positions, nrm = this.normals;
       pos.set(this.rest);
       for (const [fap, value] of Object.entries(faps || {})) {
@@ -131,6 +133,7 @@
       gl.clearColor(bg[0], bg[1], bg[2], 1);
       gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
       gl.drawElements(gl.TRIANGLES, t.length, gl.UNSIGNED_SHORT, 0);
+      this.drawMs = performance.now() - started;
     }
   }
 
