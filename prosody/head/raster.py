@@ -9,6 +9,9 @@ is the same on every machine for the same input (no GPU, no driver).
 
 from __future__ import annotations
 
+import signal
+import threading
+
 import numpy as np
 from numba import njit, prange
 
@@ -169,6 +172,27 @@ _LIGHTS = light_directions()
 _STRENGTHS = np.array([KEY, FILL, AMBIENT, SPECULAR])
 
 
+_workers_started = False
+
+
+def _start_workers() -> None:
+    """Start Numba's worker threads with Ctrl-C and SIGTERM blocked in them (they inherit the mask of the
+    thread that starts them), so that those signals always reach the main thread, where Python handles them
+    at once; a worker thread receiving one would delay the interrupt until it gets to run."""
+    global _workers_started
+    if _workers_started:
+        return
+    if threading.current_thread() is threading.main_thread():
+        masked = {signal.SIGINT, signal.SIGTERM}
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, masked)
+        try:
+            _cover(np.zeros((0, 3)), np.zeros((0, 3), np.int32), np.zeros((16, 16), np.int32),
+                   np.zeros((16, 16, 2), np.float32), np.zeros((16, 16), np.float32))
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+    _workers_started = True
+
+
 class Canvas:
     """The buffers one image size needs (depth, nearest triangle and barycentric weights per sample), kept
     between frames."""
@@ -209,6 +233,7 @@ def rasterise(screen: np.ndarray, triangles: np.ndarray, normals: np.ndarray, co
     if canvas is None or (canvas.width, canvas.height, canvas.factor) != (width, height, factor):
         canvas = Canvas(width, height, factor)
     triangles = np.ascontiguousarray(triangles, np.int32)
+    _start_workers()
     _cover(np.ascontiguousarray(screen, np.float64), triangles, canvas.nearest, canvas.weights, canvas.depth)
     out = np.empty((height, width, 3), np.uint8)
     _resolve(triangles, np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(colors, np.float64),
