@@ -95,6 +95,17 @@ def test_a_regular_file_is_still_replaced_atomically(tmp_path, speech) -> None:
     assert np.loadtxt(out, delimiter=",", skiprows=1).shape[0] == 51
 
 
+def _delivered() -> None:
+    """Give a signal sent to this process the moment it needs to arrive: the kernel may hand it to another thread
+    (a library's worker), whose handler then tells the main thread, so it is not always there when ``kill``
+    returns (on a busy machine, seen as late as the end of the block)."""
+    import time
+
+    deadline = time.monotonic() + 0.2
+    while time.monotonic() < deadline:
+        time.sleep(0.01)
+
+
 def test_an_interrupt_while_the_temporary_file_is_made_leaves_nothing(tmp_path, monkeypatch) -> None:
     import signal
     import tempfile
@@ -106,6 +117,7 @@ def test_an_interrupt_while_the_temporary_file_is_made_leaves_nothing(tmp_path, 
     def interrupted_mkstemp(*args, **kwargs):
         result = made(*args, **kwargs)
         os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C right after the file exists, before its name is returned
+        _delivered()
         return result
 
     monkeypatch.setattr(tempfile, "mkstemp", interrupted_mkstemp)
@@ -122,6 +134,7 @@ def test_interrupts_held_act_when_the_block_ends() -> None:
     with pytest.raises(KeyboardInterrupt):
         with interrupts_held():
             os.kill(os.getpid(), signal.SIGINT)
+            _delivered()
             reached.append("the rest of the block")
     assert reached == ["the rest of the block"]
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back
