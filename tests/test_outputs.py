@@ -103,7 +103,12 @@ def _in_a_fresh_process(body: str) -> None:
     import sys
     import textwrap
 
-    done = subprocess.run([sys.executable, "-c", textwrap.dedent(body)], capture_output=True, text=True,
+    # as a terminal's Ctrl-C finds a program: SIGINT raising KeyboardInterrupt, not blocked (a child inherits
+    # its parent's mask and an ignored SIGINT)
+    prologue = ("import signal\n"
+                "signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})\n"
+                "signal.signal(signal.SIGINT, signal.default_int_handler)\n")
+    done = subprocess.run([sys.executable, "-c", prologue + textwrap.dedent(body)], capture_output=True, text=True,
                           timeout=120)
     assert done.returncode == 0, done.stdout + done.stderr
     assert done.stdout.strip().endswith("ok"), done.stdout + done.stderr
