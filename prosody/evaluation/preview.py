@@ -36,6 +36,7 @@ from audio_features.atomic import atomic_path, atomic_write, interrupts_held
 from ..errors import ConfigError, PreviewError
 from ..fap.stream import FapStream
 from ..fap.table import DISTANCE_UNITS_PER_REFERENCE, HEAD_FAPS, RADIANS_PER_AU
+from ..head.rig import rotation  # R = Rz(roll) Ry(yaw) Rx(pitch), the drawn face's and the 3D head's
 
 #: Frame widths drawn, in pixels (3840: a 4K frame; drawing is done at twice the size).
 MIN_WIDTH, MAX_WIDTH = 64, 3840
@@ -132,17 +133,6 @@ DRAWN_LIP_FAPS = (3, 4, 5, 6, 7, 12, 13)
 EYELID_FAPS = (19, 20, 21, 22)
 #: Every FAP the drawn face shows.
 DRAWN_FAPS = DRAWN_LIP_FAPS + EYELID_FAPS + (31, 32, 33, 34, 35, 36) + HEAD_FAPS
-
-
-def rotation(pitch_rad: float, yaw_rad: float, roll_rad: float) -> np.ndarray:
-    """R = Rz(roll) Ry(yaw) Rx(pitch) in the face model's axes, with the FAP signs (see the module doc)."""
-    cx, sx = math.cos(pitch_rad), math.sin(pitch_rad)
-    cy, sy = math.cos(yaw_rad), math.sin(yaw_rad)
-    cz, sz = math.cos(roll_rad), math.sin(roll_rad)
-    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return rz @ ry @ rx
 
 
 #: How much larger than true the brows are drawn by default (said on every frame).
