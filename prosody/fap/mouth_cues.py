@@ -41,8 +41,6 @@ from audio_features.atomic import atomic_write
 from .stream import FapStream
 
 SHAPES = ("A", "B", "C", "D", "E", "F", "G", "H", "X")
-#: Rhubarb's shape without its extended shapes.
-BASIC_SHAPE = {"G": "A", "H": "C", "X": "A"}
 #: Rhubarb's shape names in the Preston Blair set (its ``--datUsePrestonBlair``).
 PRESTON_BLAIR = {"A": "MBP", "B": "etc", "C": "E", "D": "AI", "E": "O", "F": "U", "G": "FV", "H": "L",
                  "X": "rest"}

@@ -138,10 +138,6 @@ class HeadMesh:
     def n_vertices(self) -> int:
         return len(self.vertices)
 
-    def point(self, name: str) -> np.ndarray:
-        """Rest position of the feature point ``name`` (e.g. ``"2.1"``, the chin)."""
-        return self.vertices[self.feature_points[name]]
-
 
 # ---------------------------------------------------------------------------------------------------------
 # the canonical face
