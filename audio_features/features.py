@@ -87,6 +87,15 @@ class Features:
         """The tracks on another frame grid of the same duration: energy and conditioned F0 linearly
         interpolated, the raw F0 and its voicing from the nearest frame.
 
+        Parameters
+        ----------
+        fps : float
+            The new grid's frames per second.
+
+        Returns
+        -------
+        Features
+
         Examples
         --------
         >>> t = Track(np.array([40.0, 50.0, 60.0]), 30.0, "dB", "energy")
@@ -117,7 +126,10 @@ class Features:
     def write_csv(self, path: str | os.PathLike[str]) -> None:
         """Write one row per frame with the columns of :data:`CSV_COLUMNS`, atomically.
 
-        ``f0_hz`` is empty where the frame is unvoiced.
+        Parameters
+        ----------
+        path : path-like
+            The CSV file; ``f0_hz`` is empty where the frame is unvoiced.
         """
         with atomic_write(path) as handle:
             writer = csv.writer(handle, lineterminator="\n")
@@ -139,6 +151,10 @@ def read_features_csv(path: str | os.PathLike[str], *, fps: float) -> Features:
         CSV with the columns of :data:`CSV_COLUMNS`.
     fps : float > 0
         Frame rate the file was written at (row k is at k / fps s; checked against ``time_s``).
+
+    Returns
+    -------
+    Features
 
     Raises
     ------

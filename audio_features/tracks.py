@@ -23,6 +23,18 @@ def _frozen_array(values: object, *, dtype: type, name: str) -> np.ndarray:
 def frame_count(duration_s: float, *, fps: float) -> int:
     """Number of grid frames whose time ``k / fps`` lies inside ``[0, duration_s)``.
 
+    Parameters
+    ----------
+    duration_s : float
+        Length of the recording in seconds.
+    fps : float
+        Frames per second of the grid.
+
+    Returns
+    -------
+    int
+        0 for a duration of 0 or less.
+
     Examples
     --------
     >>> frame_count(3.1, fps=30)

@@ -182,7 +182,7 @@ def main(folder: Path) -> None:
                       "energy": np.resize(features.energy.values, n),
                       "training": mouth_training_clip(audio, mouth, fps=FPS), "audio": audio})
     if not clips:
-        sys.exit(f"{folder}: no <clip>.wav with a <clip>.mouth.csv beside it (see the README's evaluation section)")
+        sys.exit(f"{folder}: no <clip>.wav with a <clip>.mouth.csv beside it (see docs/evaluation.md)")
     speakers = sorted({clip["speaker"] for clip in clips})
     print(f"{len(clips)} clips, {len(speakers)} speakers: {', '.join(speakers)}\n")
     rows: dict[str, list] = {"visemes": [], "shipped": [], "acoustic": [], "loudness": [], "cues": []}

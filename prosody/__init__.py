@@ -3,14 +3,18 @@
 The package is in layers, each importing only those before it:
 
 - :mod:`prosody.errors`: the exceptions;
-- :mod:`prosody.fap`: the FAP table, streams, the .fap reader and writer, the exporters;
+- :mod:`prosody.fap`: the FAP table and units, streams, the .fap reader and writer, the exporters;
+- :mod:`prosody.head`: the 3D head (mesh, rig, renderer, glTF, WebGL model);
 - :mod:`prosody.measures`: how motion is measured against recorded motion;
-- :mod:`prosody.motion`: the eyebrow rules, Perlin noise, the head models, recorded motion, the conditions,
-  training;
-- :mod:`prosody.evaluation`: comparisons, reports, plots, previews, perceptual studies;
-- :mod:`prosody.jobs`: one recording (:func:`prosody.jobs.pipeline.convert`) and folders
-  (:func:`prosody.jobs.batch.run_batch`);
-- :mod:`prosody.cli`: the ``prosody`` command, a thin shell over them.
+- :mod:`prosody.motion`: the eyebrow rules, Perlin noise, the head models, the lips and expressions, recorded
+  motion, the conditions, training, and the causal generators of the live path;
+- :mod:`prosody.tracking`: videos made into recorded motion;
+- :mod:`prosody.evaluation`: comparisons, reports, plots, previews, the head's closed loop;
+- :mod:`prosody.jobs`: one recording (:func:`prosody.jobs.pipeline.convert`), folders
+  (:func:`prosody.jobs.batch.run_batch`) and videos tracked;
+- :mod:`prosody.live`: live conversion and whole live sessions (:class:`prosody.live.session.StreamSession`);
+- :mod:`prosody.study`: perceptual studies from plan to analysis;
+- :mod:`prosody.cli`: the ``prosody`` command, one module per command.
 """
 
 from importlib import metadata as _metadata
@@ -27,7 +31,8 @@ _FACADE = {
     "compare": "prosody.evaluation.compare",
     "write_comparison": "prosody.evaluation.compare",
     "write_preview": "prosody.evaluation.preview",
-    "LiveConverter": "prosody.jobs.stream",
+    "LiveConverter": "prosody.live.converter",
+    "StreamSession": "prosody.live.session",
     "read_fap": "prosody.fap.fapfile",
     "write_fap": "prosody.fap.fapfile",
     "write_stream": "prosody.fap.exporters",

@@ -193,8 +193,8 @@ def wait_in_page(driver, script: str, describe: str, timeout_s: float = 30.0):
 def frame_server():
     """A live frame server on a free loopback port, with a converter per client; ``.lines`` holds what it
     reported."""
-    from prosody.jobs.server import FrameServer
-    from prosody.jobs.stream import LiveConverter
+    from prosody.live.converter import LiveConverter
+    from prosody.live.server import FrameServer
 
     lines: list[str] = []
     running = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lines.append)

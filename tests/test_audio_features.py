@@ -302,7 +302,7 @@ def test_the_live_path_imports_neither_librosa_nor_scipy() -> None:
     import subprocess
     import sys
 
-    code = ("import sys, numpy as np; from prosody.jobs.stream import LiveConverter; c = LiveConverter(16000); "
+    code = ("import sys, numpy as np; from prosody.live.converter import LiveConverter; c = LiveConverter(16000); "
             "c.push(np.zeros(16000)); c.finish(); print(sorted({'librosa', 'numba', 'scipy'} & set(sys.modules)))")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr

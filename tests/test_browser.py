@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from conftest import REPO, headless_chromium, needs_chromium, wait_in_page
 
-from prosody.jobs.server import FrameServer
-from prosody.jobs.stream import LiveConverter, LiveFrame
+from prosody.live.converter import LiveConverter, LiveFrame
+from prosody.live.server import FrameServer
 
 pytestmark = needs_chromium
 

@@ -225,7 +225,7 @@ def test_batch_warnings_name_batchs_own_options_not_python(tmp_path, capsys) -> 
 def test_main_leaves_the_process_as_it_found_it(tmp_path, speech, capsys) -> None:
     import signal
 
-    from prosody import cli
+    from prosody.cli import messages
 
     def mine(signum, frame):
         pass
@@ -235,7 +235,7 @@ def test_main_leaves_the_process_as_it_found_it(tmp_path, speech, capsys) -> Non
         assert main(["convert", str(speech), "-o", str(tmp_path / "x.fap"), "--lips", "none", "--messages",
                      "json"]) == 0
         assert signal.getsignal(signal.SIGTERM) is mine  # the caller's handler is back
-        assert cli._MESSAGES.mode == "text"  # and the message mode
+        assert messages.MESSAGES.mode == "text"  # and the message mode
     finally:
         signal.signal(signal.SIGTERM, before)
     capsys.readouterr()

@@ -281,7 +281,7 @@ def test_power_sharpens_or_evens_out_the_accents_at_about_the_same_speed(real_he
 
 # every generator, live and the command line ------------------------------------------------------------------
 def test_the_live_stream_shapes_its_frames_exactly_as_offline():
-    from prosody.jobs.stream import LiveConverter
+    from prosody.live.converter import LiveConverter
 
     audio = _tone_speech()
     controls = Expressivity(activation=0.6, power=0.5, temporal=0.3, fluidity=-0.4, repetition=1, spatial=0.2)
@@ -297,7 +297,7 @@ def test_the_live_stream_shapes_its_frames_exactly_as_offline():
 
 
 def test_the_live_controls_can_change_while_streaming():
-    from prosody.jobs.stream import LiveConverter
+    from prosody.live.converter import LiveConverter
 
     audio = _tone_speech()
     half = audio.samples.size // 2

@@ -239,8 +239,8 @@ def test_head_csv_rows_off_the_30_fps_grid_are_refused(tmp_path) -> None:
 
 def test_huge_csv_cells_are_one_line_errors(tmp_path) -> None:
     from prosody.errors import BallotError, GroundTruthError
-    from prosody.evaluation.study import read_ballots
     from prosody.motion.ground_truth import read_head_csv
+    from prosody.study.ballots import read_ballots
 
     big = "x" * 200_000
     head = tmp_path / "c.head.csv"
@@ -254,7 +254,7 @@ def test_huge_csv_cells_are_one_line_errors(tmp_path) -> None:
 
 
 def test_ballots_take_the_short_condition_names(tmp_path) -> None:
-    from prosody.evaluation.study import parse_ballots
+    from prosody.study.ballots import parse_ballots
 
     ballots = parse_ballots("stimulus,subject,left,right,choice\ns,p,speech,truth,left\ns,p,none,random,right\n")
     assert [(b.left, b.right, b.chosen) for b in ballots] == [("SPEECH_DRIVEN", "GROUND_TRUTH", "SPEECH_DRIVEN"),
@@ -477,7 +477,7 @@ def test_model_numbers_beyond_any_fit_and_motion_beyond_a_turn_are_refused(tmp_p
     import json
 
     from prosody.errors import GroundTruthError, ModelError
-    from prosody.jobs.stream import live_head_model, shipped_live_model_path
+    from prosody.live.converter import live_head_model, shipped_live_model_path
     from prosody.motion.ground_truth import read_head_csv
     from prosody.motion.head import ArxHeadModel
     from prosody.motion.head_models import ARX_MODEL_PATH, load_head_model
@@ -561,7 +561,7 @@ def test_a_handled_interrupt_keeps_the_exit_code(forget, code) -> None:
     script = ("import ctypes, sys\n"
               "ctypes.pythonapi.PyRun_SimpleString(b'raise KeyboardInterrupt')  # leaves the record\n"
               f"if {forget}:\n"
-              "    from prosody.cli import _forget_interrupt\n"
+              "    from prosody.cli.messages import forget_interrupt as _forget_interrupt\n"
               "    _forget_interrupt()\n")
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, timeout=120)
     assert done.returncode == code

@@ -11,7 +11,7 @@ from conftest import REPO
 #: The layers, lowest first: a module may import its own layer and the ones before it.
 LAYERS = ("prosody", "prosody.errors", "prosody.fap", "prosody.head", "prosody.measures", "prosody.motion",
           "prosody.tracking",
-          "prosody.evaluation", "prosody.jobs", "prosody.cli", "prosody.__main__")
+          "prosody.evaluation", "prosody.jobs", "prosody.live", "prosody.study", "prosody.cli", "prosody.__main__")
 
 
 def module_name(path: Path, root: Path) -> str:
@@ -100,7 +100,7 @@ def test_the_public_facade_imports_lazily() -> None:
             "from prosody import convert, compare, LiveConverter, read_fap, write_stream, FapStream; "
             "print(before, convert.__module__, LiveConverter.__module__, read_fap.__module__)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
-    assert out == ["False", "prosody.jobs.pipeline", "prosody.jobs.stream", "prosody.fap.fapfile"]
+    assert out == ["False", "prosody.jobs.pipeline", "prosody.live.converter", "prosody.fap.fapfile"]
     import prosody
 
     with pytest.raises(AttributeError, match="no attribute 'nothing'"):

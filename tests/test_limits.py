@@ -95,7 +95,7 @@ def test_recorded_motion_is_never_bent(tmp_path):
 def test_the_live_stream_keeps_a_human_head_at_every_extreme():
     import soundfile
 
-    from prosody.jobs.stream import LiveConverter
+    from prosody.live.converter import LiveConverter
     from prosody.motion.expressivity import Expressivity
 
     samples, rate = soundfile.read(SAMPLE)

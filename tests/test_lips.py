@@ -312,7 +312,7 @@ def test_live_cepstra_do_not_depend_on_how_the_audio_arrives(rng):
 
 
 def test_live_lips_close_in_silence_and_open_on_a_voice():
-    from prosody.jobs.stream import LiveConverter
+    from prosody.live.converter import LiveConverter
 
     voice = segments(SR, (1.0, 0, 0), (1.0, 150, 0.5), (1.0, 0, 0))
     converter = LiveConverter(SR, condition="none")
@@ -340,7 +340,7 @@ def test_phones_of_a_long_recording_are_the_same_on_one_core_or_several(monkeypa
 
 
 def _live_opening(samples: np.ndarray, rate: int) -> np.ndarray:
-    from prosody.jobs.stream import LiveConverter
+    from prosody.live.converter import LiveConverter
 
     converter = LiveConverter(rate)
     frames = converter.push(samples) + converter.finish()

@@ -1,4 +1,4 @@
-"""Causal generators (prosody.motion.live) and the live converter (prosody.jobs.stream): they agree with
+"""Causal generators (prosody.motion.live) and the live converter (prosody.live.converter): they agree with
 the offline generators where they can, never read past their look-ahead, and keep a person's size."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from conftest import harmonic_tone, segments
 from audio_features import Audio, extract_features
 from audio_features.streaming import stream_file
 from prosody.errors import ConfigError
-from prosody.jobs.stream import SHIPPED_LOOKAHEADS_MS, LiveConverter, live_head_model, shipped_live_model_path
+from prosody.live.converter import SHIPPED_LOOKAHEADS_MS, LiveConverter, live_head_model, shipped_live_model_path
 from prosody.motion.eyebrows import EyebrowRule, accent_raises, eyebrow_raises
 from prosody.motion.lips import LIP_FAPS
 from prosody.motion.live import (
@@ -314,7 +314,7 @@ def test_converter_is_causal_end_to_end():
 @pytest.mark.parametrize("lookahead_ms, frames", [(0, 0), (20, 0), (33, 0), (34, 1), (50, 1), (66.7, 2),
                                                   (100, 3), (200, 6), (500, 15)])
 def test_a_stream_never_reads_more_future_than_asked(lookahead_ms, frames):
-    from prosody.jobs.stream import LiveConverter
+    from prosody.live.converter import LiveConverter
 
     converter = LiveConverter(16000, lookahead_ms=lookahead_ms, condition="none")
     assert converter.lookahead_frames == frames
@@ -365,7 +365,7 @@ def test_an_expression_streams_as_convert_mixes_it(tmp_path):
     import soundfile
     from conftest import REPO
 
-    from prosody.jobs.stream import LiveConverter
+    from prosody.live.converter import LiveConverter
     from prosody.motion.expressions import add_brow_raises, expression_curves, mix_with_lips, parse_expressions
 
     samples, rate = soundfile.read(REPO / "samples" / "arctic_a0009.wav")

@@ -16,9 +16,9 @@ from hypothesis import strategies as st
 from audio_features import NoVoicedFramesWarning, extract_features
 from prosody.cli import main
 from prosody.errors import BallotError, FapFormatError, ModelError
-from prosody.evaluation.study import parse_ballots
 from prosody.fap.fapfile import read_fap
 from prosody.motion.head import DEFAULT_MODEL_PATH, ArxHeadModel
+from prosody.study.ballots import parse_ballots
 
 # irregular files are read with a warning each (asserted where it matters): not errors in these tests
 pytestmark = pytest.mark.filterwarnings("ignore::prosody.errors.FapIrregularityWarning")
@@ -223,7 +223,7 @@ def test_fuzz_nested_fields_of_both_model_kinds(tmp_path, data) -> None:
                                st.sampled_from(["NO_PROSODY", "random", "SPEECH_DRIVEN", "truth"]),
                                st.sampled_from(["left", "right", "LEFT"])), min_size=1, max_size=40))
 def test_fuzz_ballots_that_are_analysed(rows) -> None:
-    from prosody.evaluation.study import analyze_ballots
+    from prosody.study.ballots import analyze_ballots
 
     text = "stimulus,subject,left,right,choice\n" + "\n".join(",".join(row) for row in rows)
     try:

@@ -21,7 +21,7 @@ from conftest import REPO, segments
 
 from prosody.cli import main
 from prosody.fap.fapfile import read_fap
-from prosody.jobs.stream import LiveFrame
+from prosody.live.converter import LiveFrame
 from prosody.motion.lips import LIP_FAPS
 
 PROSODY = [sys.executable, "-m", "prosody"]
@@ -376,8 +376,8 @@ def test_only_the_servers_own_page_may_open_the_stream():
     from websockets.exceptions import InvalidStatus
     from websockets.sync.client import connect
 
-    from prosody.jobs.server import FrameServer
-    from prosody.jobs.stream import LiveConverter
+    from prosody.live.converter import LiveConverter
+    from prosody.live.server import FrameServer
 
     lines: list[str] = []
     server = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lines.append,
@@ -410,8 +410,8 @@ def test_close_is_bounded_with_a_stalled_client_and_publish_after_close_is_refus
 
     from websockets.sync.client import connect
 
-    from prosody.jobs.server import FrameServer, ServerClosedError
-    from prosody.jobs.stream import LiveConverter
+    from prosody.live.converter import LiveConverter
+    from prosody.live.server import FrameServer, ServerClosedError
 
     server = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate),
                          report=lambda line: None).start()
@@ -447,7 +447,7 @@ def test_hostile_control_messages_are_refused_and_the_server_goes_on(frame_serve
 def test_a_client_changes_the_expressivity_of_its_own_audio_and_bad_controls_are_refused(frame_server):
     from websockets.sync.client import connect
 
-    from prosody.jobs.stream import LiveConverter
+    from prosody.live.converter import LiveConverter
     from prosody.motion.expressivity import Expressivity
 
     samples = segments(16000, (0.6, 150, 0.5), (0.4, 230, 0.5), (0.6, 140, 0.5))
@@ -480,8 +480,8 @@ def test_a_client_changes_the_expressivity_of_its_own_audio_and_bad_controls_are
 def test_a_page_changes_the_expressivity_of_the_commands_input_for_every_client():
     from websockets.sync.client import connect
 
-    from prosody.jobs.server import FrameServer
-    from prosody.jobs.stream import LiveConverter
+    from prosody.live.converter import LiveConverter
+    from prosody.live.server import FrameServer
     from prosody.motion.expressivity import Expressivity
 
     applied: list[Expressivity] = []
@@ -531,8 +531,8 @@ def test_the_input_sound_goes_to_the_clients_that_ask_for_it():
     from websockets.exceptions import ConnectionClosed
     from websockets.sync.client import connect
 
-    from prosody.jobs.server import AUDIO_HEADER, FrameServer
-    from prosody.jobs.stream import LiveConverter
+    from prosody.live.converter import LiveConverter
+    from prosody.live.server import AUDIO_HEADER, FrameServer
 
     server = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lambda _: None)
     server.start()

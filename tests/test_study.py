@@ -12,7 +12,7 @@ import pytest
 
 from prosody.cli import main
 from prosody.errors import BallotError
-from prosody.evaluation.study import CONDITIONS, analyze_ballots, confusion_matrix, parse_ballots, plan_study
+from prosody.study.ballots import CONDITIONS, analyze_ballots, confusion_matrix, parse_ballots, plan_study
 
 HEADER = "stimulus,subject,left,right,choice\n"
 
@@ -150,7 +150,7 @@ def test_analyze_cli_writes_exact_shape_and_report(tmp_path, capsys) -> None:
 def test_holm_agrees_with_statsmodels(rng) -> None:
     from statsmodels.stats.multitest import multipletests
 
-    from prosody.evaluation.study import holm
+    from prosody.study.ballots import holm
 
     for size in (1, 2, 6, 13):
         p_values = rng.uniform(0, 0.2, size) ** 2
@@ -161,7 +161,7 @@ def test_holm_agrees_with_statsmodels(rng) -> None:
 def test_vectorised_t_tests_equal_one_at_a_time(rng) -> None:
     from scipy import stats
 
-    from prosody.evaluation.study import paired_t_tests
+    from prosody.study.ballots import paired_t_tests
 
     a, b = rng.integers(0, 5, (12, 7)).astype(float), rng.integers(0, 5, (12, 7)).astype(float)
     b[:, 3] = a[:, 3]  # no difference at all: undefined
@@ -174,7 +174,7 @@ def test_vectorised_t_tests_equal_one_at_a_time(rng) -> None:
 
 
 def test_holm_correction_by_hand() -> None:
-    from prosody.evaluation.study import _add_holm
+    from prosody.study.ballots import _add_holm
 
     # Holm: sort p ascending, multiply the k-th smallest by (m - k + 1), keep the running maximum, cap at 1
     tests = [{"stimulus": "s", "p": p} for p in (0.04, 0.01, 0.03, None)] + [{"stimulus": "t", "p": 0.2}]

@@ -12,8 +12,9 @@ import pytest
 
 from prosody.cli import main
 from prosody.errors import BallotError, ConfigError
-from prosody.evaluation.designs import make_plan, parse_plan, participant_trials
-from prosody.evaluation.ratings import (
+from prosody.study.ballots import CONDITIONS, plan_study, write_plan
+from prosody.study.designs import make_plan, parse_plan, participant_trials
+from prosody.study.ratings import (
     analyze_identifications,
     analyze_ratings,
     ballot_design,
@@ -21,7 +22,6 @@ from prosody.evaluation.ratings import (
     parse_ratings,
     ratings_markdown,
 )
-from prosody.evaluation.study import CONDITIONS, plan_study, write_plan
 
 
 def _plan_text(rows) -> str:
@@ -345,7 +345,7 @@ def test_a_ballot_of_many_classes_draws_a_bounded_figure_and_nothing_before_a_fa
 
     from PIL import Image
 
-    from prosody.evaluation.ratings import MAX_CONFUSION_CLASSES
+    from prosody.study.ratings import MAX_CONFUSION_CLASSES
 
     classes = [f"c{k:03d}" for k in range(200)]
     rows = [(classes[k], classes[k] if k % 3 else classes[(k + 1) % 200]) for k in range(200)
@@ -379,7 +379,7 @@ def test_a_ballot_of_many_classes_draws_a_bounded_figure_and_nothing_before_a_fa
 def test_many_conditions_are_analysed_quickly_without_every_pair() -> None:
     import time
 
-    from prosody.evaluation.ratings import MAX_TUKEY_CONDITIONS
+    from prosody.study.ratings import MAX_TUKEY_CONDITIONS
 
     rows = [("s", f"p{j}", f"c{c:03d}", 1 + (c * 7 + j) % 5) for c in range(500) for j in range(4)]
     started = time.process_time()
@@ -421,7 +421,7 @@ def test_drawing_a_report_figure_leaves_pyplot_and_its_backend_alone(tmp_path) -
     import sys
 
     code = ("import sys, matplotlib; matplotlib.use('svg'); "
-            "from prosody.evaluation.ratings import plot_means; "
+            "from prosody.study.ratings import plot_means; "
             "entry = {'n': 3, 'mean': 3.0, 'sd': 1.0, 'ci_low': 2.0, 'ci_high': 4.0}; "
             f"plot_means({{'conditions': {{'a': entry, 'b': entry}}}}, {str(tmp_path / 'm.png')!r}); "
             "print(matplotlib.get_backend(), 'matplotlib.pyplot' in sys.modules)")

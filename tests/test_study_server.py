@@ -17,10 +17,10 @@ from conftest import REPO
 
 from prosody.cli import main
 from prosody.errors import ConfigError
-from prosody.evaluation.designs import make_plan, parse_plan
 from prosody.evaluation.preview import find_ffmpeg
-from prosody.jobs.study_stimuli import BUILT_IN, StudyCondition, check_stimuli, make_stimuli
-from prosody.jobs.study_store import StudyStore, StudyStoreError
+from prosody.study.designs import make_plan, parse_plan
+from prosody.study.stimuli import BUILT_IN, StudyCondition, check_stimuli, make_stimuli
+from prosody.study.store import StudyStore, StudyStoreError
 
 needs_ffmpeg = pytest.mark.skipif(find_ffmpeg() is None, reason="needs ffmpeg (pip install imageio-ffmpeg)")
 
@@ -181,7 +181,7 @@ def recordings(tmp_path):
 
 
 def _conditions(plan):
-    from prosody.cli import _study_conditions
+    from prosody.cli.study import study_conditions as _study_conditions
 
     return _study_conditions(plan, None)
 
@@ -223,7 +223,7 @@ def test_stimuli_inputs_are_checked_before_drawing(tmp_path, recordings) -> None
 
 
 def test_condition_files_take_convert_options(tmp_path, capsys) -> None:
-    from prosody.cli import _study_conditions
+    from prosody.cli.study import study_conditions as _study_conditions
 
     plan = _plan(conditions=("none", "calm"))
     path = tmp_path / "c.json"
@@ -256,7 +256,7 @@ def test_condition_files_take_convert_options(tmp_path, capsys) -> None:
 def served(tmp_path, recordings):
     if find_ffmpeg() is None:
         pytest.skip("needs ffmpeg (pip install imageio-ffmpeg)")
-    from prosody.jobs.study_server import StudyServer
+    from prosody.study.server import StudyServer
 
     plan = _plan("identification", ("none", "speech"))
     make_stimuli(plan, recordings, tmp_path / "stimuli", _conditions(plan), width=64)
@@ -365,8 +365,8 @@ def test_a_refused_start_leaves_no_database(tmp_path, recordings, capsys) -> Non
 @needs_ffmpeg
 def test_a_manifest_may_only_name_videos_in_its_folder_and_each_entry_is_checked(tmp_path, recordings,
                                                                                   capsys) -> None:
-    from prosody.evaluation.study import write_plan
-    from prosody.jobs.study_server import StudyServer
+    from prosody.study.ballots import write_plan
+    from prosody.study.server import StudyServer
 
     write_plan(make_plan(["a", "b"], design="paired", conditions=["none", "speech"], seed=1), tmp_path / "plan.csv")
     plan = _plan()
@@ -445,7 +445,7 @@ def test_many_voters_at_once_are_all_served(served) -> None:
 def test_half_sent_requests_are_timed_out_and_bounded_and_told_in_one_line(served, capfd) -> None:
     import time
 
-    from prosody.jobs.study_server import MAX_HANDLERS
+    from prosody.study.server import MAX_HANDLERS
 
     served._http.RequestHandlerClass.timeout = 1.0
     before = threading.active_count()
@@ -474,7 +474,7 @@ def test_half_sent_requests_are_timed_out_and_bounded_and_told_in_one_line(serve
 
 
 def test_new_participants_are_limited_per_address_and_the_counterbalancing_is_kept(served) -> None:
-    from prosody.jobs.study_server import NEW_PER_CLIENT_PER_MINUTE
+    from prosody.study.server import NEW_PER_CLIENT_PER_MINUTE
 
     statuses = [_request(served, "/api/participants", {"start": True})[:3:2] for _ in range(15)]
     assert [status for status, _ in statuses] == [201] * NEW_PER_CLIENT_PER_MINUTE + [429] * 5
@@ -492,7 +492,7 @@ def test_an_answer_position_out_of_range_is_a_400(served) -> None:
 
 @needs_ffmpeg
 def test_the_study_listens_on_ipv6(tmp_path, recordings) -> None:
-    from prosody.jobs.study_server import StudyServer
+    from prosody.study.server import StudyServer
 
     plan = _plan()
     make_stimuli(plan, recordings, tmp_path / "stimuli", _conditions(plan), width=64)

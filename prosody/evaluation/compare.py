@@ -295,85 +295,17 @@ def compare(
     if ground_truth is not None:
         recorded = ground_truth if isinstance(ground_truth, FapStream) else read_motion(ground_truth)
         truth = fit_to_grid(recorded, n_frames=features.n_frames, fps=features.fps, source=str(ground_truth))
-    rule = eyebrow_rule
-    eyebrows = brow_raises(features, rule)
+    eyebrows = brow_raises(features, eyebrow_rule)
     if Condition.SPEECH_DRIVEN in wanted:
         warn_if_no_raise(eyebrows)
-    stem = Path(str(audio)).stem
-    streams: dict[Condition, FapStream] = {}
     # the same lips and expression in every condition: the comparison is about prosody
     face = make_face(audio, features, lips=lips, transcript=transcript, expression=expression,
                      mouth_model=mouth_model, pad=pad, pad_map=pad_map, language=language)
-
-    def make(condition: Condition, run_seed: int, source: Features = features) -> FapStream:
-        with warnings.catch_warnings():
-            # the report says which FAPs the recording lacks; no warning per condition
-            warnings.simplefilter("ignore", MissingMotionWarning)
-            warnings.simplefilter("ignore", NoRaiseWarning)  # said once above, not per control run
-            stream = condition_stream(condition, source, seed=run_seed, model=head_model, ground_truth=truth,
-                                      eyebrows=eyebrows if source is features else None, eyebrow_rule=rule,
-                                      name=f"{stem}_{condition.value.lower()}", expressivity=expressivity)
-        return face.over(stream) if face is not None else stream
-
-    for condition in CONDITION_ORDER:
-        if condition in wanted:
-            streams[condition] = make(condition, seed)
-    chosen_targets: dict[int, tuple[float, float]] = {}
-    if normalize:
-        reference = streams.get(Condition.GROUND_TRUTH)
-        scaled = {c: s for c, s in streams.items() if c in NORMALIZED_CONDITIONS}
-        chosen_targets = normalization_targets(scaled, reference=reference, given=targets)
-        streams = {c: normalize_stream(s, chosen_targets) if c in NORMALIZED_CONDITIONS else s
-                   for c, s in streams.items()}
-
-    def finished(condition: Condition, stream: FapStream) -> FapStream:
-        return normalize_stream(stream, chosen_targets) if normalize and condition in NORMALIZED_CONDITIONS else stream
-
-    # head and brow measures against the recording (stochastic conditions over several seeds), and the
-    # same generator driven by this recording's audio shifted in time (the mismatched-audio control)
-    # frames a tracker lost are bridged in truth_head and left out of the head measures
-    truth_measured = head_measured(truth) if truth is not None else None
-    truth_head = head_matrix(truth) if truth is not None and truth_measured is not None and truth_measured.any() \
-        else None
-    truth_brow = brow_curve(truth) if truth is not None else None
-    stochastic = {Condition.RANDOM} | ({Condition.SPEECH_DRIVEN} if head_model is not None
-                                       and is_stochastic(head_model) else set())
-    head_blocks: dict[str, dict] = {}
-    brow_blocks: dict[str, dict] = {}
-    control, brow_control = empty_head_metrics(), empty_brow_metrics()
-    if truth_head is not None or truth_brow is not None:
-        for condition, stream in streams.items():
-            runs = [stream] + ([finished(condition, make(condition, seed + k)) for k in range(1, seeds)]
-                               if condition in stochastic else [])
-            head_blocks[condition.value], brow_blocks[condition.value] = _measure(
-                runs, truth_head, truth_brow, fps=features.fps, measured=truth_measured)
-        if Condition.SPEECH_DRIVEN in streams:
-            run_seeds = range(seed, seed + seeds) if Condition.SPEECH_DRIVEN in stochastic else [seed]
-            runs = [finished(Condition.SPEECH_DRIVEN,
-                             make(Condition.SPEECH_DRIVEN, run_seed, shifted_features(features, offset)))
-                    for run_seed in run_seeds for offset in shift_offsets(features.n_frames, fps=features.fps)]
-            control, brow_control = _measure(runs, truth_head, truth_brow, fps=features.fps,
-                                            measured=truth_measured)
-    metrics = {
-        "version": METRICS_VERSION,
-        "source": str(audio),
-        "ground_truth": None if ground_truth is None or isinstance(ground_truth, FapStream) else str(ground_truth),
-        "frames": features.n_frames,
-        "fps": features.fps,
-        "duration_s": features.duration_s,
-        "normalized": bool(normalize),
-        "eyebrow_rule": eyebrows.rule,
-        # infinite where the recording has no voice to set them by: null in JSON
-        "eyebrow_threshold_hz": eyebrows.f0_threshold_hz if np.isfinite(eyebrows.f0_threshold_hz) else None,
-        "energy_threshold_db": eyebrows.energy_threshold_db if np.isfinite(eyebrows.energy_threshold_db) else None,
-        "eyebrow_events": [list(event) for event in eyebrows.events],
-        "seed": seed,
-        "seeds": seeds,
-        "head_model": None if head_model is None else head_model.kind,
-        # agreement on a recording the model was trained on is not a held-out figure
-        "model_trained_on_this_recording": _trained_on(head_model, audio, stem),
-        **comparison_metrics(streams, features),
-    }
+    setup = _Setup(features, eyebrows, eyebrow_rule, head_model, truth, Path(str(audio)).stem, face, expressivity,
+                   seed, seeds, normalize)
+    streams = setup.generate(wanted, targets)
+    head_blocks, brow_blocks, control, brow_control = setup.measure_conditions(streams)
+    metrics = {**setup.recording_metrics(audio, ground_truth), **comparison_metrics(streams, features)}
     mouth_blocks, mouth_control = _mouth_measures(streams, mouth, ground_truth, audio, features)
     metrics["mouth_reference"] = mouth_blocks.pop("reference")
     for name, block in metrics["conditions"].items():
@@ -382,38 +314,157 @@ def compare(
         block["mouth"] = mouth_blocks.get(name, empty_mouth_metrics())
     metrics["controls"] = {"mismatched_audio": control, "mismatched_audio_brows": brow_control,
                            "mismatched_audio_mouth": mouth_control}
-
-    # other head models beside the speech-driven one (e.g. the thesis's ARX next to the default)
-    others: dict[str, dict] = {}
-    other_streams: dict[str, FapStream] = {}
-    for label, other in (other_head_models or {}).items():
-        other_model = resolve_head_model(other)
-        run_seeds = list(range(seed, seed + seeds)) if is_stochastic(other_model) else [seed]
-
-        def head_of(source: Features, run_seed: int, chosen: HeadModel = other_model) -> np.ndarray:
-            curves = expressive(head_motion(chosen, source, seed=run_seed), fps=source.fps,
-                                expressivity=expressivity, rest=rest_pose(chosen))
-            stream = FapStream.from_curves(curves, fps=source.fps)
-            return head_matrix(finished(Condition.SPEECH_DRIVEN, stream))
-
-        entry: dict = {"kind": other_model.kind, "head": empty_head_metrics(),
-                       "mismatched_audio": empty_head_metrics()}
-        if truth_head is not None:
-            entry["head"] = average_head_metrics([head_metrics(head_of(features, s), truth_head, fps=features.fps,
-                             measured=truth_measured)
-                                           for s in run_seeds])
-            entry["mismatched_audio"] = average_head_metrics([
-                head_metrics(head_of(shifted_features(features, offset), s), truth_head, fps=features.fps,
-                             measured=truth_measured)
-                for s in run_seeds for offset in shift_offsets(features.n_frames, fps=features.fps)])
-        others[str(label)] = entry
-        if Condition.SPEECH_DRIVEN in streams:
-            head = head_of(features, run_seeds[0])
-            other_streams[str(label)] = streams[Condition.SPEECH_DRIVEN].with_curves(
-                {fap: head[:, axis] for axis, fap in enumerate(HEAD_FAPS)})
+    others, other_streams = setup.other_head_models(streams, other_head_models or {})
     if others:
         metrics["other_head_models"] = others
     return Comparison(str(audio), features, eyebrows, streams, metrics, other_streams)
+
+
+@dataclass
+class _Setup:
+    """What the parts of one comparison share: the recording's analysis, the brows, the head model, the
+    recorded motion, the face laid over every condition and the seeds."""
+
+    features: Features
+    eyebrows: EyebrowRaises
+    rule: BrowRule | None
+    head_model: HeadModel | None
+    truth: FapStream | None
+    stem: str
+    face: object
+    expressivity: Expressivity | None
+    seed: int
+    seeds: int
+    normalize: bool
+    targets: dict[int, tuple[float, float]] = field(default_factory=dict)
+
+    def recording_metrics(self, audio: str | os.PathLike[str], ground_truth: object) -> dict:
+        """The head of ``metrics.json``: what was compared, and how."""
+        features, eyebrows, head_model = self.features, self.eyebrows, self.head_model
+        return {
+            "version": METRICS_VERSION,
+            "source": str(audio),
+            "ground_truth": None if ground_truth is None or isinstance(ground_truth, FapStream) else str(ground_truth),
+            "frames": features.n_frames,
+            "fps": features.fps,
+            "duration_s": features.duration_s,
+            "normalized": bool(self.normalize),
+            "eyebrow_rule": eyebrows.rule,
+            # infinite where the recording has no voice to set them by: null in JSON
+            "eyebrow_threshold_hz": eyebrows.f0_threshold_hz if np.isfinite(eyebrows.f0_threshold_hz) else None,
+            "energy_threshold_db": eyebrows.energy_threshold_db if np.isfinite(eyebrows.energy_threshold_db) else None,
+            "eyebrow_events": [list(event) for event in eyebrows.events],
+            "seed": self.seed,
+            "seeds": self.seeds,
+            "head_model": None if head_model is None else head_model.kind,
+            # agreement on a recording the model was trained on is not a held-out figure
+            "model_trained_on_this_recording": _trained_on(head_model, audio, self.stem),
+        }
+
+    def make(self, condition: Condition, run_seed: int, source: Features | None = None) -> FapStream:
+        """One condition's stream (on ``source``: another recording's analysis, for the controls)."""
+        source = self.features if source is None else source
+        with warnings.catch_warnings():
+            # the report says which FAPs the recording lacks; no warning per condition
+            warnings.simplefilter("ignore", MissingMotionWarning)
+            warnings.simplefilter("ignore", NoRaiseWarning)  # said once, not per control run
+            stream = condition_stream(condition, source, seed=run_seed, model=self.head_model, ground_truth=self.truth,
+                                      eyebrows=self.eyebrows if source is self.features else None,
+                                      eyebrow_rule=self.rule, name=f"{self.stem}_{condition.value.lower()}",
+                                      expressivity=self.expressivity)
+        return self.face.over(stream) if self.face is not None else stream  # type: ignore[attr-defined]
+
+    def finished(self, condition: Condition, stream: FapStream) -> FapStream:
+        """``stream`` normalised as the comparison's conditions are."""
+        if self.normalize and condition in NORMALIZED_CONDITIONS:
+            return normalize_stream(stream, self.targets)
+        return stream
+
+    def generate(self, wanted: list[Condition], targets: Mapping[int, tuple[float, float]] | None) \
+            -> dict[Condition, FapStream]:
+        """The wanted conditions' streams at the comparison's seed, normalised if asked."""
+        streams = {condition: self.make(condition, self.seed) for condition in CONDITION_ORDER if condition in wanted}
+        if self.normalize:
+            reference = streams.get(Condition.GROUND_TRUTH)
+            scaled = {c: s for c, s in streams.items() if c in NORMALIZED_CONDITIONS}
+            self.targets = normalization_targets(scaled, reference=reference, given=targets)
+            streams = {c: self.finished(c, s) for c, s in streams.items()}
+        return streams
+
+    @property
+    def stochastic(self) -> set[Condition]:
+        """Conditions whose measures are averaged over seeds."""
+        speech = self.head_model is not None and is_stochastic(self.head_model)
+        return {Condition.RANDOM} | ({Condition.SPEECH_DRIVEN} if speech else set())
+
+    def truth_curves(self) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+        """(head matrix, frames the tracker measured, brow curve) of the recorded motion; frames a tracker lost
+        are bridged in the head matrix and left out of the head measures."""
+        if self.truth is None:
+            return None, None, None
+        measured = head_measured(self.truth)
+        head = head_matrix(self.truth) if measured is not None and measured.any() else None
+        return head, measured, brow_curve(self.truth)
+
+    def measure_conditions(self, streams: Mapping[Condition, FapStream]) -> tuple[dict, dict, dict, dict]:
+        """Head and brow measures of every condition against the recording (stochastic conditions over several
+        seeds), and of the same generator driven by this recording's audio shifted in time (the
+        mismatched-audio control): (head blocks, brow blocks, head control, brow control)."""
+        truth_head, measured, truth_brow = self.truth_curves()
+        head_blocks: dict[str, dict] = {}
+        brow_blocks: dict[str, dict] = {}
+        control, brow_control = empty_head_metrics(), empty_brow_metrics()
+        if truth_head is None and truth_brow is None:
+            return head_blocks, brow_blocks, control, brow_control
+        fps, stochastic = self.features.fps, self.stochastic
+        for condition, stream in streams.items():
+            runs = [stream] + ([self.finished(condition, self.make(condition, self.seed + k))
+                                for k in range(1, self.seeds)] if condition in stochastic else [])
+            head_blocks[condition.value], brow_blocks[condition.value] = _measure(
+                runs, truth_head, truth_brow, fps=fps, measured=measured)
+        if Condition.SPEECH_DRIVEN in streams:
+            speech = Condition.SPEECH_DRIVEN
+            run_seeds = range(self.seed, self.seed + self.seeds) if speech in stochastic else [self.seed]
+            runs = [self.finished(speech, self.make(speech, run_seed, shifted_features(self.features, offset)))
+                    for run_seed in run_seeds for offset in shift_offsets(self.features.n_frames, fps=fps)]
+            control, brow_control = _measure(runs, truth_head, truth_brow, fps=fps, measured=measured)
+        return head_blocks, brow_blocks, control, brow_control
+
+    def other_head_models(self, streams: Mapping[Condition, FapStream],
+                          models: Mapping[str, HeadModel | str | os.PathLike[str]]) \
+            -> tuple[dict[str, dict], dict[str, FapStream]]:
+        """Head models measured beside the speech-driven one (e.g. the thesis's ARX next to the default), each
+        with its own mismatched-audio control, and their streams (the speech-driven stream with their head)."""
+        truth_head, measured, _ = self.truth_curves()
+        features = self.features
+        others: dict[str, dict] = {}
+        other_streams: dict[str, FapStream] = {}
+        for label, other in models.items():
+            other_model = resolve_head_model(other)
+            run_seeds = list(range(self.seed, self.seed + self.seeds)) if is_stochastic(other_model) else [self.seed]
+
+            def head_of(source: Features, run_seed: int, chosen: HeadModel = other_model) -> np.ndarray:
+                curves = expressive(head_motion(chosen, source, seed=run_seed), fps=source.fps,
+                                    expressivity=self.expressivity, rest=rest_pose(chosen))
+                stream = FapStream.from_curves(curves, fps=source.fps)
+                return head_matrix(self.finished(Condition.SPEECH_DRIVEN, stream))
+
+            entry: dict = {"kind": other_model.kind, "head": empty_head_metrics(),
+                           "mismatched_audio": empty_head_metrics()}
+            if truth_head is not None:
+                entry["head"] = average_head_metrics([
+                    head_metrics(head_of(features, s), truth_head, fps=features.fps, measured=measured)
+                    for s in run_seeds])
+                entry["mismatched_audio"] = average_head_metrics([
+                    head_metrics(head_of(shifted_features(features, offset), s), truth_head, fps=features.fps,
+                                 measured=measured)
+                    for s in run_seeds for offset in shift_offsets(features.n_frames, fps=features.fps)])
+            others[str(label)] = entry
+            if Condition.SPEECH_DRIVEN in streams:
+                head = head_of(features, run_seeds[0])
+                other_streams[str(label)] = streams[Condition.SPEECH_DRIVEN].with_curves(
+                    {fap: head[:, axis] for axis, fap in enumerate(HEAD_FAPS)})
+        return others, other_streams
 
 
 def other_model_name(label: str) -> str:
@@ -451,6 +502,23 @@ def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, 
     :func:`prosody.evaluation.preview.write_preview`).
 
     ``metrics.json`` is written last: a folder holding it is complete. Every file is written atomically.
+
+    Parameters
+    ----------
+    comparison : Comparison
+        What :func:`compare` computed.
+    outdir : path-like
+        The folder (created if missing).
+    plots, report : bool
+        Draw the figures (PNG) and write ``report.md``.
+    extra : mapping, optional
+        More entries for ``metrics.json`` (a batch's options, say).
+    video : bool
+        Also draw ``conditions.mp4``.
+    exaggerate : float
+        Multiplies the drawn motion of the video.
+    progress : callable, optional
+        Called as ``progress(frames_done, frames_total)`` while the video is drawn.
 
     Returns
     -------

@@ -280,6 +280,10 @@ WRITERS: dict[str, tuple[Writer, tuple[str, ...]]] = {
 }
 
 
+#: The formats of motion over time that a live stream can also write (not the mouth cues, not the 3D head).
+MOTION_FORMATS = ("fap", "csv", "csv-physical", "json", "bvh", "livelink")
+
+
 #: Writers of higher layers (the 3D head), named by "module:function" and loaded when first used, so that
 #: this layer imports nothing above it.
 DEFERRED_WRITERS: dict[str, tuple[str, tuple[str, ...]]] = {
@@ -313,7 +317,23 @@ def format_for(path: str | os.PathLike[str], format_name: str | None = None) -> 
 
 
 def write_stream(stream: FapStream, path: str | os.PathLike[str], format_name: str | None = None) -> str:
-    """Write ``stream`` to ``path`` in the named (or extension-implied) format; returns the format name."""
+    """Write ``stream`` to ``path`` in the named (or extension-implied) format, atomically.
+
+    Parameters
+    ----------
+    stream : FapStream
+        The frames to write.
+    path : path-like
+        The file; its ending chooses the format when ``format_name`` is None (``.fap``, ``.csv``, ``.json``,
+        ``.bvh``, ``.livelink.csv``, ``.glb``, ``.rhubarb.tsv``, ...).
+    format_name : str, optional
+        A name of :data:`WRITERS` or :data:`DEFERRED_WRITERS`, overriding the ending.
+
+    Returns
+    -------
+    str
+        The format written.
+    """
     chosen = format_for(path, format_name)
     writer = WRITERS[chosen][0] if chosen in WRITERS else _deferred(DEFERRED_WRITERS[chosen][0])
     writer(stream, Path(path))

@@ -253,45 +253,9 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
         first_number, first_line = next(lines)
     except StopIteration:
         raise FapFormatError(name, None, "the file holds no header, mask or value line") from None
-
-    version: str | None = None
-    header_frames: int | None = None
-    stream_name = Path(name).stem
-    fps = default_fps
-    first_tokens = first_line.split()
-    pending: tuple[int, str] | None = None
-    if _is_mask_line(first_tokens):
-        notes.append(f"no header line: a headerless stream, assumed {default_fps:g} fps")
-        pending = (first_number, first_line)
-    else:
-        if len(first_tokens) < 3:
-            raise FapFormatError(
-                name, first_number, f"expected a header '<version> <name> <fps> <frames>', found {first_line!r}"
-            )
-        version = first_tokens[0]
-        _parse_number(version, path=name, line=first_number, what="a version number such as 2.1")
-        fps = _parse_number(first_tokens[-2], path=name, line=first_number, what="the frame rate")
-        count = _parse_number(first_tokens[-1], path=name, line=first_number, what="the number of frames")
-        if fps <= 0 or count < 0 or count != int(count):
-            raise FapFormatError(name, first_number, f"header frame rate {fps!r} or count {count!r} is invalid")
-        if not FPS_RANGE[0] <= fps <= FPS_RANGE[1]:
-            raise FapFormatError(name, first_number, f"header frame rate {fps:g} fps is outside "
-                                 f"{FPS_RANGE[0]:g}-{FPS_RANGE[1]:g} fps: no face plays it")
-        header_frames = int(count)
-        # the name may hold spaces: it is whatever stands between the version and the last two tokens
-        middle = re.match(r"^\S+\s+(.*?)\s*\S+\s+\S+$", first_line)
-        stream_name = (middle.group(1) if middle else "") or stream_name
-        if version not in ("2.0", "2.1"):
-            notes.append(f"unknown version {version!r}: read as 2.1")
-
-    frames = _Frames()
-    mask_cache: dict[str, _Mask] = {}
-    first_frame_number: int | None = None
-    previous_frame_number: int | None = None
-    consecutive = True
-    integer_values = True
-    wide_masks = 0
-    high_level = 0
+    header = _read_header(first_number, first_line, name, default_fps, notes)
+    pending = (first_number, first_line) if header.version is None else None  # a headerless stream's first mask
+    reader = _FrameReader(name)
     while True:
         if pending is not None:
             (mask_number, mask_line), pending = pending, None
@@ -300,13 +264,74 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
             if following is None:
                 break
             mask_number, mask_line = following
-        mask = _read_mask(mask_line, mask_number, name, mask_cache)
-        if mask.bits.size == N_FAPS + 1:
-            wide_masks += 1
         value = next(lines, None)
         if value is None:
             raise FapFormatError(name, mask_number, "mask line without a value line: the file ends here")
-        value_number, value_line = value
+        reader.read(mask_number, mask_line, *value)
+    notes += reader.notes(header.frames)
+    values, masks = reader.frames.arrays()
+    stream = FapStream._adopt(values, masks, header.fps, header.name or Path(name).stem)  # made for it: not copied
+    if strict and notes:
+        raise FapFormatError(name, None, f"irregular .fap file (strict reading): {notes[0]}")
+    for note in notes:
+        warnings.warn(f"{name}: {note}", FapIrregularityWarning, stacklevel=2)
+    return FapFile(stream, name, header.version, header.frames, reader.first_frame_number, reader.integer_values,
+                   tuple(notes))
+
+
+@dataclass(frozen=True)
+class _Header:
+    """A header line's reading: version, stream name, frame rate, promised frames (None where absent)."""
+
+    version: str | None
+    name: str | None
+    fps: float
+    frames: int | None
+
+
+def _read_header(number: int, line: str, name: str, default_fps: float, notes: list[str]) -> _Header:
+    """The header of a .fap file, or the defaults of a headerless stream (whose first line is a mask)."""
+    tokens = line.split()
+    if _is_mask_line(tokens):
+        notes.append(f"no header line: a headerless stream, assumed {default_fps:g} fps")
+        return _Header(None, None, default_fps, None)
+    if len(tokens) < 3:
+        raise FapFormatError(name, number, f"expected a header '<version> <name> <fps> <frames>', found {line!r}")
+    version = tokens[0]
+    _parse_number(version, path=name, line=number, what="a version number such as 2.1")
+    fps = _parse_number(tokens[-2], path=name, line=number, what="the frame rate")
+    count = _parse_number(tokens[-1], path=name, line=number, what="the number of frames")
+    if fps <= 0 or count < 0 or count != int(count):
+        raise FapFormatError(name, number, f"header frame rate {fps!r} or count {count!r} is invalid")
+    if not FPS_RANGE[0] <= fps <= FPS_RANGE[1]:
+        raise FapFormatError(name, number, f"header frame rate {fps:g} fps is outside "
+                             f"{FPS_RANGE[0]:g}-{FPS_RANGE[1]:g} fps: no face plays it")
+    # the name may hold spaces: it is whatever stands between the version and the last two tokens
+    middle = re.match(r"^\S+\s+(.*?)\s*\S+\s+\S+$", line)
+    if version not in ("2.0", "2.1"):
+        notes.append(f"unknown version {version!r}: read as 2.1")
+    return _Header(version, (middle.group(1) if middle else "") or None, fps, int(count))
+
+
+class _FrameReader:
+    """The frames of a .fap file, read pair by pair (mask line, value line), and what was irregular in them."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.frames = _Frames()
+        self.mask_cache: dict[str, _Mask] = {}
+        self.first_frame_number: int | None = None
+        self.previous_frame_number: int | None = None
+        self.consecutive = True
+        self.integer_values = True
+        self.wide_masks = 0
+        self.high_level = 0
+
+    def read(self, mask_number: int, mask_line: str, value_number: int, value_line: str) -> None:
+        name = self.name
+        mask = _read_mask(mask_line, mask_number, name, self.mask_cache)
+        if mask.bits.size == N_FAPS + 1:
+            self.wide_masks += 1
         value_tokens = value_line.split()
         if mask.extra and len(value_tokens) == mask.expected + 1 + sum(mask.extra.values()):
             # the full MPEG-4 forms of FAP 1 (viseme: 4 values) and FAP 2 (expression: 6 values) that Xface
@@ -317,7 +342,7 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
                 position += 1 + mask.extra.get(fap, 0)
             value_tokens = kept
             value_line = " ".join(kept)
-            high_level += 1
+            self.high_level += 1
         if len(value_tokens) != mask.expected + 1:
             raise FapFormatError(
                 name, value_number, f"expected a frame number and {mask.expected} values (one per FAP set in the "
@@ -327,38 +352,35 @@ def read_fap(path: str | os.PathLike[str], *, default_fps: float = DEFAULT_HEADE
         if frame_value != int(frame_value):
             raise FapFormatError(name, value_number, f"frame number {value_tokens[0]!r} is not an integer")
         numbers, integer = _value_numbers(value_tokens, value_line, value_number, name)
-        integer_values = integer_values and integer
+        self.integer_values = self.integer_values and integer
         frame_number = int(frame_value)
-        if first_frame_number is None:
-            first_frame_number = frame_number
-        elif frame_number != previous_frame_number + 1:  # type: ignore[operator]
-            consecutive = False
-        previous_frame_number = frame_number
-        frames.append(mask.bits, numbers)
+        if self.first_frame_number is None:
+            self.first_frame_number = frame_number
+        elif frame_number != self.previous_frame_number + 1:  # type: ignore[operator]
+            self.consecutive = False
+        self.previous_frame_number = frame_number
+        self.frames.append(mask.bits, numbers)
 
-    if high_level:
-        notes.append(f"{high_level} frame(s) with FAP 1 (viseme) or FAP 2 (expression) in their multi-value "
-                        "form: the selected viseme / expression number was kept")
-    if wide_masks:
-        notes.append(f"{wide_masks} mask line(s) with {N_FAPS + 1} tokens (a known Greta writer bug): "
-                        "the extra token was ignored")
-    if first_frame_number is not None:
-        if first_frame_number != 0:
-            notes.append(f"frame numbers start at {first_frame_number}, not 0: frames renumbered from 0")
-        if not consecutive:
-            notes.append("frame numbers are not consecutive: frames taken in file order")
-    if header_frames is not None and header_frames != frames.count:
-        notes.append(f"header promises {header_frames} frames but the file holds {frames.count}: "
-                        f"all {frames.count} were read")
-    if not integer_values:
-        notes.append("non-integer FAP values (players expect integers)")
-    values, masks = frames.arrays()
-    stream = FapStream._adopt(values, masks, fps, stream_name)  # arrays made for it: not copied
-    if strict and notes:
-        raise FapFormatError(name, None, f"irregular .fap file (strict reading): {notes[0]}")
-    for note in notes:
-        warnings.warn(f"{name}: {note}", FapIrregularityWarning, stacklevel=2)
-    return FapFile(stream, name, version, header_frames, first_frame_number, integer_values, tuple(notes))
+    def notes(self, header_frames: int | None) -> list[str]:
+        """The irregularities of the frames read, one sentence each."""
+        notes = []
+        if self.high_level:
+            notes.append(f"{self.high_level} frame(s) with FAP 1 (viseme) or FAP 2 (expression) in their "
+                         "multi-value form: the selected viseme / expression number was kept")
+        if self.wide_masks:
+            notes.append(f"{self.wide_masks} mask line(s) with {N_FAPS + 1} tokens (a known Greta writer bug): "
+                         "the extra token was ignored")
+        if self.first_frame_number is not None:
+            if self.first_frame_number != 0:
+                notes.append(f"frame numbers start at {self.first_frame_number}, not 0: frames renumbered from 0")
+            if not self.consecutive:
+                notes.append("frame numbers are not consecutive: frames taken in file order")
+        count = self.frames.count
+        if header_frames is not None and header_frames != count:
+            notes.append(f"header promises {header_frames} frames but the file holds {count}: all {count} were read")
+        if not self.integer_values:
+            notes.append("non-integer FAP values (players expect integers)")
+        return notes
 
 
 class FapNameWarning(UserWarning):
@@ -436,7 +458,18 @@ def format_fap(stream: FapStream, *, name: str | None = None) -> str:
 
 
 def write_fap(stream: FapStream, path: str | os.PathLike[str], *, name: str | None = None) -> None:
-    """Write ``stream`` to ``path`` atomically, in the subset of :func:`format_fap`."""
+    """Write ``stream`` to ``path`` atomically, in the subset every checked player reads (:func:`format_fap`).
+
+    Parameters
+    ----------
+    stream : FapStream
+        The frames to write.
+    path : path-like
+        The .fap file; replaced only once it is complete.
+    name : str, optional
+        The header's stream name (default: the file's stem); a name players cannot read is changed, with a
+        :class:`FapNameWarning`.
+    """
     lines = _fap_lines(stream, name=name if name is not None else Path(path).stem)
     first = next(lines)  # a stream that cannot be written fails before any file is opened
     with atomic_write(path, newline="\n") as handle:

@@ -120,16 +120,48 @@ class FapStream:
         return tuple(int(j) + 1 for j in np.flatnonzero(self.mask.any(axis=0)))
 
     def curve(self, fap: int) -> np.ndarray:
-        """Values of one FAP over all frames (FAP units), 0 where masked off."""
+        """Values of one FAP over all frames.
+
+        Parameters
+        ----------
+        fap : int
+            FAP number, 1 to 68.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (n_frames,), in FAP units, 0 where masked off (a copy).
+        """
         return self.values[:, _fap_columns([fap])[0]].copy()
 
     def curves(self, faps: Iterable[int]) -> np.ndarray:
-        """Values of several FAPs, shape (n_frames, len(faps))."""
+        """Values of several FAPs.
+
+        Parameters
+        ----------
+        faps : iterable of int
+            FAP numbers, 1 to 68, in the order wanted.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (n_frames, len(faps)), in FAP units, 0 where masked off (a copy).
+        """
         return self.values[:, _fap_columns(faps)].copy()
 
     # transformations ----------------------------------------------------------------------------------
     def with_curves(self, curves: Mapping[int, np.ndarray]) -> FapStream:
-        """A copy in which the given FAPs are set (and active) in every frame."""
+        """A copy in which the given FAPs are set (and active) in every frame.
+
+        Parameters
+        ----------
+        curves : mapping of int to array
+            FAP number -> values in FAP units, one per frame.
+
+        Returns
+        -------
+        FapStream
+        """
         return self._set_curves(self.values.copy(), self.mask.copy(), curves, fps=self.fps, name=self.name)
 
     @classmethod
@@ -146,13 +178,34 @@ class FapStream:
         return cls._adopt(values, mask, fps, name)
 
     def select(self, faps: Iterable[int]) -> FapStream:
-        """A copy in which only the given FAPs keep their mask; every other FAP is masked off."""
+        """A copy in which only the given FAPs keep their mask; every other FAP is masked off.
+
+        Parameters
+        ----------
+        faps : iterable of int
+            The FAPs kept.
+
+        Returns
+        -------
+        FapStream
+        """
         keep = np.zeros(N_FAPS, bool)
         keep[_fap_columns(faps)] = True
         return self._masked_off(np.flatnonzero(~keep))
 
     def without(self, faps: Iterable[int]) -> FapStream:
-        """A copy with the given FAPs masked off."""
+        """A copy with the given FAPs masked off.
+
+        Parameters
+        ----------
+        faps : iterable of int
+            The FAPs left out.
+
+        Returns
+        -------
+        FapStream
+            This stream itself when none of them is active.
+        """
         return self._masked_off(_fap_columns(faps))
 
     def _masked_off(self, columns: np.ndarray) -> FapStream:
@@ -168,8 +221,20 @@ class FapStream:
         return FapStream._adopt(values, mask, self.fps, self.name)
 
     def scaled(self, gains: Mapping[int, float], *, about: Mapping[int, float] | None = None) -> FapStream:
-        """A copy with the given FAPs' motion multiplied by their gain (intensity controls; 0 keeps them,
-        still), about the value ``about[fap]`` (the rest pose; 0 when not given)."""
+        """A copy with the given FAPs' motion multiplied by their gain (the intensity controls).
+
+        Parameters
+        ----------
+        gains : mapping of int to float
+            FAP number -> finite gain; 0 keeps the FAP, still at its rest value.
+        about : mapping of int to float, optional
+            FAP number -> the rest value the motion is scaled about (0 when not given).
+
+        Returns
+        -------
+        FapStream
+            This stream itself when every gain is 1.
+        """
         about = dict(about or {})
         for fap, gain in gains.items():
             if not np.isfinite(gain):
@@ -185,12 +250,33 @@ class FapStream:
         return FapStream._adopt(values, self.mask, self.fps, self.name)
 
     def renamed(self, name: str) -> FapStream:
+        """The same frames under another name.
+
+        Parameters
+        ----------
+        name : str
+            The new name (the .fap header's).
+
+        Returns
+        -------
+        FapStream
+        """
         return FapStream._adopt(self.values, self.mask, self.fps, name)
 
     def resampled(self, fps: float, *, n_frames: int | None = None) -> FapStream:
         """The stream on another frame grid: values linearly interpolated, masks from the nearest frame.
 
-        Frames past the end of this stream hold its last frame; ``n_frames`` defaults to the same duration.
+        Parameters
+        ----------
+        fps : float
+            The new frame rate.
+        n_frames : int, optional
+            Frames of the result (default: the same duration); frames past the end of this stream hold its
+            last frame.
+
+        Returns
+        -------
+        FapStream
         """
         if n_frames is None:
             n_frames = int(round(self.duration_s * fps))
@@ -207,8 +293,16 @@ class FapStream:
     def merged_over(self, base: FapStream) -> FapStream:
         """Carry ``base``'s FAPs (lips, eyes, ...) under this stream's active FAPs.
 
-        The result has this stream's length and rate; ``base`` is resampled onto that grid when its rate
-        differs, and masked off past its own end. Where this stream has a FAP active, its value wins.
+        Parameters
+        ----------
+        base : FapStream
+            The stream underneath; resampled onto this grid when its rate differs, and masked off past its
+            own end.
+
+        Returns
+        -------
+        FapStream
+            This stream's length and rate; where this stream has a FAP active, its value wins.
         """
         if base.fps != self.fps:
             base = base.resampled(self.fps)
@@ -223,8 +317,14 @@ class FapStream:
         return FapStream(values, mask, self.fps, self.name)
 
     def to_physical(self) -> np.ndarray:
-        """Values in physical units, shape (n_frames, 68): radians for AU FAPs, fractions of the reference
-        distance (ENS0, MNS0, ...) for the rest; NaN where masked off."""
+        """Values in physical units.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (n_frames, 68): radians for AU FAPs, fractions of the reference distance (ENS0, MNS0, ...)
+            for the rest; NaN where masked off.
+        """
         scale = np.array([BY_NUMBER[j + 1].to_physical(1.0) for j in range(N_FAPS)])
         physical = self.values * scale
         physical[~self.mask] = np.nan

@@ -7,7 +7,7 @@ times :data:`TARGET_SCALE` of its unit (1024 units, the whole reference distance
 the eyeballs' angles), so a weight is the FAP value divided by that. One animation lasting the stream animates
 the weights (LINEAR) and the head node's rotation (quaternions of R = Rz(roll) Ry(yaw) Rx(pitch)), one key per
 frame at k / fps seconds. Units are metres (glTF's), +y up, the face looking along +z. Sound is not part of
-glTF: add the recording in the player (the README says how in Blender).
+glTF: add the recording in the player (docs/cli.md says how in Blender).
 """
 
 from __future__ import annotations

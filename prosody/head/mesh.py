@@ -354,7 +354,24 @@ def build_head(face: np.ndarray | None = None) -> HeadMesh:
         colors[list(upper)] = 0.5 * np.asarray(BROWS) + 0.5 * np.asarray(SKIN)
     builder.add(v, open_face, colors, FACE)
 
-    # the skull: rings lofted from the face's outline round to the back of the head
+    _add_skull(builder, v, open_face)
+    eye_centres = _add_eyes(builder, v)
+    _add_mouth(builder, v)
+    _add_body(builder)
+
+    vertices = np.vstack(builder.vertices).astype(np.float32)
+    triangles = np.vstack(builder.triangles).astype(np.int32)
+    all_colors = np.vstack(builder.colors).astype(np.float32)
+    parts = np.concatenate(builder.parts)
+    units = _measure_units(face_vertices, np.asarray(eye_centres))
+    layout = vertices.copy()
+    vertices[:N_FACE_VERTICES] = close_lips(face_vertices).astype(np.float32)
+    return HeadMesh(vertices, triangles, all_colors, parts, dict(FEATURE_POINTS), units, np.asarray(eye_centres),
+                    layout=layout, rotates=parts != NECK)
+
+
+def _add_skull(builder: _Builder, v: np.ndarray, open_face: np.ndarray) -> None:
+    """The skull: rings lofted from the face's outline round to the back of the head, hair on it."""
     outline = _outline(open_face)
     centre = np.array([0.0, 2.5, -3.0])
     radii = np.array([7.7, 10.5, 9.4])
@@ -414,7 +431,10 @@ def build_head(face: np.ndarray | None = None) -> HeadMesh:
     builder.parts.append(np.full(len(skull_vertices), SKULL, np.int8))
     builder.count += len(skull_vertices)
 
-    # the eyes: balls behind the lid openings
+
+
+def _add_eyes(builder: _Builder, v: np.ndarray) -> list[np.ndarray]:
+    """The eyes: balls behind the lid openings; their centres."""
     eye_centres = []
     for (lid_top, lid_bottom), part in ((LIDS_LEFT, EYE_LEFT), (LIDS_RIGHT, EYE_RIGHT)):
         # the ball's front touches the middle of the lids' opening, so the pupil sits in it seen from any side
@@ -423,8 +443,11 @@ def build_head(face: np.ndarray | None = None) -> HeadMesh:
         eye_centres.append(centre_eye)
         for vertices, triangles, color in _eye_pieces(centre_eye):
             builder.add(vertices, triangles, color, part)
+    return eye_centres
 
-    # the mouth: a dark inside, teeth behind the lips, a tongue on the floor
+
+def _add_mouth(builder: _Builder, v: np.ndarray) -> None:
+    """The mouth: a dark inside, teeth behind the lips, a tongue on the floor."""
     mid_upper, mid_lower = v[LIP_INNER_UPPER[5]], v[LIP_INNER_LOWER[5]]
     mouth_y = (mid_upper[1] + mid_lower[1]) / 2
     corner_x = abs(v[LIP_INNER_UPPER[0], 0])
@@ -445,21 +468,13 @@ def build_head(face: np.ndarray | None = None) -> HeadMesh:
                                     columns=16)
     builder.add(tongue_v, tongue_t, TONGUE_COLOR, TONGUE)
 
-    # the neck and the top of the shoulders (they stay still while the head turns)
+
+def _add_body(builder: _Builder) -> None:
+    """The neck and the top of the shoulders (they stay still while the head turns)."""
     neck_v, neck_t = _cylinder(centre=(0.0, -3.3), radii=(5.4, 5.4), y_top=-6.8, y_bottom=-18.0)
     builder.add(neck_v, neck_t, SKIN, NECK)
     body_v, body_t = _ellipsoid_y((0.0, -22.5, -3.5), (18.0, 6.5, 9.0))
     builder.add(body_v, body_t, SHIRT, NECK)
-
-    vertices = np.vstack(builder.vertices).astype(np.float32)
-    triangles = np.vstack(builder.triangles).astype(np.int32)
-    all_colors = np.vstack(builder.colors).astype(np.float32)
-    parts = np.concatenate(builder.parts)
-    units = _measure_units(face_vertices, np.asarray(eye_centres))
-    layout = vertices.copy()
-    vertices[:N_FACE_VERTICES] = close_lips(face_vertices).astype(np.float32)
-    return HeadMesh(vertices, triangles, all_colors, parts, dict(FEATURE_POINTS), units, np.asarray(eye_centres),
-                    layout=layout, rotates=parts != NECK)
 
 
 @dataclass(frozen=True)

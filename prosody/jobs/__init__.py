@@ -1,1 +1,1 @@
-"""Jobs over files: one recording to one stream (``convert``), and folders in batch."""
+"""Jobs over files: one recording to one stream (``convert``), folders in batch, and videos tracked."""

@@ -157,20 +157,10 @@ def convert(
                               eyebrow_rule=eyebrow_rule, perlin=perlin, name=name, expressivity=expressivity)
     face = make_face(audio, features, lips=lips, transcript=transcript, expression=expression, gains=gains,
                      disabled=disabled, mouth_model=mouth_model, pad=states, pad_map=pad_map, language=language)
-    recorded = None
-    if base is not None:
-        # the base must be of this recording: the same length within two frames, like recorded motion
-        original = read_fap(base).stream
-        if original.fps != stream.fps:
-            warnings.warn(f"{base}: the base is at {original.fps:g} fps and is resampled to {stream.fps:g} fps (give "
-                          f"fps={original.fps:g} to keep its rate)", BaseResampledWarning, stacklevel=2)
-        recorded = fit_to_grid(original, n_frames=stream.n_frames, fps=stream.fps, source=str(base))
-        if set(EYEBROW_FAPS) & set(stream.active_faps):
-            # the brows are the condition's: the base's outer brows (35, 36) would not match its inner ones
-            recorded = recorded.without([35, 36])
-        if face is not None:
-            # the base's own lips (a recording's) are kept: generated lips fill only what it lacks
-            face = FaceLayer({fap: curve for fap, curve in face.curves.items() if fap not in recorded.active_faps})
+    recorded = _base_motion(base, stream) if base is not None else None
+    if face is not None and recorded is not None:
+        # the base's own lips (a recording's) are kept: generated lips fill only what it lacks
+        face = FaceLayer({fap: curve for fap, curve in face.curves.items() if fap not in recorded.active_faps})
     if face is not None:
         stream = face.over(stream)
     # gains scale motion about the rest pose: a model's resting lean is not motion
@@ -186,3 +176,17 @@ def convert(
 
         write_stream(stream, output, output_format)
     return stream
+
+
+def _base_motion(base: str | os.PathLike[str], stream: FapStream) -> FapStream:
+    """The other FAPs of ``base``, a recording of the same speech, on ``stream``'s grid (its length within two
+    frames, like recorded motion); the outer brows left out where ``stream`` has brows of its own."""
+    original = read_fap(base).stream
+    if original.fps != stream.fps:
+        warnings.warn(f"{base}: the base is at {original.fps:g} fps and is resampled to {stream.fps:g} fps (give "
+                      f"fps={original.fps:g} to keep its rate)", BaseResampledWarning, stacklevel=3)
+    recorded = fit_to_grid(original, n_frames=stream.n_frames, fps=stream.fps, source=str(base))
+    if set(EYEBROW_FAPS) & set(stream.active_faps):
+        # the brows are the condition's: the base's outer brows (35, 36) would not match its inner ones
+        recorded = recorded.without([35, 36])
+    return recorded

@@ -41,6 +41,9 @@ class Condition(str, enum.Enum):
 
 _SHORT_NAMES = {"none": Condition.NO_PROSODY, "random": Condition.RANDOM, "speech": Condition.SPEECH_DRIVEN,
                 "truth": Condition.GROUND_TRUTH}
+#: The conditions' short names as the commands take them, the default first; live streams have no recording.
+CONDITION_NAMES = ("speech", "random", "none", "truth")
+LIVE_CONDITION_NAMES = ("speech", "random", "none")
 #: Display order of the conditions (the order of the thesis and of the perceptual-study tables).
 CONDITION_ORDER = (Condition.NO_PROSODY, Condition.RANDOM, Condition.SPEECH_DRIVEN, Condition.GROUND_TRUTH)
 

@@ -407,6 +407,6 @@ class ArxHeadModel:
 
 
 def default_model() -> ArxHeadModel:
-    """The thesis's ARX model as shipped with the package (trained on the seven talking-head clips; see the
-    README). The default speech-driven head is :func:`prosody.motion.head_models.default_head_model`."""
+    """The thesis's ARX model as shipped with the package (trained on the seven talking-head clips; see
+    docs/evaluation.md). The default speech-driven head is :func:`prosody.motion.head_models.default_head_model`."""
     return ArxHeadModel.load(DEFAULT_MODEL_PATH)

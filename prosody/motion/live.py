@@ -410,7 +410,7 @@ class LiveHeadModel:
         files written before the setting read) the prediction's own quick changes take most of the
         head's speed wherever the speech is, and the speed envelope hardly follows the prediction (0.1 s,
         the default, raised the held-out speed-envelope r at 100 ms from 0.12 to 0.26 at a pitch r of
-        0.29 instead of 0.30; the README's figures).
+        0.29 instead of 0.30; the figures of docs/evaluation.md).
     presence_window_s : float in [0.05, 10], in s
         Speech presence is the voiced share of this much audio up to the look-ahead (0.25 s: live, a short
         window lets the head settle soon after the voice stops, where the offline generator's centred 2 s

@@ -325,7 +325,7 @@ class ProsodicHeadModel:
         the power ``2 * burst_power``, at the same average speed, so the head moves in bursts and holds still
         between them as people do. 0.5, the default, brings the angular speed's 10th, 50th and 90th percentiles
         within 1.5 times the recording's on the 49 clips at hand held out by speaker (1.13 / 1.11 / 1.02; on
-        the seven talking-heads clips 1.64 / 1.57 / 1.03: the README's figures); 0 leaves the motion as the
+        the seven talking-heads clips 1.64 / 1.57 / 1.03: the figures of docs/evaluation.md); 0 leaves the motion as the
         generator makes it. Files written before this setting existed read as 0.
     pitch_follow_s : float in [0, 2], in s
         The head's pitch follows the predicted pitch with this time constant at the average predicted speed,

@@ -48,10 +48,10 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import ConfigError
-from ..evaluation.designs import StudyPlan
-from .server import _trusted_host, normalize_origin
-from .study_stimuli import check_stimuli
-from .study_store import StudyStore, StudyStoreError
+from ..live.server import _trusted_host, normalize_origin
+from ..study.designs import StudyPlan
+from .stimuli import check_stimuli
+from .store import StudyStore, StudyStoreError
 
 #: Largest request body read (an answer is under 200 bytes).
 MAX_BODY_BYTES = 4096
@@ -74,7 +74,7 @@ VIDEO_BLOCK_BYTES = 1 << 16
 
 
 def study_page() -> bytes:
-    return resources.files("prosody.jobs").joinpath("study.html").read_bytes()
+    return resources.files("prosody.study").joinpath("study.html").read_bytes()
 
 
 class StudyServer:

@@ -1,7 +1,7 @@
 """The three designs of a perceptual study and their plans (``prosody study plan --design``).
 
 - ``paired`` (the thesis): every ordered pair of the conditions per stimulus; the participant chooses the face
-  that moves more naturally. Plan columns ``order,stimulus,left,right`` (:func:`prosody.evaluation.study.plan_study`).
+  that moves more naturally. Plan columns ``order,stimulus,left,right`` (:func:`prosody.study.ballots.plan_study`).
 - ``mos`` (seed 000): every condition of every stimulus once, rated from 1 (bad) to 5 (excellent). Plan columns
   ``order,stimulus,condition``.
 - ``identification`` (seed 002): every condition of every stimulus shown ``repeats`` times; the participant says
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import BallotError, ConfigError
-from .study import (
+from .ballots import (
     CONDITIONS,
     PLAN_COLUMNS,
     condition_name,

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BallotError
-from .study import BALLOT_COLUMNS, SHORT_NAMES, _fail, filled_rows, holm
+from .ballots import BALLOT_COLUMNS, SHORT_NAMES, _fail, filled_rows, holm
 
 MOS_COLUMNS = ("stimulus", "subject", "condition", "score")
 IDENTIFICATION_COLUMNS = ("stimulus", "subject", "shown", "answer")
@@ -446,7 +446,7 @@ def identification_markdown(results: dict, *, figure: str | None = None) -> str:
 
 def plot_means(results: dict, path: str | os.PathLike[str]) -> Path:
     """Mean score per condition with its 95% interval, as a PNG."""
-    from .plots import _figure, _save
+    from ..evaluation.plots import _figure, _save
 
     names = list(results["conditions"])
     entries = [results["conditions"][name] for name in names]
@@ -484,7 +484,7 @@ def plot_confusion(results: dict, path: str | os.PathLike[str]) -> Path:
     """The confusion matrix as a PNG: each row's share of answers as colour, the counts written in; past
     :data:`MAX_CONFUSION_CLASSES` classes, the rows and columns of those shown most often (a row's share is
     still of all its answers)."""
-    from .plots import _figure, _save
+    from ..evaluation.plots import _figure, _save
 
     names, kept = confusion_shown(results)
     every = np.asarray(results["confusion"], float)

@@ -26,6 +26,7 @@ from audio_features.streaming import StreamingAnalyser
 from ..errors import ConfigError
 from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
+from ..jobs.pipeline import CHANNELS
 from ..motion.conditions import Condition
 from ..motion.expressions import ExpressionSegment, add_brow_raises, expressions_at, mix_with_lips, parse_expressions
 from ..motion.expressivity import BrowShaper, Expressivity, HeadShaper
@@ -34,9 +35,8 @@ from ..motion.limits import limit_frame
 from ..motion.lips import LIP_FAPS, shape_faps
 from ..motion.live import LiveHeadModel, LivePerlin, live_brows
 from ..motion.model_files import read_model_json
-from .pipeline import CHANNELS
 
-#: Look-ahead of the live head and brows by default, in ms (the measured trade: see the README).
+#: Look-ahead of the live head and brows by default, in ms (the measured trade: see docs/live.md).
 DEFAULT_LOOKAHEAD_MS = 100.0
 #: Shipped live head models by the look-ahead they read, in ms.
 LIVE_MODELS_DIR = Path(__file__).resolve().parents[1] / "motion" / "models"
@@ -183,7 +183,13 @@ class LiveConverter:
         return self._shapers[0].expressivity if self._shapers is not None else Expressivity()
 
     def set_expressivity(self, expressivity: Expressivity) -> None:
-        """Change the expressivity controls from the next frame given out on (while streaming)."""
+        """Change the expressivity controls from the next frame given out on (while streaming).
+
+        Parameters
+        ----------
+        expressivity : Expressivity
+            The new controls (see :mod:`prosody.motion.expressivity`).
+        """
         if not isinstance(expressivity, Expressivity):
             raise ConfigError(f"expected an Expressivity, got {expressivity!r}")
         if self._shapers is not None:
@@ -246,7 +252,18 @@ class LiveConverter:
         return {**faps, **{fap: float(curve[0]) for fap, curve in mixed.items()}}
 
     def push(self, samples: np.ndarray) -> list[LiveFrame]:
-        """Add audio (mono float, full scale +-1); the frames that became final, possibly none."""
+        """Add audio.
+
+        Parameters
+        ----------
+        samples : numpy.ndarray
+            Mono float samples at the converter's sample rate, full scale +-1, any number of them.
+
+        Returns
+        -------
+        list of LiveFrame
+            The frames that became final, possibly none.
+        """
         if self.finished:
             raise ConfigError("push() after finish(): make a new LiveConverter for new audio")
         f0, energy = self.analyser.push(samples)
@@ -255,7 +272,13 @@ class LiveConverter:
         return self._frames(f0, energy, final=False)
 
     def finish(self) -> list[LiveFrame]:
-        """The audio has ended: the frames still waiting for their look-ahead."""
+        """The audio has ended.
+
+        Returns
+        -------
+        list of LiveFrame
+            The frames still waiting for their look-ahead (none after the first call).
+        """
         if self.finished:
             return []
         self.finished = True

@@ -1,6 +1,6 @@
 """Live frames sent over UDP to Unreal's Live Link (Live Link Face packets) and to VMC marionettes.
 
-A :class:`LinkSender` is given the frames as :class:`prosody.jobs.stream.LiveConverter` makes them and sends
+A :class:`LinkSender` is given the frames as :class:`prosody.live.converter.LiveConverter` makes them and sends
 one datagram per frame to each of its targets, as soon as it has them. UDP does not wait for a receiver: a
 target that is not listening (yet) loses those frames, and the first send error is reported once.
 """
@@ -16,8 +16,8 @@ from ..errors import ConfigError
 from ..fap.exporters import livelink_columns
 from ..fap.live_links import LIVELINK_PORT, VMC_PORT, check_link_name, livelink_packet, vmc_bundle
 from ..fap.stream import FapStream
+from .converter import LiveFrame
 from .server import parse_address
-from .stream import LiveFrame
 
 PROTOCOLS = {"livelink": LIVELINK_PORT, "vmc": VMC_PORT}
 

@@ -7,7 +7,7 @@ or a closed tab loses no answer that was acknowledged. The database holds:
   database is never mixed with another plan's and can be exported without it;
 - ``participants``: an anonymous random ID per participant, their number (1, 2, ... in order of arrival, which
   chooses their counterbalanced order), their completion code, when they started and finished;
-- ``trials``: each participant's own sequence (:func:`prosody.evaluation.designs.participant_trials`), fixed
+- ``trials``: each participant's own sequence (:func:`prosody.study.designs.participant_trials`), fixed
   when they arrive, so that resuming shows the same trials;
 - ``answers``: one row per participant and trial position (the primary key): a second submission of the same
   answer is acknowledged and counted once; a different one for a trial already answered is refused.
@@ -29,9 +29,9 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import ConfigError, ProsodyError
-from ..evaluation.designs import CONDITION_COLUMNS, StudyPlan, participant_trials
-from ..evaluation.ratings import IDENTIFICATION_COLUMNS, MOS_COLUMNS, SCORES
-from ..evaluation.study import BALLOT_COLUMNS
+from ..study.ballots import BALLOT_COLUMNS
+from ..study.designs import CONDITION_COLUMNS, StudyPlan, participant_trials
+from ..study.ratings import IDENTIFICATION_COLUMNS, MOS_COLUMNS, SCORES
 
 STORE_FORMAT = "visual-prosody-study-db"
 STORE_VERSION = 1

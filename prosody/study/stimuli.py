@@ -40,11 +40,11 @@ from audio_features import AUDIO_EXTENSIONS
 from audio_features.atomic import atomic_write
 
 from ..errors import ConfigError
-from ..evaluation.designs import StudyPlan
 from ..evaluation.preview import BROW_VIEW_SCALE, head_values, write_preview
 from ..head.web import head_frames_document
+from ..jobs.pipeline import convert
 from ..motion.conditions import Condition
-from .pipeline import convert
+from ..study.designs import StudyPlan
 
 STIMULI_FORMAT = "visual-prosody-study-stimuli"
 CONDITIONS_FORMAT = "visual-prosody-study-conditions"
@@ -91,7 +91,7 @@ def _read_json(path: str | os.PathLike[str], what: str) -> dict:
 
 def read_condition_options(path: str | os.PathLike[str]) -> dict[str, tuple[str, str]]:
     """A conditions file: ``{name: (label, options)}`` in the file's order (names checked as plans check them)."""
-    from ..evaluation.study import condition_name
+    from ..study.ballots import condition_name
 
     payload = _read_json(path, "study conditions file")
     if payload.get("format") != CONDITIONS_FORMAT or payload.get("version") != FORMAT_VERSION:
@@ -178,7 +178,7 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
     Parameters
     ----------
     plan : StudyPlan
-        The study's plan (:func:`prosody.evaluation.designs.read_plan`).
+        The study's plan (:func:`prosody.study.designs.read_plan`).
     recordings : folder
         ``<stimulus>.wav`` for every stimulus, and ``<stimulus>.head.csv`` (or ``.fap``) where a condition is
         ``truth``.

@@ -54,7 +54,7 @@ from audio_features.pcm import PcmDecoder, PcmFormat
 
 from ..errors import ConfigError
 from ..motion.expressivity import RANGES, Expressivity
-from .stream import LiveConverter, LiveFrame
+from .converter import LiveConverter, LiveFrame
 
 #: Frames kept for a client that is not reading (10 s at 30 fps); older ones are dropped.
 CLIENT_QUEUE_FRAMES = 300
@@ -109,7 +109,7 @@ def _trusted_host(name: str) -> bool:
 
 def page_html() -> bytes:
     """The page served at ``/``."""
-    return resources.files("prosody.jobs").joinpath("face.html").read_bytes()
+    return resources.files("prosody.live").joinpath("face.html").read_bytes()
 
 
 def parse_address(text: str, address_of: str = "listen address") -> tuple[str, int]:

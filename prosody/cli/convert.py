@@ -1,0 +1,74 @@
+"""``prosody convert``: a speech recording to a FAP stream (or any format of it)."""
+
+from __future__ import annotations
+
+import argparse
+
+from . import messages as msg
+from . import options as opt
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..errors import ConfigError
+    from ..jobs.pipeline import convert
+
+    opt.check_motion_options(args)
+    if args.format is None and args.output.lower().endswith((".mp4", ".gif", ".webm", ".mov", ".mkv", ".avi")):
+        raise ConfigError(f"-o {args.output!r}: convert writes motion (.fap, .csv, .json, .bvh, .livelink.csv); "
+                          f"to draw a video, use 'prosody preview {args.input} -o {args.output}'")
+    if args.output == "-":
+        if args.format is None:
+            raise ConfigError("-o - writes to standard output: give --format (fap, csv, csv-physical, json, bvh, "
+                              "livelink)")
+        holder: list = []
+
+        def write(path: str) -> None:
+            holder.append(convert(args.input, path, base=args.base, output_format=args.format,
+                                  **opt.motion_kwargs(args)))
+
+        from pathlib import Path
+
+        msg.to_stdout(write, Path(args.input).stem + "." + args.format)  # the stream keeps the input's name
+        stream = holder[0]
+    else:
+        stream = convert(args.input, args.output, base=args.base, output_format=args.format,
+                         progress=msg.frame_progress(args.input, "analysed"), **opt.motion_kwargs(args))
+    faps = " ".join(map(str, stream.active_faps))
+    written = args.format or ""
+    if written == "bvh" or (not written and args.output.lower().endswith(".bvh")):
+        faps = "48 49 50 (BVH holds the head only)"
+    msg.say(f"{args.output}: {stream.n_frames} frames at {stream.fps:g} fps, FAPs {faps}")
+    return opt.EXIT_OK
+
+
+def add_parser(commands) -> None:
+    """Add the command to the subcommands of ``prosody``."""
+    from ..fap.exporters import DEFERRED_WRITERS, WRITERS
+
+    convert = commands.add_parser(
+        "convert", help="turn a speech recording into a FAP stream",
+        description="Compute the face's motion of one condition and write it: eyebrows (FAP 31-34), head "
+                    "(48-50), lips (3-11, 16-17, 51-58: visemes from the phones heard, with coarticulation, or "
+                    "--lips acoustic) and, if asked, an expression or a PAD state blended onto them. "
+                    "speech: brows on pitch accents, head pitch/yaw/roll from the shipped prosodic head model "
+                    "(or --model arx for the thesis's ARX model, pad for the PAD gestures, or a trained file); "
+                    "random: Perlin noise; none: a still head and brows; truth: recorded motion. The lips are the "
+                    "same in every condition. To see the motion, draw it with 'prosody preview'.",
+    )
+    convert.add_argument("input", help="speech recording")
+    convert.add_argument("-o", "--output", required=True,
+                         help="output file; the format follows the ending: .fap (MPEG-4), .csv (FAP units), "
+                              ".json, .bvh (head joint, degrees), .livelink.csv (Live Link Face style), .glb (the "
+                              "3D head animated, glTF 2.0, for Blender and three.js), .rhubarb.tsv, .rhubarb.json, "
+                              ".rhubarb.xml, .dat and .prestonblair.dat (the lips as Rhubarb Lip Sync's mouth "
+                              "cues, for its plugins); - writes to standard output (with --format)")
+    convert.add_argument("--format", default=None,
+                         choices=[*WRITERS, *DEFERRED_WRITERS],
+                         help="output format, overriding the ending (csv-physical: radians and fractions of "
+                              "the reference distances)")
+    opt.add_motion_options(convert)
+    convert.add_argument("--base", default=None, metavar="FILE.fap",
+                         help="carry this recording's other FAPs (lips, eyes) into the output")
+    opt.add_analysis_options(convert)
+    opt.add_eyebrow_options(convert)
+    convert.set_defaults(handler=run)

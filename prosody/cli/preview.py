@@ -1,0 +1,124 @@
+"""``prosody preview``: the motion played on the 3D head (or the drawn face), as MP4 or GIF."""
+
+from __future__ import annotations
+
+import argparse
+
+from . import messages as msg
+from . import options as opt
+
+
+def say_unshown(stream, face: str, source: str) -> None:
+    """One line naming the FAPs of ``stream`` that ``face`` does not show (none: nothing said)."""
+    import numpy as np
+
+    present = [int(f) + 1 for f in np.flatnonzero(stream.mask.any(axis=0))]
+    if face == "head":
+        from ..head.rig import head_rig
+
+        missing = head_rig().unsupported(present)
+    else:
+        from ..evaluation.preview import DRAWN_FAPS
+
+        missing = [f for f in present if f not in DRAWN_FAPS]
+    if missing:
+        shown = "3D head" if face == "head" else "drawn face"
+        msg.say(f"{source}: the {shown} does not show FAP {fap_ranges(missing)} (in the stream; left out)")
+
+
+def fap_ranges(faps: list[int]) -> str:
+    """[1, 2, 3, 5] -> '1-3, 5'."""
+    runs: list[list[int]] = []
+    for fap in sorted(faps):
+        if runs and fap == runs[-1][-1] + 1:
+            runs[-1].append(fap)
+        else:
+            runs.append([fap])
+    return ", ".join(f"{run[0]}-{run[-1]}" if len(run) > 2 else ", ".join(map(str, run)) for run in runs)
+
+
+def run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from ..evaluation.preview import write_preview
+
+    opt.check_motion_options(args)
+    audio = args.audio
+    if Path(args.input).suffix.lower() == ".fap":
+        from ..fap.fapfile import read_fap
+
+        stream = read_fap(args.input).stream
+    elif Path(args.input).suffix.lower() in (".json", ".jsonl"):
+        from ..fap.exporters import read_stream_json
+
+        stream = read_stream_json(args.input)
+    else:
+        from ..jobs.pipeline import convert
+
+        stream = convert(args.input, None, **opt.motion_kwargs(args))
+        audio = audio or args.input
+    if args.no_audio:
+        audio = None
+    scales = None
+    if args.strip_scale is not None:
+        import math
+
+        from ..errors import ConfigError
+
+        try:
+            brow_ens, head_deg = (float(part) for part in args.strip_scale.split(","))
+        except ValueError:
+            raise ConfigError(f"--strip-scale takes BROW_ENS,HEAD_DEG (e.g. 30,10), got {args.strip_scale!r}") from None
+        scales = (brow_ens, math.radians(head_deg) * 1e5)
+    say_unshown(stream, args.face, args.input)
+    write_preview(stream, args.output, audio=audio, width=args.width, exaggerate=args.exaggerate,
+                  brow_scale=args.brow_scale, start_s=args.start, duration_s=args.duration,
+                  progress=msg.frame_progress(args.output), scales=scales, face=args.face, strip=not args.no_strip)
+    sound = " with sound" if audio is not None and Path(args.output).suffix.lower() == ".mp4" else ""
+    shown = stream.duration_s - min(args.start, stream.duration_s)
+    if args.duration is not None:
+        shown = min(shown, args.duration)
+    excerpt = f"{shown:.2f} s from {args.start:g} s" if args.start or args.duration is not None else f"{shown:.2f} s"
+    msg.say(f"{args.output}: preview of {stream.name} ({excerpt}){sound}")
+    return opt.EXIT_OK
+
+
+def add_parser(commands) -> None:
+    """Add the command to the subcommands of ``prosody``."""
+    preview = commands.add_parser(
+        "preview", help="play the motion on a 3D head, as an MP4 (with the audio) or a GIF",
+        description="Animate a 3D head from one condition's stream (as 'prosody convert' makes it), from any "
+                    ".fap file (Greta's, Xface's, SEMAINE's: the FAPs the head has no part for are named once), "
+                    "or from this package's .json or stream .jsonl output: the head turns about the neck (FAP "
+                    "48-50), the jaw, lips, lids, eyeballs, brows, cheeks, nose and tongue move by their FAPs "
+                    "(3-46, 51-64) in MPEG-4's units measured on the head, the brows drawn 4 times larger unless "
+                    "--brow-scale 1, all else at true scale unless --exaggerate; a strip below plots the brow and "
+                    "head curves around the current frame. --face drawn shows the older drawn face (head, brows, "
+                    "lips, lids), a diagnostic. .mp4 (H.264, with the recording's audio) needs ffmpeg on PATH or "
+                    "the imageio-ffmpeg package; .gif (no sound, at most 1 minute at 30 fps) always works.",
+    )
+    preview.add_argument("input", help="speech recording, or a .fap, .json or .jsonl stream to show as it is")
+    preview.add_argument("-o", "--output", required=True, metavar="OUT.mp4|OUT.gif", help="video to write")
+    preview.add_argument("--audio", default=None, metavar="FILE",
+                         help="sound for the MP4 when INPUT is a .fap file (default: INPUT itself if audio)")
+    preview.add_argument("--no-audio", action="store_true", help="write the MP4 without sound")
+    preview.add_argument("--width", type=int, default=480, metavar="PX",
+                         help="frame width in pixels (default 480; the height is 5/4 of it)")
+    preview.add_argument("--exaggerate", type=opt.exaggeration, default=1.0, metavar="X",
+                         help="draw head angles and brow raises X times larger (default 1: true scale)")
+    preview.add_argument("--brow-scale", type=opt.exaggeration, default=4.0, metavar="X",
+                         help="draw the brow raises X times larger again (default 4, said on every frame: a brow "
+                              "raise of speech is under a millimetre, invisible at true scale; 1: true size)")
+    preview.add_argument("--face", choices=("head", "drawn"), default="head",
+                         help="the 3D head (default) or the drawn diagnostic face")
+    preview.add_argument("--no-strip", action="store_true", help="the face alone, without the curve strip")
+    preview.add_argument("--start", type=opt.seconds, default=0.0, metavar="S", help="first second shown (default 0)")
+    preview.add_argument("--strip-scale", default=None, metavar="BROW_ENS,HEAD_DEG",
+                         help="full scale of the curve strip: brow raise in ENS and head angle in degrees (default: "
+                              "this stream's largest values); give previews you compare the same scale, e.g. 30,10")
+    preview.add_argument("--duration", type=opt.number_in(0, 1e6, low_open=True), default=None, metavar="S",
+                         help="seconds shown (default: to the end)")
+    opt.add_motion_options(preview)
+    opt.add_analysis_options(preview)
+    opt.add_eyebrow_options(preview)
+    preview.set_defaults(handler=run)
