@@ -235,6 +235,7 @@ def test_real_speech_float_wav_and_chunk_seams(shared_data) -> None:
 
 
 @pytest.mark.shared_data
+@pytest.mark.slow
 def test_ten_minutes_of_speech_in_chunks_equals_one_pass(tmp_path) -> None:
     import sys
 

@@ -58,6 +58,7 @@ def test_page_draws_the_frames_the_server_sends(frame_server, browser, tmp_path)
     assert "frame 4" in browser.find_element("id", "status").text
 
 
+@pytest.mark.slow
 def test_microphone_audio_reaches_the_server_and_moves_the_face(frame_server, browser, tmp_path):
     browser.get(frame_server.url + "?mic=1")
     _wait_for(browser, "return window.prosodyStats.micStarted")
@@ -76,6 +77,7 @@ def test_microphone_audio_reaches_the_server_and_moves_the_face(frame_server, br
     assert np.any(np.abs(first.astype(int) - second.astype(int)) > 30, axis=2).mean() > 0.001
 
 
+@pytest.mark.slow
 def test_page_reconnects_when_the_server_comes_back(browser):
     lines: list[str] = []
     first = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lines.append).start()
@@ -213,6 +215,7 @@ def test_page_closes_the_eyelids_by_fap_19_to_22(frame_server, browser, tmp_path
     assert rows.min() > brow[1] and rows.max() < cheek[1]  # only the eyes changed
 
 
+@pytest.mark.slow
 def test_the_input_sound_plays_and_the_face_moves_in_step_with_it(frame_server, browser):
     browser.get(frame_server.url)
     _wait_for(browser, "return window.prosodyStats && window.prosodyStats.connected")

@@ -200,6 +200,7 @@ def test_find_files_and_ground_truth(corpus) -> None:
     assert find_ground_truth(Path("day1/c.flac"), truth) is None
 
 
+@pytest.mark.slow
 def test_batch_cli_mixes_good_broken_and_paired_files(corpus, tmp_path, capsys) -> None:
     indir, truth = corpus
     out = tmp_path / "out"
@@ -254,6 +255,7 @@ def test_batch_condition_subset_and_two_processes(corpus, tmp_path) -> None:
                                                             "random.fap"]
 
 
+@pytest.mark.slow
 def test_batch_on_a_local_dask_cluster(corpus, tmp_path) -> None:
     distributed = pytest.importorskip("distributed")
     indir, truth = corpus
@@ -292,6 +294,7 @@ def test_same_stem_inputs_get_their_own_folders(tmp_path) -> None:
     assert len(frames) == 2  # each folder holds its own recording's results
 
 
+@pytest.mark.slow
 def test_resume_notices_changed_content_and_cleans_what_other_settings_wrote(tmp_path, rng) -> None:
     indir = tmp_path / "in"
     indir.mkdir()
@@ -380,6 +383,7 @@ def test_a_cluster_without_workers_stops_waiting_and_a_lost_scheduler_is_said(mo
     assert list(batch._completed({slow: ("c",)}, alive=alive, poll_s=0.05)) == [(("c",), "done")]
 
 
+@pytest.mark.slow
 def test_sigterm_leaves_no_half_written_file(tmp_path) -> None:
     import signal
     import subprocess

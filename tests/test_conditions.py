@@ -246,6 +246,7 @@ def test_train_command_on_synthetic_pairs(tmp_path, rng) -> None:
     assert json.loads((tmp_path / "p.json").read_text())["kind"] == "prosodic"
 
 
+@pytest.mark.slow
 def test_train_prosodic_with_cv_stores_held_out_figures(tmp_path, rng) -> None:
     data = tmp_path / "pairs"
     data.mkdir()

@@ -196,6 +196,7 @@ def test_diagnostics_of_a_simulated_system_poles_and_white_residuals(rng) -> Non
 @pytest.mark.parametrize("kind, shipped", [("prosodic", "default_head.json"), ("arx", "default_arx.json"),
                                            ("mouth", "mouth_acoustic.json"), ("live", "live_head_0ms.json"),
                                            ("live", "live_head_100ms.json")])
+@pytest.mark.slow
 def test_train_reproduces_the_shipped_model(shared_data, tmp_path, kind, shipped) -> None:
     # the shipped files are what `prosody train` writes from ../shared/data/talking-heads, to the last digit.
     # The live models' cross-validation takes minutes: they are fitted here with the settings it chose (stored
@@ -258,6 +259,7 @@ def test_folds_hold_out_a_speaker_s_recordings_together(tmp_path) -> None:
 
 
 @pytest.mark.shared_data
+@pytest.mark.slow
 def test_model_files_record_their_training_audio_and_compare_uses_it(shared_data, tmp_path) -> None:
     import shutil
 

@@ -179,6 +179,7 @@ def test_a_tracked_face_can_replace_the_canonical_one() -> None:
         build_head(face[:100])
 
 
+@pytest.mark.slow
 def test_preview_of_a_fap_file_names_what_the_head_does_not_show_once(tmp_path: Path) -> None:
     stream = FapStream.from_curves({3: np.linspace(0, 400, 6), 47: np.full(6, 100.0), 65: np.ones(6),
                                     66: np.ones(6), 67: np.ones(6), 49: np.linspace(0, 9000, 6)}, fps=30)
@@ -191,6 +192,7 @@ def test_preview_of_a_fap_file_names_what_the_head_does_not_show_once(tmp_path: 
     assert (tmp_path / "out.gif").stat().st_size > 1000
 
 
+@pytest.mark.slow
 def test_the_closed_loop_tracks_back_the_motion_the_head_was_given(tmp_path: Path) -> None:
     """Known motion -> prosody preview -> prosody track -> the motion measured back (issue 37's pass marks)."""
     pytest.importorskip("mediapipe", reason="the face tracker (pip install 'visual-prosody[track]')")

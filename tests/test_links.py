@@ -93,6 +93,7 @@ def _stream(tmp_path, *links: str) -> list[dict]:
     return [json.loads(line) for line in frames_file.read_text().splitlines()]
 
 
+@pytest.mark.slow
 def test_livelink_packets_carry_every_frame_with_its_head_brows_and_jaw(tmp_path):
     receiver = _Receiver()
     receiver.start()
@@ -166,6 +167,7 @@ def _rotate(quaternion, vector) -> np.ndarray:
 
 
 @pytest.mark.parametrize("perfect_sync", [False, True])
+@pytest.mark.slow
 def test_vmc_bundles_move_the_head_bone_and_the_face(tmp_path, perfect_sync):
     receiver = _Receiver()
     receiver.start()
@@ -228,6 +230,7 @@ def test_a_target_that_is_not_listening_loses_frames_but_not_the_stream(tmp_path
     assert len(frames) == 93
 
 
+@pytest.mark.slow
 def test_ipv6_targets_are_sent_to():
     if not socket.has_ipv6:
         pytest.skip("no IPv6 on this machine")

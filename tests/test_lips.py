@@ -326,6 +326,7 @@ def test_live_lips_close_in_silence_and_open_on_a_voice():
     assert opening[30:62].max() > 80  # the voice opens it (a steady tone is no speech: not throughout)
 
 
+@pytest.mark.slow
 def test_phones_of_a_long_recording_are_the_same_on_one_core_or_several(monkeypatch):
     import audio_features.phones as phones_module
 

@@ -105,6 +105,7 @@ def test_brows_never_read_past_the_lookahead():
 
 
 @pytest.mark.shared_data
+@pytest.mark.slow
 def test_live_accent_rule_raises_near_the_offline_raises_on_real_speech(shared_data):
     matched = total = 0
     for clip in ("Obama_clip1", "andrew_clip_1", "reagan_clip1"):

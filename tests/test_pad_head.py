@@ -206,6 +206,7 @@ def test_eq2_arousal_coefficients_are_recovered_from_motion_made_with_them(share
 
 
 @pytest.mark.shared_data
+@pytest.mark.slow
 def test_train_kind_pad_writes_a_model_that_model_file_reads(shared_data, tmp_path, capsys):
     import json
 

@@ -81,6 +81,7 @@ def _pcm16(samples: np.ndarray) -> bytes:
     return (np.clip(samples, -1, 1) * 32767).astype("<i2").tobytes()
 
 
+@pytest.mark.slow
 def test_pipe_at_real_time_pace_gives_every_frame_in_time_and_in_order():
     samples, rate = soundfile.read(SAMPLE)
     with subprocess.Popen([*PROSODY, "stream", "-", "--raw-rate", str(rate), "-o", "-"], stdin=subprocess.PIPE,
@@ -232,6 +233,7 @@ def test_page_is_served_and_unknown_paths_are_404(frame_server):
     assert error.value.code == 404
 
 
+@pytest.mark.slow
 def test_every_client_gets_the_input_frames_and_a_second_can_join(frame_server):
     from websockets.sync.client import connect
 
@@ -250,6 +252,7 @@ def test_every_client_gets_the_input_frames_and_a_second_can_join(frame_server):
     assert sum("connected" in line and "disconnected" not in line for line in frame_server.lines) == 2
 
 
+@pytest.mark.slow
 def test_a_stalled_reader_and_a_vanished_client_do_not_stop_the_others(frame_server):
     import socket
 
@@ -275,6 +278,7 @@ def test_a_stalled_reader_and_a_vanished_client_do_not_stop_the_others(frame_ser
     assert sum("disconnected" in line for line in frame_server.lines) >= 1
 
 
+@pytest.mark.slow
 def test_client_audio_gives_frames_to_that_client_and_bad_messages_are_told_once(frame_server):
     from websockets.sync.client import connect
 
@@ -314,6 +318,7 @@ def test_client_audio_that_is_not_finite_stops_that_client_only(frame_server):
     assert "not finite" in errors[0]["message"]
 
 
+@pytest.mark.slow
 def test_stream_command_serves_a_file_to_a_client(tmp_path):
     from websockets.sync.client import connect
 
@@ -444,6 +449,7 @@ def test_hostile_control_messages_are_refused_and_the_server_goes_on(frame_serve
         assert [m["frame"] for m in _receive_all(client, 0.5)] == [0, 1, 2]
 
 
+@pytest.mark.slow
 def test_a_client_changes_the_expressivity_of_its_own_audio_and_bad_controls_are_refused(frame_server):
     from websockets.sync.client import connect
 
@@ -503,6 +509,7 @@ def test_a_page_changes_the_expressivity_of_the_commands_input_for_every_client(
     assert any("set the input's expressivity: activation 0" in line for line in lines)
 
 
+@pytest.mark.slow
 def test_stream_command_applies_a_pages_expressivity_from_the_next_chunk(tmp_path):
     # spatial -1 halves the head about rest: the frames after the change are half those of a neutral run
     from websockets.sync.client import connect
@@ -566,6 +573,7 @@ def test_the_input_sound_goes_to_the_clients_that_ask_for_it():
     assert np.array_equal(np.concatenate(got), expected)
 
 
+@pytest.mark.slow
 def test_loop_starts_with_the_first_page_and_plays_the_file_again(tmp_path):
     from websockets.sync.client import connect
 

@@ -125,6 +125,7 @@ def _answer(driver, answered: int, choice: str) -> None:
     driver.find_element("css selector", f"#answers button[data-answer='{choice}']").click()
 
 
+@pytest.mark.slow
 def test_two_participants_a_closed_tab_and_a_killed_server_lose_nothing(study, browser, tmp_path):
     server = study.start()
     url = f"http://127.0.0.1:{server.port}/"

@@ -442,6 +442,7 @@ def test_many_voters_at_once_are_all_served(served) -> None:
     assert statuses == [200] * 50
 
 
+@pytest.mark.slow
 def test_half_sent_requests_are_timed_out_and_bounded_and_told_in_one_line(served, capfd) -> None:
     import time
 
@@ -491,6 +492,7 @@ def test_an_answer_position_out_of_range_is_a_400(served) -> None:
 
 
 @needs_ffmpeg
+@pytest.mark.slow
 def test_the_study_listens_on_ipv6(tmp_path, recordings) -> None:
     from prosody.study.server import StudyServer
 
