@@ -61,7 +61,6 @@ def run(args: argparse.Namespace) -> int:
         audio = None
     scales = None
     if args.strip_scale is not None:
-        import math
 
         from ..errors import ConfigError
 
@@ -69,7 +68,9 @@ def run(args: argparse.Namespace) -> int:
             brow_ens, head_deg = (float(part) for part in args.strip_scale.split(","))
         except ValueError:
             raise ConfigError(f"--strip-scale takes BROW_ENS,HEAD_DEG (e.g. 30,10), got {args.strip_scale!r}") from None
-        scales = (brow_ens, math.radians(head_deg) * 1e5)
+        from ..fap.units import AU_PER_DEGREE
+
+        scales = (brow_ens, head_deg * AU_PER_DEGREE)
     say_unshown(stream, args.face, args.input)
     write_preview(stream, args.output, audio=audio, width=args.width, exaggerate=args.exaggerate,
                   brow_scale=args.brow_scale, start_s=args.start, duration_s=args.duration,

@@ -13,7 +13,6 @@ r >= 0.8 for the brows, the face found in >= 98 % of frames.
 from __future__ import annotations
 
 import csv
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,6 +20,7 @@ import numpy as np
 
 from ..fap.stream import FapStream
 from ..fap.table import RADIANS_PER_AU
+from ..fap.units import AU_PER_DEGREE
 
 #: Periods (s) and amplitudes of the known motion: pitch, yaw, roll in degrees; jaw in MNS; brows in ENS.
 PERIODS_S = {"pitch": 4.1, "yaw": 5.3, "roll": 3.3, "jaw": 1.7, "brows": 2.3}
@@ -31,7 +31,7 @@ PASS_HEAD_R, PASS_SPREAD, PASS_LIPS_R, PASS_BROWS_R, PASS_FOUND = 0.9, (0.75, 1.
 def known_motion(duration_s: float, *, fps: float = 30.0) -> FapStream:
     """The loop's FAP stream: head sinusoids, a jaw opening 0..amplitude, brows raised and lowered."""
     t = np.arange(round(duration_s * fps)) / fps
-    degrees_to_au = math.radians(1.0) / RADIANS_PER_AU
+    degrees_to_au = AU_PER_DEGREE
 
     def wave(name: str, phase: float = 0.0) -> np.ndarray:
         return np.sin(2 * np.pi * t / PERIODS_S[name] + phase)

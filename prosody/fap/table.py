@@ -7,15 +7,17 @@ MW), and AU = 1e-5 rad for rotations. FAP 1 and 2 are the high-level viseme and 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import IntEnum
+from typing import Any
 
 from ..errors import UnknownFapError
+from .units import DISTANCE_UNITS_PER_REFERENCE, RADIANS_PER_AU
+
+__all__ = ["BY_NAME", "BY_NUMBER", "DISTANCE_UNITS_PER_REFERENCE", "EYEBROW_FAPS", "FAPS", "HEAD_FAPS", "N_FAPS",
+           "PROSODY_FAPS", "RADIANS_PER_AU", "Fap", "FapInfo", "fap_info"]
 
 #: Number of FAPs in a mask line.
 N_FAPS = 68
-#: Radians per angular unit (AU).
-RADIANS_PER_AU = 1e-5
-#: Fraction of the reference distance per distance unit (IRISD, ES, ENS, MNS, MW are distance / 1024).
-DISTANCE_UNITS_PER_REFERENCE = 1024
 
 
 @dataclass(frozen=True)
@@ -120,9 +122,18 @@ FAPS: tuple[FapInfo, ...] = tuple(FapInfo(*row) for row in _ROWS)
 BY_NUMBER: dict[int, FapInfo] = {info.number: info for info in FAPS}
 BY_NAME: dict[str, FapInfo] = {info.name: info for info in FAPS}
 
+def _fap_enum() -> Any:
+    """The enum of every FAP; its members come from the table, so type checkers see it as Any."""
+    return IntEnum("Fap", {info.name.upper(): info.number for info in FAPS})
+
+
+#: Every FAP by its MPEG-4 name in capitals, an int: ``Fap.OPEN_JAW == 3``, ``Fap.HEAD_PITCH == 48``.
+Fap = _fap_enum()
+
 #: The prosody FAPs this project generates (SPEC section 1).
-EYEBROW_FAPS = (31, 32, 33, 34)
-HEAD_FAPS = (48, 49, 50)
+EYEBROW_FAPS = tuple(int(fap) for fap in (Fap.RAISE_L_I_EYEBROW, Fap.RAISE_R_I_EYEBROW, Fap.RAISE_L_M_EYEBROW,
+                                          Fap.RAISE_R_M_EYEBROW))
+HEAD_FAPS = tuple(int(fap) for fap in (Fap.HEAD_PITCH, Fap.HEAD_YAW, Fap.HEAD_ROLL))
 PROSODY_FAPS = EYEBROW_FAPS + HEAD_FAPS
 
 

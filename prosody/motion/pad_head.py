@@ -50,6 +50,7 @@ from audio_features import Features
 
 from ..errors import ConfigError
 from ..fap.table import HEAD_FAPS
+from ..fap.units import AU_PER_DEGREE
 from .model_files import TrainingClip
 
 #: Table 3 of seed 000: amplitude means, in degrees, per axis (pitch, yaw, roll).
@@ -64,7 +65,6 @@ BOUNDARY_SMOOTHING_S = 0.2
 PAUSE_S, MAX_WORD_S, MAX_NUCLEI, NUCLEUS_SPACING_S, RESET_SEMITONES = 0.15, 1.2, 4, 0.1, 3.0
 #: Speech frames: voiced, or within this many dB of the recording's loud level (unvoiced consonants).
 SPEECH_BELOW_LOUD_DB = 25.0
-AU_PER_DEGREE = math.pi / 180 * 1e5
 MODEL_FORMAT = "visual-prosody-pad"
 #: PWs and pauses shorter than this are left out of a fit: a peak-to-peak over a few frames says little.
 FIT_MIN_FRAMES = 12
