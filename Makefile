@@ -32,6 +32,11 @@ lint: $(STAMP)
 	$(BIN)/ruff check audio_features prosody tests
 	$(BIN)/mypy audio_features prosody
 
+docs: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[docs]'
+	$(BIN)/python -m sphinx -q -W --keep-going -b html docs out/docs
+	@echo "out/docs/index.html"
+
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench.py
 	$(BIN)/python benchmarks/live_bench.py
