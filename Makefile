@@ -3,6 +3,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
+DEMO_STAMP := $(VENV)/.demo-stamp
 
 .PHONY: install demo test test-fast lint docs bench evaluate clean
 
@@ -12,9 +13,16 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
+# the demo needs the package alone (no test, track or stats extras)
+$(DEMO_STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e .
+	touch $(DEMO_STAMP)
+
 install: $(STAMP)
 
-demo: $(STAMP)
+demo: $(DEMO_STAMP)
 	mkdir -p out
 	$(BIN)/prosody convert samples/arctic_a0009.wav -o out/arctic_a0009.fap
 	$(BIN)/prosody inspect out/arctic_a0009.fap
@@ -42,6 +50,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/live_bench.py
 	$(BIN)/python benchmarks/track_bench.py
 	$(BIN)/python benchmarks/head_bench.py
+	$(BIN)/python benchmarks/deps_bench.py
 
 evaluate: $(STAMP)
 	$(BIN)/python benchmarks/head_loco.py

@@ -32,3 +32,35 @@ class AnalysisError(AudioFeaturesError, RuntimeError):
 
 class NoVoicedFramesWarning(UserWarning):
     """The pitch tracker found no voiced frame; the conditioned F0 is 0 everywhere."""
+
+
+class MissingExtraError(ParameterError):
+    """A feature needs a package of an optional extra that is not installed; the message names the extra."""
+
+
+def require_extra(modules: tuple[str, ...], extra: str, what: str) -> None:
+    """Import each of ``modules``, or raise :class:`MissingExtraError` in one line naming ``extra``.
+
+    Parameters
+    ----------
+    modules : tuple of str
+        Importable names the feature needs (``("statsmodels",)``).
+    extra : str
+        The optional dependency group that installs them (``"stats"``).
+    what : str
+        What needs them, as the message says it (``"training a head model"``).
+
+    Examples
+    --------
+    >>> require_extra(("json",), "none", "reading JSON")  # present: nothing happens
+    """
+    import importlib
+
+    missing = []
+    for module in modules:
+        try:
+            importlib.import_module(module)
+        except ImportError:
+            missing.append(module)
+    if missing:
+        raise MissingExtraError(f"{what} needs {' and '.join(missing)}: pip install 'visual-prosody[{extra}]'")

@@ -36,7 +36,7 @@ from .phones import Phone
 from .spectral import CEPSTRUM_RATE, N_CEPSTRA, cepstra
 
 ESPEAK_PACKAGE = "espeakng_loader"
-INSTALL_HINT = "pip install espeakng-loader"
+INSTALL_HINT = "pip install 'visual-prosody[languages]'"
 #: Silence added before and after eSpeak's rendering, s (it absorbs the recording's own).
 PAD_S = 0.25
 #: The longest recording aligned in one piece, s (the warping's cost matrix grows with its square).
@@ -233,6 +233,9 @@ def align_transcript(recording: Audio, transcript: str, language: str) -> list[P
     ParameterError
         The recording is longer than :data:`MAX_ALIGN_S` (split it), or the transcript is empty.
     """
+    from .errors import require_extra
+
+    require_extra(("librosa",), "languages", "aligning a transcript in another language")
     duration = recording.samples.size / recording.sample_rate_hz
     if duration > MAX_ALIGN_S:
         raise ParameterError(f"a transcript is aligned on recordings up to {MAX_ALIGN_S:.0f} s, this one has "

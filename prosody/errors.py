@@ -10,11 +10,11 @@ packages' bad parameters. The CLI turns them into one line on stderr and an exit
 
 from __future__ import annotations
 
-from audio_features.errors import ParameterError, VisualProsodyError
+from audio_features.errors import MissingExtraError, ParameterError, VisualProsodyError, require_extra
 
 __all__ = ["BallotError", "ConfigError", "FapFormatError", "FapIrregularityWarning", "FapWriteError",
-           "GroundTruthError", "ModelError", "ParameterError", "PreviewError", "ProsodyError", "TrackingError",
-           "UnknownFapError", "VisualProsodyError"]
+           "GroundTruthError", "MissingExtraError", "ModelError", "ParameterError", "PreviewError", "ProsodyError",
+           "TrackingError", "UnknownFapError", "VisualProsodyError", "require_extra"]
 
 
 class ProsodyError(VisualProsodyError):

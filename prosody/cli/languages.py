@@ -21,5 +21,6 @@ def add_parser(commands) -> None:
         "languages", help="list the transcript languages of --language (eSpeak NG's codes)",
         description="Print the language codes --language takes with a transcript, one per line with the name of "
                     "an eSpeak NG voice that speaks it: the transcript's phones come from eSpeak NG and are "
-                    "aligned to the recording, so the lips articulate in any of them.")
+                    "aligned to the recording, so the lips articulate in any of them. Needs pip install "
+                    "'visual-prosody[languages]'.")
     languages.set_defaults(handler=run)

@@ -212,7 +212,8 @@ def add_face_options(parser: argparse.ArgumentParser) -> None:
     face.add_argument("--language", default=None, metavar="CODE",
                       help="the transcript's language, an eSpeak NG code (es, de, fr, cmn, ...; 'prosody "
                            "languages' lists them): its phones come from eSpeak NG and are aligned to the "
-                           "recording, in any language (default: English, aligned by PocketSphinx)")
+                           "recording, in any language (default: English, aligned by PocketSphinx); needs pip install "
+                           "'visual-prosody[languages]'")
     face.add_argument("--mouth-model", default=None, metavar="FILE",
                       help="with --lips acoustic: a mouth model from 'prosody train --kind mouth' (default: the "
                            "shipped one)")

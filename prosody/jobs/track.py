@@ -29,7 +29,7 @@ import numpy as np
 
 from audio_features.atomic import atomic_path, atomic_write
 
-from ..errors import ConfigError, TrackingError, VisualProsodyError
+from ..errors import ConfigError, TrackingError, VisualProsodyError, require_extra
 from ..motion.ground_truth import HEAD_CSV_FPS
 from ..tracking.curves import (
     ALL_COLUMNS,
@@ -148,6 +148,7 @@ def _audio_beside(video: Path, given: str | os.PathLike[str] | None) -> Path | N
 
 
 def _load_16k(path: Path) -> np.ndarray:
+    require_extra(("librosa",), "track", "resampling a video's sound")
     import librosa
 
     from audio_features import load_audio

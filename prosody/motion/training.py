@@ -20,7 +20,7 @@ import numpy as np
 
 from audio_features import AUDIO_EXTENSIONS, DEFAULT_FPS, Features, extract_features
 
-from ..errors import ConfigError, GroundTruthError, ProsodyError
+from ..errors import ConfigError, GroundTruthError, ProsodyError, require_extra
 from ..fap.table import HEAD_FAPS
 from ..measures import average_head_metrics, head_matrix, head_metrics, mean_of, pearson
 from .controls import shift_offsets, shifted_features
@@ -291,7 +291,7 @@ LJUNG_BOX_LAGS = 10
 
 def _ljung_box(residuals: np.ndarray) -> float | None:
     """Ljung-Box p-value (statsmodels) that the residuals are uncorrelated up to :data:`LJUNG_BOX_LAGS`."""
-    from statsmodels.stats.diagnostic import acorr_ljungbox
+    from statsmodels.stats.diagnostic import acorr_ljungbox  # checked by train(): the stats extra
 
     residuals = np.asarray(residuals, float)
     if residuals.size <= LJUNG_BOX_LAGS + 1 or residuals.std() == 0:
@@ -359,6 +359,8 @@ def train(directory: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], 
     """
     if kind not in MODEL_KINDS:
         raise ConfigError(f"kind must be one of {', '.join(MODEL_KINDS)}, got {kind!r}")
+    if kind != "pad":  # the regressions' residual diagnostics (Ljung-Box) are statsmodels'
+        require_extra(("statsmodels",), "stats", f"training a {kind} head model")
     report = report or _LOG.info
     folders = [directory] if isinstance(directory, (str, os.PathLike)) else list(directory)
     pairs = [pair for folder in folders for pair in find_pairs(folder)]

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import BallotError
+from ..errors import BallotError, require_extra
 from .ballots import BALLOT_COLUMNS, SHORT_NAMES, _fail, filled_rows, holm
 
 MOS_COLUMNS = ("stimulus", "subject", "condition", "score")
@@ -296,6 +296,7 @@ def analyze_ratings(ratings: Sequence[Rating], conditions: Sequence[str] | None 
         F and p are None where they are undefined, and a "note" says why: no score differs from another (no
         variance, no effect), or none differs within a condition.
     """
+    require_extra(("statsmodels", "pandas"), "stats", "analysing opinion scores")
     import pandas as pd
 
     frame = pd.DataFrame([(r.stimulus, r.subject, r.condition, r.score) for r in ratings],
