@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 DEMO_STAMP := $(VENV)/.demo-stamp
 
-.PHONY: install demo test test-fast lint docs bench evaluate clean
+.PHONY: install demo test test-fast lint docs bench evaluate models clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -46,24 +46,29 @@ docs: $(STAMP)
 	@echo "out/docs/index.html"
 
 bench: $(STAMP)
-	$(BIN)/python benchmarks/bench.py
-	$(BIN)/python benchmarks/live_bench.py
-	$(BIN)/python benchmarks/track_bench.py
-	$(BIN)/python benchmarks/head_bench.py
-	$(BIN)/python benchmarks/deps_bench.py
+	$(BIN)/python -m benchmarks.bench
+	$(BIN)/python -m benchmarks.live_bench
+	$(BIN)/python -m benchmarks.track_bench
+	$(BIN)/python -m benchmarks.head_bench
+	$(BIN)/python -m benchmarks.deps_bench
 
 evaluate: $(STAMP)
-	$(BIN)/python benchmarks/head_loco.py
-	$(BIN)/python benchmarks/head_loso.py
-	$(BIN)/python benchmarks/pad_fit.py
-	$(BIN)/python benchmarks/av_offset.py
-	$(BIN)/python benchmarks/animation_level.py
-	$(BIN)/python benchmarks/expressivity_loso.py
-	$(BIN)/python benchmarks/live_loco.py
-	$(BIN)/python benchmarks/mouth_loco.py
-	$(BIN)/python benchmarks/train_live_mouth.py
-	$(BIN)/python benchmarks/head_loop.py
-	$(BIN)/python benchmarks/mouth_videos_loso.py
+	$(BIN)/python -m experiments.head_loco
+	$(BIN)/python -m experiments.head_loso
+	$(BIN)/python -m experiments.pad_fit
+	$(BIN)/python -m experiments.av_offset
+	$(BIN)/python -m experiments.animation_level
+	$(BIN)/python -m experiments.expressivity_loso
+	$(BIN)/python -m experiments.live_loco
+	$(BIN)/python -m experiments.mouth_loco
+	$(BIN)/python -m experiments.live_mouth_loso
+	$(BIN)/python -m experiments.head_loop
+	$(BIN)/python -m experiments.mouth_videos_loso
+	$(BIN)/python -m experiments.render
+
+# every shipped model refitted from ../shared/data, compared with the shipped files (--write replaces them)
+models: $(STAMP)
+	$(BIN)/python -m scripts.retrain_models
 
 clean:
 	rm -rf $(VENV) out build *.egg-info .pytest_cache

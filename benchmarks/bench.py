@@ -19,6 +19,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
+from experiments.common import shared_data
+
 REPO = Path(__file__).resolve().parents[1]
 DURATION_S = 600.0
 SAMPLE_RATE_HZ = 16000
@@ -32,10 +34,6 @@ _PEAK_SNIPPET = ("import sys; sys.path.insert(0, {folder!r}); from {module} impo
                  "code = {function}({args!r}); "
                  "status = open('/proc/self/status').read().split('VmHWM:')[1]; "
                  "print(int(status.split()[0]), file=sys.stderr); sys.exit(code or 0)")
-
-
-sys.path.insert(0, str(Path(__file__).parent))
-from shared import shared_data  # noqa: E402
 
 
 def build_speech(path: Path, *, duration_s: float = DURATION_S) -> Path:
@@ -89,7 +87,7 @@ def _timed(function: Callable[[], T]) -> tuple[float, T]:
 
 def _run_measured(module: str, function: str, args: list[str]) -> tuple[float, float]:
     """Run ``module.function(args)`` in a fresh interpreter: (wall seconds, peak resident MB)."""
-    code = _PEAK_SNIPPET.format(folder=str(Path(__file__).resolve().parent), module=module, function=function,
+    code = _PEAK_SNIPPET.format(folder=str(Path(__file__).resolve().parents[1]), module=module, function=function,
                                 args=args)
     started = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
@@ -204,14 +202,14 @@ def main() -> int:
         # alternated and repeated, medians taken: the machine's load drifts
         runs: dict[str, list] = {"praat": [], "none": [], "visemes": [], "acoustic": []}
         for _ in range(REPEATS):
-            runs["praat"].append(_run_measured("bench", "praat_only", [str(speech)]))
+            runs["praat"].append(_run_measured("benchmarks.bench", "praat_only", [str(speech)]))
             for lips in ("none", "visemes", "acoustic"):
                 runs[lips].append(_run_measured("prosody.cli", "main", ["convert", str(speech), "-o",
                                                                         str(folder / "convert.fap"), "--lips", lips]))
         (praat_s, praat_mb), (convert_s, convert_mb), (lips_s, lips_mb), (acoustic_s, acoustic_mb) = (
             tuple(float(np.median(column)) for column in zip(*runs[key], strict=True))
             for key in ("praat", "none", "visemes", "acoustic"))
-        import_s, _ = _run_measured("bench", "praat_only_import", [])
+        import_s, _ = _run_measured("benchmarks.bench", "praat_only_import", [])
         print(f"\nwhole runs in fresh interpreters (start-up included; median of {REPEATS}, alternated):")
         print(f"  Praat pitch + intensity alone      {praat_s:7.2f} s   peak {praat_mb:6.0f} MB")
         print(f"  convert, head and brows (--lips none) {convert_s:4.2f} s   peak {convert_mb:6.0f} MB")

@@ -23,8 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench import SAMPLE_RATE_HZ, build_speech  # noqa: E402
+from benchmarks.bench import SAMPLE_RATE_HZ, build_speech
 
 LATENCY_AUDIO_S = 30.0
 MEMORY_AUDIO_S = 1800.0

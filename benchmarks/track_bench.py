@@ -13,8 +13,7 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).parent))
-from shared import data_folder  # noqa: E402
+from experiments.common import data_folder
 
 SOURCE = "DFRF_french.mp4"
 SECONDS = 10

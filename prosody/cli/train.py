@@ -25,7 +25,7 @@ def run(args: argparse.Namespace) -> int:
         given = [f"--{name}" for name, value in orders.items() if value is not None] + (["--cv"] if args.cv else [])
         if given:
             raise ConfigError(f"{', '.join(given)} do(es) not apply to the mouth model (its held-out figures come "
-                              "from benchmarks/mouth_loco.py)")
+                              "from experiments/mouth_loco.py)")
         train_mouth(args.data[0], args.output, fps=args.fps, report=msg.say)
         return opt.EXIT_OK
     if args.kind == "live":

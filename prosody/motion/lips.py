@@ -14,7 +14,7 @@ three numbers, which are turned into low-level lip FAPs by one fixed geometry (:
 The shapes in :data:`VISEMES` are set from phonetic descriptions of the visemes (open vowels widest, /i/ and
 /e/ spread, /o/, /u/, /r/ and the postalveolars rounded, bilabials closed, the neutral face's mouth closed as
 MPEG-4 defines it), in a speaker's typical range (an open /a/ about 7 mm). They were not fitted to the
-evaluation clips: ``benchmarks/mouth_loco.py`` also fits them by least squares to video-tracked mouths, and
+evaluation clips: ``experiments/mouth_loco.py`` also fits them by least squares to video-tracked mouths, and
 shapes fitted on four speakers follow the fifth less well (mouth-opening r 0.30) than these (0.37), the
 tracked mouths being too noisy to pin fifteen shapes down. Tracked openings are measured in outer-eye-corner
 widths; the conversion takes the mouth-nose separation as 0.22 of that width (adult proportions).

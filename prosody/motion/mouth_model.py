@@ -5,7 +5,7 @@ Spectral features (:mod:`audio_features.spectral`: 13 MFCCs and the log energy) 
 channel do not matter), and mapped by ridge regressions to the three mouth-shape tracks of
 :mod:`prosody.motion.lips` (opening in MNS above the closed mouth, rounding, spread), which the same geometry
 turns into lip FAPs. It is trained on recordings with a video-tracked ``<clip>.mouth.csv``
-(``benchmarks/mouth_loco.py`` measures it on speakers left out).
+(``experiments/mouth_loco.py`` measures it on speakers left out).
 """
 
 from __future__ import annotations

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import soundfile
 
+from experiments.common import record
 from prosody.evaluation.head_loop import AMPLITUDES, PERIODS_S, known_motion, measure
 from prosody.fap.fapfile import write_fap
 
@@ -45,4 +46,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(record("head_loop", lambda: main(), lambda: []))

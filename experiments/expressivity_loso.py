@@ -1,13 +1,13 @@
 """Leave-one-speaker-out measures of the expressivity controls on the default head (``make evaluate``).
 
-For each speaker (``benchmarks/speakers.csv``), the prosodic generator with the shipped settings is fitted on
+For each speaker (``experiments/speakers.csv``), the prosodic generator with the shipped settings is fitted on
 the other speakers' recordings; its motion on this speaker's recordings (5 seeds) is shaped by each setting of
 the controls and measured against the recorded motion: speed-envelope r, pitch r, spread, the angular speed's
 10th / 50th / 90th percentiles as ratios to the recording's, and the share of time nearly still (under 2 deg/s;
 the recordings' own share beside it). The control is the same, driven by the recording's audio shifted by 5 s
 or more.
 
-Usage: python benchmarks/expressivity_loso.py [DIR]  (default ../shared/data/talking-heads)
+Usage: python -m experiments.expressivity_loso [DIR]  (default ../shared/data/talking-heads)
 """
 
 from __future__ import annotations
@@ -18,15 +18,13 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.common import record, shipped_settings, talking_heads
+from experiments.common import talking_heads as default_data
 from prosody.measures import average_head_metrics, head_metrics
 from prosody.motion.controls import shift_offsets, shifted_features
 from prosody.motion.expressivity import Expressivity, shape_head
 from prosody.motion.speech_head import ProsodicHeadModel
 from prosody.motion.training import find_pairs, load_training_set
-
-sys.path.insert(0, str(Path(__file__).parent))
-from shared import shipped_settings  # noqa: E402
-from shared import talking_heads as default_data  # noqa: E402
 
 SEEDS = 5
 SETTINGS = (
@@ -58,7 +56,7 @@ def _spread(rows: list[dict], key: str) -> float:
 def main(argv: list[str]) -> int:
     directory = Path(argv[0]) if argv else default_data()
     warnings.simplefilter("ignore")
-    from head_loso import speakers
+    from experiments.head_loso import speakers
 
     data = load_training_set(find_pairs(directory), speakers=speakers(), report=lambda message: None)
     fps = data.fps
@@ -98,4 +96,5 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    given = [Path(argument) for argument in sys.argv[1:2] if not argument.startswith("-")]
+    sys.exit(record("expressivity_loso", lambda: main(sys.argv[1:]), lambda: given or [talking_heads()]))

@@ -16,7 +16,7 @@ count as one speaker of unknown sex). Methods:
 - combined, closures kept: the same, but where the visemes close the lips (opening under 30 MNS) they stay closed;
 - loudness: the intensity envelope alone (a baseline).
 
-Usage: python benchmarks/mouth_videos_loso.py
+Usage: python -m experiments.mouth_videos_loso
 """
 
 from __future__ import annotations
@@ -32,13 +32,11 @@ import numpy as np
 
 from audio_features import extract_features, load_audio
 from audio_features.phones import recognise_phones
+from experiments.common import REPO, data_folder, record
+from experiments.mouth_loco import measured
 from prosody.motion.ground_truth import read_mouth_csv
 from prosody.motion.lips import inner_opening, shape_faps, shapes_from_phones
 from prosody.motion.mouth_model import AcousticMouthModel, mouth_training_clip
-
-sys.path.insert(0, str(Path(__file__).parent))
-from mouth_loco import measured  # noqa: E402
-from shared import REPO, data_folder  # noqa: E402
 
 FPS = 30.0
 TRACKED = REPO / "out" / "talking-videos-tracked"
@@ -147,4 +145,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(record("mouth_videos_loso", main, lambda: [data_folder("talking-videos", needs="the talking videos")]))

@@ -9,24 +9,21 @@ out). Measures: r between predicted and recorded log level over the clips, besid
 descriptors shuffled among speakers, 500 times) and the mean absolute log2 error against that of the other
 speakers' mean level (a constant).
 
-Usage: python benchmarks/animation_level.py  (the talking-heads clips and the clips tracked by
-benchmarks/head_loso.py)
+Usage: python -m experiments.animation_level  (the talking-heads clips and the clips tracked by
+experiments/head_loso.py)
 """
 
 from __future__ import annotations
 
 import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
 
+from experiments.common import record, talking_heads
+from experiments.head_loso import TRACKED, speakers
 from prosody.motion.pad_head import AU_PER_DEGREE, prosodic_words
 from prosody.motion.training import find_pairs, load_training_set
-
-sys.path.insert(0, str(Path(__file__).parent))
-from head_loso import TRACKED, speakers  # noqa: E402
-from shared import talking_heads  # noqa: E402
 
 SHUFFLES = 500
 DESCRIPTORS = ("pitch range (st)", "loudness range (dB)", "syllable rate (/s)", "voiced share")
@@ -94,4 +91,4 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(record("animation_level", lambda: main(sys.argv[1:]), lambda: [talking_heads(), TRACKED]))

@@ -4,9 +4,9 @@
 Where that estimate is reliable, this shifts the clip's recorded motion by it (the motion delayed by the
 mouth's lead, its first or last frame held), then measures the prosodic generator fitted on every other speaker
 (leave one speaker out, 5 seeds) with and without the correction, on all 49 clips and on the corrected ones.
-The clips must have been tracked by ``benchmarks/head_loso.py`` first.
+The clips must have been tracked by ``experiments/head_loso.py`` first.
 
-Usage: python benchmarks/av_offset.py
+Usage: python -m experiments.av_offset
 """
 
 from __future__ import annotations
@@ -19,11 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.common import record, shipped_settings, talking_heads
+from experiments.head_loso import TRACKED, speakers
 from prosody.motion.training import find_pairs, held_out_prosodic, load_training_set
-
-sys.path.insert(0, str(Path(__file__).parent))
-from head_loso import TRACKED, speakers  # noqa: E402
-from shared import shipped_settings, talking_heads  # noqa: E402
 
 SEEDS = 5
 
@@ -54,7 +52,7 @@ def _mean(table: dict, names: list[str], key: str) -> str:
 def main(argv: list[str]) -> int:
     warnings.simplefilter("ignore")
     if not TRACKED.is_dir():
-        raise SystemExit(f"{TRACKED}: not found; run benchmarks/head_loso.py first to track the talking-videos clips")
+        raise SystemExit(f"{TRACKED}: not found; run experiments/head_loso.py first to track the talking-videos clips")
     data = load_training_set(find_pairs(talking_heads()) + find_pairs(TRACKED), speakers=speakers(),
                              report=lambda message: None)
     leads = reliable_leads(TRACKED)
@@ -76,4 +74,4 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(record("av_offset", lambda: main(sys.argv[1:]), lambda: [talking_heads(), TRACKED]))

@@ -7,7 +7,7 @@ mouth from the same MediaPipe model run on the same clips; the references were a
 roll, so each clip's curves are compared at the lag (within +-5 frames) where the roll agrees best, and that
 lag is printed. Aims: head r >= 0.85 pitch, 0.95 yaw, 0.95 roll; brows r >= 0.95.
 
-Usage: python benchmarks/track_accuracy.py VIDEO_DIR
+Usage: python -m experiments.track_accuracy VIDEO_DIR
 """
 
 from __future__ import annotations
@@ -20,8 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).parent))
-from shared import talking_heads  # noqa: E402
+from experiments.common import record, talking_heads
 
 CLIPS = ("KristiNoem", "Obama_clip1", "Obama_clip2", "andrew_clip_1", "feifeili_clip1", "feifeili_clip3",
          "reagan_clip1")
@@ -83,4 +82,4 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(record("track_accuracy", lambda: main(sys.argv[1:]), lambda: [Path(sys.argv[1]), talking_heads()]))

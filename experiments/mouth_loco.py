@@ -19,7 +19,7 @@ Then the phones against the hand-checked alignment of ``speech/arctic_a0009`` (v
 frame, and the median distance from each labelled boundary to the nearest recognised one), without and with
 the transcript, and the shapes fitted on every clip, for comparison with ``VISEMES``.
 
-Usage: python benchmarks/mouth_loco.py [DIR]  (default ../shared/data/talking-heads)
+Usage: python -m experiments.mouth_loco [DIR]  (default ../shared/data/talking-heads)
 """
 
 from __future__ import annotations
@@ -35,6 +35,8 @@ import numpy as np
 from audio_features import extract_features, load_audio
 from audio_features.espeak import align_transcript
 from audio_features.phones import Phone, recognise_phones
+from experiments.common import record
+from experiments.common import talking_heads as default_data
 from prosody.measures import average_mouth_metrics, mouth_metrics
 from prosody.motion.ground_truth import read_mouth_csv
 from prosody.motion.lips import (
@@ -48,9 +50,6 @@ from prosody.motion.lips import (
     viseme_weights,
 )
 from prosody.motion.mouth_model import AcousticMouthModel, mouth_training_clip
-
-sys.path.insert(0, str(Path(__file__).parent))
-from shared import talking_heads as default_data  # noqa: E402
 
 FPS = 30.0
 #: What a player of Rhubarb's cues shows, as (opening MNS, rounding): each shape at the visemes' size.
@@ -220,4 +219,5 @@ def main(folder: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else default_data())
+    folder = Path(sys.argv[1]) if len(sys.argv) > 1 else default_data()
+    sys.exit(record("mouth_loco", lambda: main(folder), lambda: [folder]))

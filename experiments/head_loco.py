@@ -1,6 +1,6 @@
 """Leave-one-speaker-out table of the head measures on paired recordings (``make evaluate``).
 
-For each speaker (``benchmarks/speakers.csv``; a recording not named there is its own speaker), models are
+For each speaker (``experiments/speakers.csv``; a recording not named there is its own speaker), models are
 fitted on the other speakers' recordings and measured on this speaker's; every row is the mean over
 recordings, stochastic rows over several seeds, with the chance spread (the standard deviation over
 recordings of the control's figure) and each speech-driven row's control beside it:
@@ -11,7 +11,7 @@ recordings of the control's figure) and each speech-driven row's control beside 
 - seed 000's PAD-driven gestures and their random baseline (nothing fitted; 10 seeds), with their control;
 - Perlin noise (20 seeds), a still head, and another recording's real motion (trimmed or tiled).
 
-Usage: python benchmarks/head_loco.py [DIR]  (default ../shared/data/talking-heads)
+Usage: python -m experiments.head_loco [DIR]  (default ../shared/data/talking-heads)
 """
 
 from __future__ import annotations
@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.common import record, shipped_settings, talking_heads
+from experiments.common import talking_heads as default_data
 from prosody.measures import average_head_metrics, head_metrics
 from prosody.motion.controls import shift_offsets, shifted_features
 from prosody.motion.head import ArxHeadModel, arx_inputs
@@ -34,10 +36,6 @@ from prosody.motion.training import (
     load_training_set,
     select_prosodic,
 )
-
-sys.path.insert(0, str(Path(__file__).parent))
-from shared import shipped_settings  # noqa: E402
-from shared import talking_heads as default_data  # noqa: E402
 
 
 def _shipped_arx_orders() -> dict:
@@ -93,7 +91,7 @@ def _row(label: str, per_recording: list[dict], control: list[dict] | None = Non
 def main(argv: list[str]) -> int:
     directory = Path(argv[0]) if argv else default_data()
     warnings.simplefilter("ignore")
-    from head_loso import speakers
+    from experiments.head_loso import speakers
 
     data = load_training_set(find_pairs(directory), speakers=speakers(), report=lambda message: None)
     names, fps = data.names, data.fps
@@ -172,4 +170,5 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    given = [Path(argument) for argument in sys.argv[1:2] if not argument.startswith("-")]
+    sys.exit(record("head_loco", lambda: main(sys.argv[1:]), lambda: given or [talking_heads()]))

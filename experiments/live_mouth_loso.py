@@ -1,7 +1,7 @@
 """Fit the shipped live mouth models (``prosody/motion/models/live_mouth_<MS>ms.json``) on the talking-heads
 clips, and print each one's leave-one-speaker-out mouth measures beside the offline acoustic model's.
 
-Usage: python benchmarks/train_live_mouth.py [DIR] [--write]
+Usage: python experiments/live_mouth_loso.py [DIR] [--write]
 """
 
 from __future__ import annotations
@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.common import record
+from experiments.mouth_loco import default_data, speaker_of
 from prosody.measures import mouth_metrics
 from prosody.motion.ground_truth import read_mouth_csv
 from prosody.motion.lips import inner_opening, shape_faps
@@ -20,9 +22,6 @@ from prosody.motion.mouth_model import (
     live_mouth_clips,
     live_mouth_path,
 )
-
-sys.path.insert(0, str(Path(__file__).parent))
-from mouth_loco import default_data, speaker_of  # noqa: E402
 
 
 def main(folder: Path, write: bool) -> None:
@@ -53,4 +52,5 @@ def main(folder: Path, write: bool) -> None:
 
 if __name__ == "__main__":
     arguments = [a for a in sys.argv[1:] if a != "--write"]
-    main(Path(arguments[0]) if arguments else default_data(), "--write" in sys.argv)
+    folder = Path(arguments[0]) if arguments else default_data()
+    sys.exit(record("live_mouth_loso", lambda: main(folder, "--write" in sys.argv), lambda: [folder]))

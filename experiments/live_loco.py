@@ -2,7 +2,7 @@
 agreement with the offline rule (part of ``make evaluate``).
 
 For each look-ahead, the live head model is fitted on every other speaker's recordings (their audio analysed
-as a stream; ``benchmarks/speakers.csv``) and measured on this speaker's over 10 seeds, beside the
+as a stream; ``experiments/speakers.csv``) and measured on this speaker's over 10 seeds, beside the
 mismatched-audio control (the same model driven by the recording's own frames circularly shifted by 5 s or
 more) and its chance spread (the standard deviation over recordings). The row "nested" chooses the settings
 (presence window, pitch follow) inside each fold, on the other speakers' recordings only; the row "pitch
@@ -10,9 +10,9 @@ taken at once" is the head without its pitch follower, as before it existed. The
 live rule within 3 frames (100 ms) of the offline rule's, over the talking-head clips and the speech
 recordings.
 
-A second table adds the talking-videos clips tracked by ``benchmarks/head_loso.py`` (when it has run).
+A second table adds the talking-videos clips tracked by ``experiments/head_loso.py`` (when it has run).
 
-Usage: python benchmarks/live_loco.py [DIR] [--no-tracked]  (default ../shared/data/talking-heads)
+Usage: python -m experiments.live_loco [DIR] [--no-tracked]  (default ../shared/data/talking-heads)
 """
 
 from __future__ import annotations
@@ -23,14 +23,13 @@ from pathlib import Path
 
 from audio_features import extract_features
 from audio_features.streaming import stream_file
+from experiments.common import record, talking_heads
+from experiments.head_loco import default_data
+from experiments.head_loso import TRACKED, row, speakers
 from prosody.motion.eyebrows import AccentRule, EyebrowRule, brow_raises
 from prosody.motion.live import live_brows
 from prosody.motion.live_training import held_out_live, load_streamed, nested_held_out_live, speaker_folds
 from prosody.motion.training import find_pairs
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from head_loco import default_data  # noqa: E402
-from head_loso import TRACKED, row, speakers  # noqa: E402
 
 LOOKAHEADS_MS = (0, 100, 200, 300, 500)
 
@@ -77,7 +76,7 @@ def main(argv: list[str]) -> int:
     print(row("100 ms, settings chosen per fold (nested)", list(nested.per_recording.values()),
               list(nested.controls.values())))
     if "--no-tracked" not in argv and TRACKED.is_dir():
-        # every speaker at hand: the talking-videos clips tracked by benchmarks/head_loso.py as well
+        # every speaker at hand: the talking-videos clips tracked by experiments/head_loso.py as well
         tracked = load_streamed(find_pairs(TRACKED), report=lambda message: None, speakers=table)
         everyone = recordings + tracked
         print()
@@ -107,4 +106,5 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    given = [Path(argument) for argument in sys.argv[1:2] if not argument.startswith("-")]
+    sys.exit(record("live_loco", lambda: main(sys.argv[1:]), lambda: given or [talking_heads()]))

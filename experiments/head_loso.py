@@ -1,7 +1,7 @@
 """Leave-one-speaker-out head measures on every speaker at hand (``make evaluate``).
 
 The talking-videos clips are tracked first with ``prosody track`` (into ``out/tracked-videos``; complete
-outputs are reused), then joined with the talking-heads clips; ``benchmarks/speakers.csv`` names each clip's
+outputs are reused), then joined with the talking-heads clips; ``experiments/speakers.csv`` names each clip's
 speaker, so two clips of one speaker are always held out together. Rows (means over held-out clips; the
 stochastic generator over 5 seeds; the mismatched-audio control and its chance spread beside each
 speech-driven row):
@@ -17,7 +17,7 @@ Speed columns: generated / recorded 10th, 50th and 90th percentiles of the angul
 nearly still (under 2 deg/s) and how far from its median pose the head holds while nearly still (deg), generated
 vs recorded.
 
-Usage: python benchmarks/head_loso.py [--no-track]
+Usage: python -m experiments.head_loso [--no-track]
 """
 
 from __future__ import annotations
@@ -29,13 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.common import REPO, data_folder, record, shipped_settings, talking_heads
+from experiments.head_loco import seeded_measures
 from prosody.measures import average_head_metrics, head_metrics
 from prosody.motion.perlin import perlin_curves
 from prosody.motion.training import find_pairs, held_out_prosodic, load_training_set
-
-sys.path.insert(0, str(Path(__file__).parent))
-from head_loco import seeded_measures  # noqa: E402
-from shared import REPO, data_folder, shipped_settings, talking_heads  # noqa: E402
 
 SEEDS = 5
 TRACKED = REPO / "out" / "tracked-videos"
@@ -144,4 +142,4 @@ def _speed(motion_au: np.ndarray, fps: float) -> np.ndarray:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(record("head_loso", lambda: main(sys.argv[1:]), lambda: [talking_heads(), TRACKED]))

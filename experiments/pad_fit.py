@@ -14,24 +14,21 @@ speakers:
   A = 0.5, see ``prosody.motion.pad_head``) and that of one constant for speech and one for pauses (fitted
   the same way), which ignores A.
 
-Usage: python benchmarks/pad_fit.py [--no-tracked]  (the talking-heads clips, and the talking-videos clips
-tracked by benchmarks/head_loso.py when it has run)
+Usage: python -m experiments.pad_fit [--no-tracked]  (the talking-heads clips, and the talking-videos clips
+tracked by experiments/head_loso.py when it has run)
 """
 
 from __future__ import annotations
 
 import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
 
+from experiments.common import record, talking_heads
+from experiments.head_loso import TRACKED, speakers
 from prosody.motion.pad_head import FIT_MIN_FRAMES, arousal_amplitudes, fit_arousal, held_out_arousal
 from prosody.motion.training import find_pairs, load_training_set
-
-sys.path.insert(0, str(Path(__file__).parent))
-from head_loso import TRACKED, speakers  # noqa: E402
-from shared import talking_heads  # noqa: E402
 
 
 def main(argv: list[str]) -> int:
@@ -67,4 +64,4 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(record("pad_fit", lambda: main(sys.argv[1:]), lambda: [talking_heads(), TRACKED]))
