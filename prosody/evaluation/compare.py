@@ -56,6 +56,7 @@ from ..motion.face import make_face, stream_mouth
 from ..motion.ground_truth import RecordedMouth, fit_to_grid, mouth_beside, read_motion, read_mouth_csv
 from ..motion.head_models import HeadModel, is_stochastic, resolve_head_model, rest_pose
 from ..motion.pad import PadSegment
+from ..validate import valid_seed, valid_seeds
 
 #: Version of the metrics.json layout (2: head measures per condition, controls, seeds).
 METRICS_VERSION = 2
@@ -287,10 +288,7 @@ def compare(
     if features is None:
         features = extract_features(audio, fps=fps, f0_floor_hz=f0_floor_hz, f0_ceiling_hz=f0_ceiling_hz)
     head_model = resolve_head_model(model) if Condition.SPEECH_DRIVEN in wanted else None
-    if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
-        raise ConfigError(f"seed must be a whole number >= 0, got {seed!r}")
-    if not (isinstance(seeds, (int, np.integer)) and 1 <= seeds <= 1000):
-        raise ConfigError(f"seeds must be a whole number from 1 to 1000, got {seeds!r}")
+    seed, seeds = valid_seed(seed), valid_seeds(seeds)
     truth = None
     if ground_truth is not None:
         recorded = ground_truth if isinstance(ground_truth, FapStream) else read_motion(ground_truth)

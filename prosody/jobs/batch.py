@@ -32,6 +32,7 @@ from ..errors import ConfigError, ProsodyError, VisualProsodyError
 from ..fap.table import HEAD_FAPS, PROSODY_FAPS
 from ..motion.conditions import CONDITION_ORDER, Condition
 from ..motion.expressivity import NEUTRAL, Expressivity
+from ..validate import valid_seeds
 
 #: Ground-truth file endings looked up beside an audio file's stem, in order of preference.
 GROUND_TRUTH_SUFFIXES = (".head.csv", ".fap")
@@ -77,8 +78,7 @@ class BatchOptions:
         if self.brow_semitones is not None and not (isinstance(self.brow_semitones, (int, float))
                                                     and 0 < self.brow_semitones <= 24):
             raise ConfigError(f"brow_semitones must be a number of semitones in (0, 24], got {self.brow_semitones!r}")
-        if not (isinstance(self.seeds, int) and not isinstance(self.seeds, bool) and 1 <= self.seeds <= 1000):
-            raise ConfigError(f"seeds must be a whole number from 1 to 1000, got {self.seeds!r}")
+        valid_seeds(self.seeds)
 
 
 @dataclass

@@ -32,9 +32,12 @@ from audio_features.streaming import CausalF0Bridge, RunningMedian
 from ..errors import ConfigError
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, RADIANS_PER_AU
 from ..measures import HEAD_LOWPASS_HZ
+from ..validate import valid_seed
 from .eyebrows import AccentRule, BrowRule, EyebrowRule
+from .head_settings import LiveHeadSettings
 from .model_files import TrainingClip, read_model_json, write_model_json
 from .perlin import CHANNEL_KEYS, EYEBROW_STD_ENS, HEAD_OFFSETS_FRAMES, HEAD_STD_AU, PerlinSettings, fractal_noise
+from .regression import SPECTRUM_FRAMES, ridge_fit, shaping_filter
 from .speech_head import (
     ENVELOPE_FEATURES,
     FEATURE_NAMES,
@@ -43,10 +46,6 @@ from .speech_head import (
     MODEL_VERSION,
     PITCH_FEATURES,
     PRESENCE_FULL_SHARE,
-    SPECTRUM_FRAMES,
-    _finite_number,
-    _ridge,
-    _shaping_filter,
     read_prosodic_model,
     windowed_features,
 )
@@ -383,7 +382,7 @@ _CALIBRATION_SEEDS = 3
 _OWN_SPEED_HALF_S = 0.25
 
 
-class LiveHeadModel:
+class LiveHeadModel(LiveHeadSettings):
     """The prosodic head generator in causal form: head pitch, yaw and roll (FAP 48-50, AU) from audio up
     to ``lookahead_s`` after each frame.
 
@@ -418,35 +417,8 @@ class LiveHeadModel:
     """
 
     kind = MODEL_KIND
-    SETTINGS = ("lookahead_s", "lookbehind_s", "step_s", "ridge", "pitch_share", "leak_s", "pitch_leak_s",
-                "idle_ratio", "presence_window_s", "envelope_power", "pitch_follow_s")
+    SETTINGS = LiveHeadSettings.setting_names()
     OPTIONAL_SETTINGS = {"envelope_power": 1.0, "pitch_follow_s": 0.0}
-
-    def __init__(self, lookahead_s: float = 0.1, lookbehind_s: float = 0.5, step_s: float = 0.1,
-                 ridge: float = 1e4, pitch_share: float = 0.95, leak_s: float = 2.0, pitch_leak_s: float = 0.15,
-                 idle_ratio: float = 0.15, presence_window_s: float = 0.25, envelope_power: float = 3.0,
-                 pitch_follow_s: float = 0.1):
-        self.presence_window_s = presence_window_s
-        self.pitch_follow_s = pitch_follow_s
-        self.envelope_power = envelope_power
-        self.lookahead_s = lookahead_s
-        self.lookbehind_s = lookbehind_s
-        self.step_s = step_s
-        self.ridge = ridge
-        self.pitch_share = pitch_share
-        self.leak_s = leak_s
-        self.pitch_leak_s = pitch_leak_s
-        self.idle_ratio = idle_ratio
-
-    def _check_settings(self) -> None:
-        checks = (("lookahead_s", 0.0, 2.0), ("lookbehind_s", 0.0, 5.0), ("step_s", 1e-3, 5.0),
-                  ("ridge", 0.0, 1e12), ("pitch_share", 0.0, 1.0), ("leak_s", 1e-2, 1e3),
-                  ("pitch_leak_s", 1e-2, 1e3), ("idle_ratio", 0.0, 1.0), ("presence_window_s", 0.05, 10.0),
-                  ("envelope_power", 1.0, 4.0), ("pitch_follow_s", 0.0, 2.0))
-        for name, low, high in checks:
-            value = getattr(self, name)
-            if not (_finite_number(value) and low <= value <= high):
-                raise ConfigError(f"{name} must be a number in [{low:g}, {high:g}], got {value!r}")
 
     def lookahead_frames(self, fps: float) -> int:
         """Frames of look-ahead the model reads at ``fps``."""
@@ -470,7 +442,7 @@ class LiveHeadModel:
         energy) and recorded head motion (n_frames, 3) in AU, resting pose removed."""
         from ..measures import lowpass_head, speed_envelope
 
-        self._check_settings()
+        self.check_settings()
         if not (len(f0_hz) == len(energy_db) == len(motion_au)) or not f0_hz:
             raise ConfigError("need the same, non-zero number of F0 tracks, energy tracks and motion recordings")
         if self.smoothing_frames(fps) // 2 + 1 > _READ_PAST_OFFSETS:
@@ -502,11 +474,11 @@ class LiveHeadModel:
             spreads.append(radians.std(axis=0))
         if not kept:
             raise ConfigError("every training recording is still: nothing to learn")
-        self.envelope_weights_, self.envelope_mean_, self.envelope_std_ = _ridge(
+        self.envelope_weights_, self.envelope_mean_, self.envelope_std_ = ridge_fit(
             np.vstack(envelope_rows), np.concatenate(envelope_targets), self.ridge)
-        self.pitch_weights_, self.pitch_mean_, self.pitch_std_ = _ridge(
+        self.pitch_weights_, self.pitch_mean_, self.pitch_std_ = ridge_fit(
             np.vstack(pitch_rows), np.concatenate(pitch_targets), self.ridge)
-        self.filters_ = np.vstack([_shaping_filter([v[:, axis] for v in velocities], fps)
+        self.filters_ = np.vstack([shaping_filter([v[:, axis] for v in velocities], fps)
                                    for axis in range(len(HEAD_FAPS))])
         self.velocity_scale_ = np.sqrt(np.mean([np.mean(v**2, axis=0) for v in velocities], axis=0)) * fps
         self.speed_rad_s_ = float(np.mean(speeds))
@@ -623,8 +595,7 @@ class _Synthesis:
     BLOCK = 256
 
     def __init__(self, model: LiveHeadModel, *, seed: int) -> None:
-        if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
-            raise ConfigError(f"seed must be a whole number >= 0, got {seed!r}")
+        seed = valid_seed(seed)
         self.model = model
         fps = model.fps_
         self._rng = np.random.default_rng(int(seed))

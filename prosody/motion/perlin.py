@@ -8,6 +8,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..fap.table import EYEBROW_FAPS
+from ..validate import valid_seed
 
 #: Per-clip standard deviation of head rotation in ../shared/data/talking-heads (median pose removed),
 #: averaged over its seven clips, in AU: pitch 4281, yaw 7196, roll 5437.
@@ -91,9 +92,7 @@ def fractal_noise(n_frames: int, *, fps: float, seed: int, offset_frames: float 
     of the lattice cell, the seed and the channel, so channels are independent and the noise never repeats.
     """
     settings = settings or PerlinSettings()
-    if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
-        raise ConfigError(f"seed must be a whole number >= 0, got {seed!r}")
-    key = _lattice_key(int(seed), int(channel))
+    key = _lattice_key(valid_seed(seed), int(channel))
     x = np.arange(n_frames, dtype=float) + offset_frames
     total = np.zeros(n_frames)
     for octave in range(settings.octaves):

@@ -29,8 +29,11 @@ from audio_features import Features
 from ..errors import ConfigError, ModelError
 from ..fap.table import HEAD_FAPS, RADIANS_PER_AU
 from ..measures import HEAD_LOWPASS_HZ, SPEED_ENVELOPE_S, centred_moving_average
+from ..validate import valid_seed
 from .expressivity import Expressivity, shape_head
+from .head_settings import OfflineHeadSettings
 from .model_files import MAX_MODEL_MAGNITUDE, TrainingClip, write_model_json
+from .regression import SPECTRUM_FRAMES, finite_number, ridge_fit, shaping_filter
 
 MODEL_FORMAT = "visual-prosody-head"
 MODEL_VERSION = 1
@@ -47,9 +50,6 @@ MIN_SPEECH_S = 0.5
 #: Window over which speech presence is judged (s), and the voiced share that counts as full speech.
 PRESENCE_WINDOW_S = 2.0
 PRESENCE_FULL_SHARE = 0.2
-#: Taps of the noise-shaping filters (the recorded velocity's spectrum is estimated on this many frames).
-SPECTRUM_FRAMES = 128
-MIN_SPECTRUM_FRAMES = 16
 
 
 def prosodic_features(features: Features) -> np.ndarray:
@@ -178,48 +178,6 @@ def _causal_convolve(values: np.ndarray, kernel: np.ndarray) -> np.ndarray:
     return np.fft.irfft(spectrum, n=size, axis=0)[:n]
 
 
-def _ridge(x: np.ndarray, y: np.ndarray, penalty: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Ridge regression on standardised columns: (weights, column mean, column spread); intercept last."""
-    mean = x.mean(axis=0)
-    spread = x.std(axis=0)
-    spread = np.where(spread > 1e-12, spread, 1.0)
-    z = np.hstack([(x - mean) / spread, np.ones((x.shape[0], 1))])
-    shrink = np.eye(z.shape[1]) * penalty
-    shrink[-1, -1] = 0.0  # the intercept is not shrunk
-    weights = np.linalg.solve(z.T @ z + shrink, z.T @ y)
-    return weights, mean, spread
-
-
-def _shaping_filter(velocities: Sequence[np.ndarray], fps: float) -> np.ndarray:
-    """Zero-phase FIR taps whose gain follows the average amplitude spectrum of the given velocity curves
-    (each recording weighted equally), normalised to unit output variance for unit white noise."""
-    from scipy.signal import welch
-
-    spectra = []
-    for velocity in velocities:
-        if velocity.size < MIN_SPECTRUM_FRAMES:
-            continue
-        # short recordings give a coarser estimate on the same frequency grid
-        _, power = welch(velocity, fs=fps, nperseg=min(SPECTRUM_FRAMES, velocity.size), nfft=SPECTRUM_FRAMES)
-        total = power.sum()
-        if total > 0:
-            spectra.append(power / total)
-    if not spectra:
-        raise ConfigError(f"head motion too short to estimate its spectrum (need {MIN_SPECTRUM_FRAMES} frames)")
-    # the geometric mean over recordings: the spectrum is judged in dB, where one jittery recording would
-    # otherwise dominate an arithmetic mean
-    amplitude = np.sqrt(np.exp(np.mean(np.log(np.maximum(spectra, 1e-30)), axis=0)))
-    taps = np.fft.fftshift(np.fft.irfft(amplitude, n=SPECTRUM_FRAMES))
-    taps = taps * np.hanning(SPECTRUM_FRAMES + 1)[:SPECTRUM_FRAMES]
-    return taps / np.sqrt(np.sum(taps**2))
-
-
-def _finite_number(value: object) -> bool:
-    """A JSON number within :data:`MAX_MODEL_MAGNITUDE` (not a bool, not NaN or infinity)."""
-    return (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-            and abs(value) <= MAX_MODEL_MAGNITUDE)
-
-
 def read_prosodic_model(cls, payload: object, *, source: str, kind: str, unsupported: str, names: dict[str, list],
                         check_settings: Callable[[dict, Callable[[str], ModelError]], None] | None = None):
     """A model of class ``cls`` (offline or live prosodic head) from its file's data, checking every field:
@@ -250,11 +208,11 @@ def read_prosodic_model(cls, payload: object, *, source: str, kind: str, unsuppo
             check_settings(settings, fail)
         model = cls(**settings)
         try:
-            model._check_settings()
+            model.check_settings()
         except ConfigError as error:
             raise fail(str(error)) from None
         fps = payload["fps"]
-        if not _finite_number(fps) or not 0 < fps <= 1000:
+        if not finite_number(fps) or not 0 < fps <= 1000:
             raise fail(f"fps {fps!r} must be a number in (0, 1000]")
         model.fps_ = float(fps)
         if any(list(payload[key]) != value for key, value in names.items()):
@@ -284,13 +242,13 @@ def _read_fitted_fields(model, payload: dict, fail: Callable[[str], ModelError])
             raise fail(f"field {key!r} must hold positive numbers")
     for key in ("speed_rad_s", "pitch_prediction_spread"):
         value = payload[key]
-        if not _finite_number(value) or not value > 0:
+        if not finite_number(value) or not value > 0:
             raise fail(f"field {key!r} must be a positive number, got {value!r}")
         setattr(model, key + "_", float(value))
     model.training_ = [TrainingClip.from_dict(c) for c in payload["training"]]
 
 
-class ProsodicHeadModel:
+class ProsodicHeadModel(OfflineHeadSettings):
     """Head pitch, yaw and roll (FAP 48-50, AU) from speech: a predicted speed envelope driving coloured
     noise, plus a predicted head pitch.
 
@@ -356,39 +314,6 @@ class ProsodicHeadModel:
 
     kind = MODEL_KIND
 
-    def __init__(self, lookbehind_s: float = 0.5, lookahead_s: float = 0.5, step_s: float = 0.1,
-                 ridge: float = 1e4, pitch_share: float = 0.95, leak_s: float = 2.0, pitch_leak_s: float = 0.15,
-                 idle_ratio: float = 0.15, speed_iterations: int = 3, envelope_power: float = 2.0,
-                 burst_power: float = 0.5, pitch_follow_s: float = 0.2):
-        self.lookbehind_s = lookbehind_s
-        self.lookahead_s = lookahead_s
-        self.step_s = step_s
-        self.ridge = ridge
-        self.pitch_share = pitch_share
-        self.leak_s = leak_s
-        self.idle_ratio = idle_ratio
-        self.speed_iterations = speed_iterations
-        self.pitch_leak_s = pitch_leak_s
-        self.envelope_power = envelope_power
-        self.burst_power = burst_power
-        self.pitch_follow_s = pitch_follow_s
-
-    # settings -------------------------------------------------------------------------------------------
-    def _check_settings(self) -> None:
-        checks = (
-            ("lookbehind_s", self.lookbehind_s, 0.0, 5.0), ("lookahead_s", self.lookahead_s, 0.0, 5.0),
-            ("step_s", self.step_s, 1e-3, 5.0),
-            ("ridge", self.ridge, 0.0, 1e12), ("pitch_share", self.pitch_share, 0.0, 1.0),
-            ("leak_s", self.leak_s, 1e-2, 1e3), ("pitch_leak_s", self.pitch_leak_s, 1e-2, 1e3),
-            ("idle_ratio", self.idle_ratio, 0.0, 1.0), ("speed_iterations", self.speed_iterations, 0, 10),
-            ("envelope_power", self.envelope_power, 1.0, 4.0), ("burst_power", self.burst_power, 0.0, 1.0),
-            ("pitch_follow_s", self.pitch_follow_s, 0.0, 2.0),
-        )
-        for name, value, low, high in checks:
-            if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)
-                                                and low <= value <= high):
-                raise ConfigError(f"{name} must be a number in [{low:g}, {high:g}], got {value!r}")
-
     def offsets_frames(self, fps: float) -> list[int]:
         """Frame offsets read around each frame."""
         behind = int(round(self.lookbehind_s * fps))
@@ -413,7 +338,7 @@ class ProsodicHeadModel:
         resting pose, e.g. each recording's median, already removed)."""
         from ..measures import lowpass_head, speed_envelope  # training may import scipy.signal
 
-        self._check_settings()
+        self.check_settings()
         if len(features) != len(motion_au) or not features:
             raise ConfigError("need the same, non-zero number of feature sets and motion recordings")
         rates = {f.fps for f in features}
@@ -442,11 +367,11 @@ class ProsodicHeadModel:
             spreads.append(radians.std(axis=0))
         if not envelope_rows:
             raise ConfigError("every training recording is still: nothing to learn")
-        self.envelope_weights_, self.envelope_mean_, self.envelope_std_ = _ridge(
+        self.envelope_weights_, self.envelope_mean_, self.envelope_std_ = ridge_fit(
             np.vstack(envelope_rows), np.concatenate(envelope_targets), self.ridge)
-        self.pitch_weights_, self.pitch_mean_, self.pitch_std_ = _ridge(
+        self.pitch_weights_, self.pitch_mean_, self.pitch_std_ = ridge_fit(
             np.vstack(pitch_rows), np.concatenate(pitch_targets), self.ridge)
-        self.filters_ = np.vstack([_shaping_filter([v[:, axis] for v in velocities], fps)
+        self.filters_ = np.vstack([shaping_filter([v[:, axis] for v in velocities], fps)
                                    for axis in range(len(HEAD_FAPS))])
         self.velocity_scale_ = np.sqrt(np.mean([np.mean(v**2, axis=0) for v in velocities], axis=0)) * fps
         self.speed_rad_s_ = float(np.mean(speeds))
@@ -591,9 +516,7 @@ class ProsodicHeadModel:
                 f"the model was trained at {self.fps_:g} fps but the features are at {features.fps:g} fps; "
                 "extract features at the model's rate or train a model at this rate"
             )
-        if not (isinstance(seed, (int, np.integer)) and seed >= 0):
-            raise ConfigError(f"seed must be a whole number >= 0, got {seed!r}")
-        motion = self._motion(features, seed=int(seed))
+        motion = self._motion(features, seed=valid_seed(seed))
         return {fap: motion[:, axis] for axis, fap in enumerate(HEAD_FAPS)}
 
     def _check_fitted(self) -> None:
@@ -601,8 +524,7 @@ class ProsodicHeadModel:
             raise ConfigError("the model is not fitted: call fit() or load a model file")
 
     # persistence ----------------------------------------------------------------------------------------
-    SETTINGS = ("lookbehind_s", "lookahead_s", "step_s", "ridge", "pitch_share", "leak_s", "pitch_leak_s",
-                "idle_ratio", "speed_iterations", "envelope_power", "burst_power", "pitch_follow_s")
+    SETTINGS = OfflineHeadSettings.setting_names()
     #: settings that files written before they existed leave out, with the value that reproduces those files
     OPTIONAL_SETTINGS = {"envelope_power": 1.0, "burst_power": 0.0, "pitch_follow_s": 0.0}
 
@@ -648,7 +570,7 @@ class ProsodicHeadModel:
 
         def check_settings(settings: dict, fail: Callable[[str], ModelError]) -> None:
             for name, value in settings.items():
-                if not _finite_number(value):
+                if not finite_number(value):
                     raise fail(f"setting {name!r} must be a finite number, got {value!r}")
             if not isinstance(settings["speed_iterations"], int):
                 raise fail(f"setting 'speed_iterations' must be a whole number, got {settings['speed_iterations']!r}")
