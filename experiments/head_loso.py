@@ -136,7 +136,7 @@ def main(argv: list[str]) -> int:
 
 
 def _speed(motion_au: np.ndarray, fps: float) -> np.ndarray:
-    from prosody.measures import head_speed
+    from prosody.dsp import head_speed
 
     return head_speed(motion_au * 1e-5, fps=fps)
 

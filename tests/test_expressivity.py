@@ -10,8 +10,9 @@ import pytest
 
 from audio_features import extract_features
 from prosody.cli import main
+from prosody.dsp import head_speed, speed_envelope
 from prosody.errors import ConfigError
-from prosody.measures import head_speed, speed_distribution, speed_envelope
+from prosody.measures import speed_distribution
 from prosody.motion.conditions import Condition, condition_stream, head_motion
 from prosody.motion.expressivity import (
     NOD_CYCLES,

@@ -9,8 +9,9 @@ import pytest
 from conftest import REPO
 
 #: The layers, lowest first: a module may import its own layer and the ones before it.
-LAYERS = ("prosody", "prosody.errors", "prosody.validate", "prosody.fap", "prosody.head", "prosody.measures",
-          "prosody.motion", "prosody.tracking", "prosody.evaluation", "prosody.jobs", "prosody.live", "prosody.study", "prosody.cli", "prosody.__main__")
+LAYERS = ("prosody", "prosody.errors", "prosody.validate", "prosody.dsp", "prosody.fap", "prosody.head",
+          "prosody.measures", "prosody.motion", "prosody.tracking", "prosody.evaluation", "prosody.jobs",
+          "prosody.live", "prosody.study", "prosody.cli", "prosody.__main__")
 
 
 def module_name(path: Path, root: Path) -> str:

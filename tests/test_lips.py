@@ -22,13 +22,13 @@ from prosody.motion.expressions import (
     mix_with_lips,
     parse_expressions,
 )
+from prosody.motion.face import lip_curves
 from prosody.motion.lips import (
     LIP_FAPS,
     VISEMES,
     blend,
     dominance,
     inner_opening,
-    lip_curves,
     shape_faps,
     shapes_from_phones,
     viseme_of,

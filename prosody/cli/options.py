@@ -196,7 +196,7 @@ def expressivity(args: argparse.Namespace):
 
 def add_face_options(parser: argparse.ArgumentParser) -> None:
     from ..motion.expressions import EXPRESSIONS
-    from ..motion.lips import LIP_METHODS
+    from ..motion.face import LIP_METHODS
 
     face = parser.add_argument_group(
         "lips and expressions", "The lips move with the speech in every condition alike: phones recognised by "

@@ -12,9 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ConfigError
 from ..fap.stream import FapStream
 from .expressions import ExpressionSegment, add_brow_raises, expression_curves, mix_with_lips, parse_expressions
-from .lips import inner_opening, lip_curves
+from .lips import inner_opening, shape_faps, shapes_from_phones
 from .pad import PadSegment, pad_face_curves, parse_pad, read_face_map
 
 
@@ -94,3 +95,58 @@ def stream_mouth(stream: FapStream) -> tuple[np.ndarray, np.ndarray] | None:
     curves = {fap: stream.curve(fap) for fap in (3, 4, 5)}
     rounding = sum((stream.curve(fap) for fap in (16, 17) if stream.mask[:, fap - 1].all()), np.zeros(stream.n_frames))
     return inner_opening(curves), rounding
+
+
+#: Ways of making lips: from recognised phones (visemes, the default) or from the spectrum (acoustic).
+LIP_METHODS = ("visemes", "acoustic")
+
+
+def lip_curves(audio, n_frames: int, *, fps: float, method: str = "visemes", transcript: str | None = None,
+               gain: float = 1.0, mouth_model=None, language: str | None = None) -> dict[int, np.ndarray]:
+    """Lip FAPs of a recording on a frame grid.
+
+    Parameters
+    ----------
+    audio : audio_features.Audio or path
+        The recording (a file is read block by block).
+    n_frames : int >= 0
+    fps : float > 0
+    method : {"visemes", "acoustic"}
+        ``visemes``: phones (PocketSphinx) -> MPEG-4 visemes -> dominance blending; ``acoustic``: the acoustic
+        mouth model (language independent, ignores ``transcript``).
+    transcript : str, optional
+        What is said, for ``visemes`` (aligned to the audio; see :func:`audio_features.phones.recognise_phones`).
+    language : str, optional
+        The transcript's language, an eSpeak NG code (``es``, ``de``, ``cmn``, ...): its phones come from eSpeak NG
+        and are aligned by :func:`audio_features.espeak.align_transcript` (any language, no acoustic model);
+        without it the transcript is English, aligned by PocketSphinx.
+    gain : float >= 0
+        Scale of every lip FAP (0: a still, closed mouth).
+    mouth_model : AcousticMouthModel, optional
+        For ``acoustic``; the shipped one when omitted.
+    """
+    if method not in LIP_METHODS:
+        raise ConfigError(f"unknown lip method {method!r}; choose {' or '.join(LIP_METHODS)}")
+    if not (np.isfinite(gain) and 0 <= gain <= 100):
+        raise ConfigError(f"lip gain must be a number in [0, 100], got {gain!r}")
+    if method == "acoustic":
+        if transcript is not None:
+            raise ConfigError("the acoustic lips do not read a transcript; use method='visemes' with it")
+        from .mouth_model import AcousticMouthModel
+
+        model = mouth_model if mouth_model is not None else AcousticMouthModel.load()
+        shape = model.predict(audio, n_frames, fps=fps)
+    elif language is not None:
+        if transcript is None:
+            raise ConfigError("a language is the transcript's: give the transcript too (without one, the acoustic "
+                              "lips follow any language)")
+        from audio_features.audio import load_audio
+        from audio_features.espeak import align_transcript
+
+        recording = audio if hasattr(audio, "samples") else load_audio(audio)
+        shape = shapes_from_phones(align_transcript(recording, transcript, language), n_frames, fps=fps)
+    else:
+        from audio_features.phones import recognise_phones
+
+        shape = shapes_from_phones(recognise_phones(audio, transcript=transcript), n_frames, fps=fps)
+    return shape_faps(shape, gain=gain)

@@ -29,9 +29,9 @@ import numpy as np
 
 from audio_features.streaming import CausalF0Bridge, RunningMedian
 
+from ..dsp import HEAD_LOWPASS_HZ
 from ..errors import ConfigError
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, RADIANS_PER_AU
-from ..measures import HEAD_LOWPASS_HZ
 from ..validate import valid_seed
 from .eyebrows import AccentRule, BrowRule, EyebrowRule
 from .head_settings import LiveHeadSettings
@@ -440,7 +440,7 @@ class LiveHeadModel(LiveHeadSettings):
             *, fps: float, names: Sequence[str] | None = None) -> LiveHeadModel:
         """Fit on recordings given as their acoustic frames (streamed F0 with NaN where unvoiced, and
         energy) and recorded head motion (n_frames, 3) in AU, resting pose removed."""
-        from ..measures import lowpass_head, speed_envelope
+        from ..dsp import lowpass_head, speed_envelope
 
         self.check_settings()
         if not (len(f0_hz) == len(energy_db) == len(motion_au)) or not f0_hz:

@@ -26,9 +26,9 @@ import numpy as np
 
 from audio_features import Features
 
+from ..dsp import HEAD_LOWPASS_HZ, SPEED_ENVELOPE_S, centred_moving_average
 from ..errors import ConfigError, ModelError
 from ..fap.table import HEAD_FAPS, RADIANS_PER_AU
-from ..measures import HEAD_LOWPASS_HZ, SPEED_ENVELOPE_S, centred_moving_average
 from ..validate import valid_seed
 from .expressivity import Expressivity, shape_head
 from .head_settings import OfflineHeadSettings
@@ -161,7 +161,7 @@ def zero_phase_lowpass(values: np.ndarray, *, fps: float, cutoff_hz: float = HEA
 
 
 def smooth_speed_envelope(angles_rad: np.ndarray, *, fps: float) -> np.ndarray:
-    """The speed envelope of :func:`prosody.measures.speed_envelope` (4 Hz low-pass, central differences,
+    """The speed envelope of :func:`prosody.dsp.speed_envelope` (4 Hz low-pass, central differences,
     norm over the axes, centred 0.5 s average), with the low-pass of :func:`zero_phase_lowpass`."""
     smooth = zero_phase_lowpass(angles_rad, fps=fps)
     if smooth.shape[0] < 2:
@@ -336,7 +336,7 @@ class ProsodicHeadModel(OfflineHeadSettings):
             names: Sequence[str] | None = None) -> ProsodicHeadModel:
         """Fit on recordings: their features and recorded head motion, shape (n_frames, 3) in AU (the
         resting pose, e.g. each recording's median, already removed)."""
-        from ..measures import lowpass_head, speed_envelope  # training may import scipy.signal
+        from ..dsp import lowpass_head, speed_envelope  # training may import scipy.signal
 
         self.check_settings()
         if len(features) != len(motion_au) or not features:
@@ -418,7 +418,7 @@ class ProsodicHeadModel(OfflineHeadSettings):
     def regression_residuals(self, features: Features, motion_au: np.ndarray) -> dict[str, np.ndarray]:
         """Residuals of the two fitted regressions on one recording: the speed envelope (relative to its mean)
         and the pitch (in units of its spread), recorded less predicted, before any gating."""
-        from ..measures import lowpass_head, speed_envelope
+        from ..dsp import lowpass_head, speed_envelope
 
         self._check_fitted()
         radians = np.asarray(motion_au, float) * RADIANS_PER_AU

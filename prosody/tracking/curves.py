@@ -16,7 +16,7 @@ import numpy as np
 from audio_features.atomic import atomic_path
 from audio_features.tracks import frame_count
 
-from ..measures import centred_moving_average
+from ..dsp import centred_moving_average
 from ..motion.ground_truth import HEAD_CSV_COLUMNS, HEAD_CSV_FPS
 from .face import MOUTH_BLENDSHAPES, _snake
 
