@@ -435,3 +435,23 @@ def test_head_measures_leave_out_frames_the_recording_lost(rng) -> None:
     assert kept["pitch_r"] == pytest.approx(1.0) and kept["std_ratio"]["49"] == pytest.approx(0.5)
     assert whole["pitch_r"] < 0.9
     assert kept["speed_p50_ratio"] == pytest.approx(0.5, rel=0.05)
+
+
+def test_typed_metrics_read_a_comparison_losslessly_and_refuse_another_layout(tmp_path, rng) -> None:
+    from prosody.evaluation.metrics import METRICS_VERSION, HeadMeasures, Metrics
+
+    audio = _tone_file(tmp_path / "tone.wav")
+    truth = _head_csv(tmp_path / "tone.head.csv", 60, rng)
+    result = compare(audio, ground_truth=truth, seeds=2, other_head_models={"arx": "arx"})
+    measures = result.measures
+    speech = result.metrics["conditions"]["SPEECH_DRIVEN"]
+    assert measures.conditions["SPEECH_DRIVEN"].head.pitch_r == speech["head"]["pitch_r"] is not None
+    assert measures.conditions["SPEECH_DRIVEN"].head.std_ratio["49"] == speech["head"]["std_ratio"]["49"]
+    assert measures.controls.head.speed_envelope_r == result.metrics["controls"]["mismatched_audio"]["speed_envelope_r"]
+    arx = result.metrics["other_head_models"]["arx"]
+    assert measures.other_head_models["arx"]["head"].pitch_r == arx["head"]["pitch_r"]
+    assert measures.to_json() == result.metrics  # nothing lost, nothing added
+    with pytest.raises(AttributeError, match="no measure 'pitch'"):
+        HeadMeasures().pitch  # noqa: B018
+    with pytest.raises(ConfigError, match=f"reads version {METRICS_VERSION}"):
+        Metrics.from_json({**result.metrics, "version": METRICS_VERSION + 1})

@@ -57,9 +57,8 @@ from ..motion.ground_truth import RecordedMouth, fit_to_grid, mouth_beside, read
 from ..motion.head_models import HeadModel, is_stochastic, resolve_head_model, rest_pose
 from ..motion.pad import PadSegment
 from ..validate import valid_seed, valid_seeds
+from .metrics import METRICS_VERSION, Metrics
 
-#: Version of the metrics.json layout (2: head measures per condition, controls, seeds).
-METRICS_VERSION = 2
 #: Seeds over which the measures of a stochastic condition (RANDOM, the prosodic SPEECH_DRIVEN head) are
 #: averaged: seed, seed + 1, ... (the written streams use the first).
 SUMMARY_SEEDS = 10
@@ -83,7 +82,7 @@ class Comparison:
         Condition -> FapStream of the prosody FAPs, in :data:`CONDITION_ORDER`; GROUND_TRUTH only when
         recorded motion was given.
     metrics : dict
-        The content of ``metrics.json`` (see :func:`comparison_metrics`).
+        The content of ``metrics.json`` (see :func:`comparison_metrics`); :attr:`measures` reads it as types.
     other_models : dict
         Label -> the speech-driven stream with another head model's head (``other_head_models``; its first
         seed), for the files and the video.
@@ -99,6 +98,11 @@ class Comparison:
     @property
     def ground_truth(self) -> FapStream | None:
         return self.streams.get(Condition.GROUND_TRUTH)
+
+    @property
+    def measures(self) -> Metrics:
+        """:attr:`metrics` as types (:class:`prosody.evaluation.metrics.Metrics`)."""
+        return Metrics.from_json(self.metrics)
 
 
 def brow_curve(stream: FapStream) -> np.ndarray | None:

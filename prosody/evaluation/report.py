@@ -8,6 +8,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from ..fap.table import BY_NUMBER, HEAD_FAPS, PROSODY_FAPS, RADIANS_PER_AU
+from .metrics import BrowMeasures, HeadMeasures, Metrics, MouthMeasures
 
 if TYPE_CHECKING:
     from .compare import Comparison
@@ -69,9 +70,10 @@ def comparison_markdown(comparison: Comparison, *, figures: Mapping[str, str] | 
            "figure"] if metrics.get("model_trained_on_this_recording") else []),
         f"- {_brow_rule_line(metrics)}",
     ]
-    lines += _head_section(metrics)
-    lines += _brow_section(metrics)
-    lines += _mouth_section(metrics)
+    measures = Metrics.from_json(metrics)
+    lines += _head_section(measures)
+    lines += _brow_section(measures)
+    lines += _mouth_section(measures)
     lines += [
         "",
         "## Motion statistics (mean ± standard deviation; head angles in degrees, brows in ENS)",
@@ -123,110 +125,98 @@ def comparison_markdown(comparison: Comparison, *, figures: Mapping[str, str] | 
     return "\n".join(lines) + "\n"
 
 
-def _head_row(name: str, head: Mapping | None) -> list[str]:
-    head = head or {}
-    ratios = head.get("std_ratio") or {}
-    return [name, _number(head.get("speed_envelope_r"), 3), _number(head.get("pitch_r"), 3),
-            " / ".join(_number(ratios.get(axis), 2) for axis in ("48", "49", "50")),
-            _number(head.get("velocity_spectrum_distance_db"), 1)]
+def _head_row(name: str, head: HeadMeasures) -> list[str]:
+    return [name, _number(head.speed_envelope_r, 3), _number(head.pitch_r, 3),
+            " / ".join(_number(head.std_ratio[axis], 2) for axis in ("48", "49", "50")),
+            _number(head.velocity_spectrum_distance_db, 1)]
 
 
 HEAD_HEADER = ["condition", "speed-envelope r", "pitch r", "std ratio pitch / yaw / roll",
                "velocity-spectrum distance (dB)"]
 
 
-def _head_section(metrics: Mapping) -> list[str]:
+def _head_section(metrics: Metrics) -> list[str]:
     """The lead table: head measures per condition against the recording, with the control beside them."""
-    conditions = metrics["conditions"]
-    if not any((block.get("head") or {}).get("std_ratio", {}).get("48") is not None for block in conditions.values()):
+    conditions = metrics.conditions
+    if not any(block.head.std_ratio["48"] is not None for block in conditions.values()):
         return ["", "## Head motion", "", "No recorded head motion was given, so the head measures are undefined "
                 "(give the recorded motion: --ground-truth FILE, or ground_truth= in Python)."]
-    seeds = metrics.get("seeds", 1)
+    seeds = metrics.settings.get("seeds", 1)
     lines = ["", "## Head motion against the recording", "",
              "How much the head moves over time (speed envelope: angular speed averaged over 0.5 s, angles "
              "low-passed at 4 Hz) and head pitch, each as Pearson r with the recording; the spread of each axis "
              "as a ratio to the recording's (1 = a person's size); and the velocity-spectrum distance (0 dB = "
              "the recording's size and tempo; a still or jittery head scores high). "
-             f"RANDOM{' and SPEECH_DRIVEN' if metrics.get('head_model') == 'prosodic' else ''} are averaged over "
-             f"{seeds} seed(s). The control drives the same speech-driven generator with this recording's own "
-             "audio shifted in time by 5 s or more: it keeps the audio's statistics and breaks its timing, so a "
-             "figure counts by how far it rises above the control.", ""]
-    rows = [_head_row(name, block.get("head")) for name, block in conditions.items()]
-    control = (metrics.get("controls") or {}).get("mismatched_audio")
-    if control and "SPEECH_DRIVEN" in conditions:
-        rows.append(_head_row("SPEECH_DRIVEN with mismatched audio (control)", control))
-        for label, other in (metrics.get("other_head_models") or {}).items():
-            rows.append(_head_row(f"head model {label} ({other['kind']})", other["head"]))
-            rows.append(_head_row(f"head model {label} with mismatched audio (control)", other["mismatched_audio"]))
-        speech = conditions["SPEECH_DRIVEN"].get("head") or {}
-        rises = []
-        for key, label in (("speed_envelope_r", "speed-envelope r"), ("pitch_r", "pitch r")):
-            if speech.get(key) is not None and control.get(key) is not None:
-                rises.append(f"{label} {speech[key] - control[key]:+.3f}")
-        lines += _table(HEAD_HEADER, rows)
-        if rises:
-            lines += ["", f"Rise of SPEECH_DRIVEN above the control: {', '.join(rises)}."]
-    else:
-        lines += _table(HEAD_HEADER, rows)
+             f"RANDOM{' and SPEECH_DRIVEN' if metrics.settings.get('head_model') == 'prosodic' else ''} are "
+             f"averaged over {seeds} seed(s). The control drives the same speech-driven generator with this "
+             "recording's own audio shifted in time by 5 s or more: it keeps the audio's statistics and breaks its "
+             "timing, so a figure counts by how far it rises above the control.", ""]
+    rows = [_head_row(name, block.head) for name, block in conditions.items()]
+    if "SPEECH_DRIVEN" not in conditions:
+        return lines + _table(HEAD_HEADER, rows)
+    control = metrics.controls.head
+    rows.append(_head_row("SPEECH_DRIVEN with mismatched audio (control)", control))
+    for label, other in metrics.other_head_models.items():
+        rows.append(_head_row(f"head model {label} ({other['kind']})", other["head"]))
+        rows.append(_head_row(f"head model {label} with mismatched audio (control)", other["mismatched_audio"]))
+    speech = conditions["SPEECH_DRIVEN"].head
+    rises = [f"{label} {getattr(speech, key) - getattr(control, key):+.3f}"
+             for key, label in (("speed_envelope_r", "speed-envelope r"), ("pitch_r", "pitch r"))
+             if getattr(speech, key) is not None and getattr(control, key) is not None]
+    lines += _table(HEAD_HEADER, rows)
+    if rises:
+        lines += ["", f"Rise of SPEECH_DRIVEN above the control: {', '.join(rises)}."]
     return lines
 
 
-def _brow_row(name: str, brows: Mapping | None) -> list[str]:
-    brows = brows or {}
-    onsets = brows.get("onsets") or {}
-    return [name, _number(brows.get("raise_r"), 3), _number(onsets.get("f1"), 2), _number(onsets.get("precision"), 2),
-            _number(onsets.get("recall"), 2), _number(brows.get("raises"), 1),
-            _number(brows.get("median_raise_s"), 2)]
+def _brow_row(name: str, brows: BrowMeasures) -> list[str]:
+    onsets = brows.onsets
+    return [name, _number(brows.raise_r, 3), _number(onsets.f1, 2), _number(onsets.precision, 2),
+            _number(onsets.recall, 2), _number(brows.raises, 1), _number(brows.median_raise_s, 2)]
 
 
-def _brow_section(metrics: Mapping) -> list[str]:
+def _brow_section(metrics: Metrics) -> list[str]:
     """Eyebrows of each condition against recorded brow motion, with the control."""
-    conditions = metrics["conditions"]
-    recorded = [(block.get("brows") or {}).get("recorded_raises") for block in conditions.values()]
-    if all(value is None for value in recorded):
+    blocks = {name: block.brows for name, block in metrics.conditions.items()}
+    first = next((brows for brows in blocks.values() if brows.recorded_raises is not None), None)
+    if first is None:
         return []
-    first = next(block["brows"] for block in conditions.values() if block["brows"].get("recorded_raises") is not None)
     lines = ["", "## Eyebrows against the recording", "",
              "Raise r: Pearson r of the inner-brow raise with the recorded brow height (4 Hz low-passed). Onsets: "
              "a raise onset within 0.3 s of a recorded one counts (precision: share of the condition's onsets "
              "matched; recall: share of the recorded ones). The recording has "
-             f"{_number(first.get('recorded_raises'), 0)} raise(s) with a median length of "
-             f"{_number(first.get('recorded_median_raise_s'), 2)} s. The recorded brows are tracked from video: "
+             f"{_number(first.recorded_raises, 0)} raise(s) with a median length of "
+             f"{_number(first.recorded_median_raise_s, 2)} s. The recorded brows are tracked from video: "
              "a noisy reference.", ""]
-    rows = [_brow_row(name, block.get("brows")) for name, block in conditions.items()]
-    control = (metrics.get("controls") or {}).get("mismatched_audio_brows")
-    if control and control.get("recorded_raises") is not None:
-        rows.append(_brow_row("SPEECH_DRIVEN with mismatched audio (control)", control))
+    rows = [_brow_row(name, brows) for name, brows in blocks.items()]
+    if metrics.controls.brows.recorded_raises is not None:
+        rows.append(_brow_row("SPEECH_DRIVEN with mismatched audio (control)", metrics.controls.brows))
     lines += _table(["condition", "raise r", "onset F1", "precision", "recall", "raises", "median length (s)"],
                     rows)
     return lines
 
 
-def _mouth_row(name: str, mouth: Mapping | None) -> list[str]:
-    mouth = mouth or {}
-    closures = mouth.get("closures") or {}
-    lag = mouth.get("lag_s")
-    return [name, _number(mouth.get("opening_r"), 3), "–" if lag is None else f"{lag:+.2f}",
-            _number(closures.get("f1"), 2), _number(closures.get("precision"), 2), _number(closures.get("recall"), 2),
-            _number(mouth.get("rounding_r"), 3)]
+def _mouth_row(name: str, mouth: MouthMeasures) -> list[str]:
+    closures, lag = mouth.closures, mouth.lag_s
+    return [name, _number(mouth.opening_r, 3), "–" if lag is None else f"{lag:+.2f}",
+            _number(closures.f1, 2), _number(closures.precision, 2), _number(closures.recall, 2),
+            _number(mouth.rounding_r, 3)]
 
 
-def _mouth_section(metrics: Mapping) -> list[str]:
+def _mouth_section(metrics: Metrics) -> list[str]:
     """The lips of each condition against a tracked mouth, with the control."""
-    conditions = metrics["conditions"]
-    if all((block.get("mouth") or {}).get("opening_r") is None for block in conditions.values()):
+    measured = {name: block.mouth for name, block in metrics.conditions.items() if block.mouth.opening_r is not None}
+    if not measured:
         return []
     lines = ["", "## Lips against the recording", "",
-             f"The recorded mouth: `{metrics.get('mouth_reference') or 'given'}` (tracked from video). Opening r: "
-             "Pearson r of the inner-lip opening (FAP 3 - 4 - 5) with the recorded lip opening (8 Hz low-passed), "
-             "at the best lag within ±0.25 s (positive: the video moves first). Closures: generated opening "
-             "at most 40 MNS against the recording's lowest fifth. Rounding r: lip protrusion against "
+             f"The recorded mouth: `{metrics.settings.get('mouth_reference') or 'given'}` (tracked from video). "
+             "Opening r: Pearson r of the inner-lip opening (FAP 3 - 4 - 5) with the recorded lip opening (8 Hz "
+             "low-passed), at the best lag within ±0.25 s (positive: the video moves first). Closures: generated "
+             "opening at most 40 MNS against the recording's lowest fifth. Rounding r: lip protrusion against "
              "funnel + pucker. Every condition has the same lips.", ""]
-    rows = [_mouth_row(name, block.get("mouth")) for name, block in conditions.items()
-            if (block.get("mouth") or {}).get("opening_r") is not None]
-    control = (metrics.get("controls") or {}).get("mismatched_audio_mouth")
-    if control and control.get("opening_r") is not None:
-        rows.append(_mouth_row("lips shifted in time (control)", control))
+    rows = [_mouth_row(name, mouth) for name, mouth in measured.items()]
+    if metrics.controls.mouth.opening_r is not None:
+        rows.append(_mouth_row("lips shifted in time (control)", metrics.controls.mouth))
     lines += _table(["condition", "opening r", "lag (s)", "closure F1", "precision", "recall", "rounding r"], rows)
     return lines
 
@@ -316,11 +306,11 @@ def batch_markdown(summary: Mapping) -> str:
     def measure(metrics: Mapping | None, key: str, control: bool = False) -> str:
         if not metrics:
             return "–"
+        typed = Metrics.from_json(metrics)
         if control:
-            block = (metrics.get("controls") or {}).get("mismatched_audio") or {}
-        else:
-            block = (metrics["conditions"].get("SPEECH_DRIVEN") or {}).get("head") or {}
-        return _number(block.get(key), 2)
+            return _number(getattr(typed.controls.head, key), 2)
+        speech = typed.conditions.get("SPEECH_DRIVEN")
+        return _number(getattr(speech.head, key), 2) if speech is not None else "–"
 
     def head_r(metrics: Mapping | None, condition: str) -> str:
         if not metrics or condition not in metrics["conditions"]:

@@ -29,6 +29,7 @@ from audio_features.atomic import atomic_write
 from audio_features.inputs import file_sha256
 
 from ..errors import ConfigError, ProsodyError, VisualProsodyError
+from ..evaluation.metrics import BrowMeasures, HeadMeasures, Metrics, MouthMeasures
 from ..fap.table import HEAD_FAPS, PROSODY_FAPS
 from ..motion.conditions import CONDITION_ORDER, Condition
 from ..motion.expressivity import NEUTRAL, Expressivity
@@ -167,7 +168,10 @@ def _complete(folder: Path, settings: dict) -> dict | None:
         metrics = json.loads((folder / "metrics.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    return metrics if metrics.get("settings") == settings else None
+    from ..evaluation.metrics import METRICS_VERSION
+
+    current = metrics.get("settings") == settings and metrics.get("version") == METRICS_VERSION
+    return metrics if current else None
 
 
 def process_file(audio: str, relative: str, outdir: str, ground_truth: str | None, options: BatchOptions,
@@ -468,24 +472,23 @@ def _summary_entry(values: list[float | None]) -> dict:
             "ci95": list(interval) if interval is not None else None, "recordings": len(present)}
 
 
-def _measure_summary(blocks: list[dict]) -> dict:
+def _measure_summary(blocks: list[HeadMeasures]) -> dict:
     """Mean over recordings with a bootstrap 95% interval of each head measure in ``blocks``."""
-    summary = {key: _summary_entry([b.get(key) for b in blocks])
+    summary = {key: _summary_entry([getattr(b, key) for b in blocks])
                for key in ("speed_envelope_r", "pitch_r", "velocity_spectrum_distance_db")}
-    summary["std_ratio"] = {axis: _summary_entry([(b.get("std_ratio") or {}).get(axis) for b in blocks])
-                            for axis in ("48", "49", "50")}
+    summary["std_ratio"] = {axis: _summary_entry([b.std_ratio[axis] for b in blocks]) for axis in ("48", "49", "50")}
     return summary
 
 
-def _brow_summary(blocks: list[dict]) -> dict:
-    return {"raise_r": _summary_entry([b.get("raise_r") for b in blocks]),
-            "onset_f1": _summary_entry([(b.get("onsets") or {}).get("f1") for b in blocks])}
+def _brow_summary(blocks: list[BrowMeasures]) -> dict:
+    return {"raise_r": _summary_entry([b.raise_r for b in blocks]),
+            "onset_f1": _summary_entry([b.onsets.f1 for b in blocks])}
 
 
-def _mouth_summary(blocks: list[dict]) -> dict:
-    return {"opening_r": _summary_entry([b.get("opening_r") for b in blocks]),
-            "closure_f1": _summary_entry([(b.get("closures") or {}).get("f1") for b in blocks]),
-            "rounding_r": _summary_entry([b.get("rounding_r") for b in blocks])}
+def _mouth_summary(blocks: list[MouthMeasures]) -> dict:
+    return {"opening_r": _summary_entry([b.opening_r for b in blocks]),
+            "closure_f1": _summary_entry([b.closures.f1 for b in blocks]),
+            "rounding_r": _summary_entry([b.rounding_r for b in blocks])}
 
 
 def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions, *,
@@ -553,35 +556,32 @@ def summarize(outcomes: Iterable[FileOutcome], *, indir: str, outdir: str,
                 "metrics": _compact(o.metrics),
                 "other_recordings_control": cross.get(o.file)}
                for o in outcomes]
-    with_truth = [o.metrics for o in outcomes if o.metrics is not None and o.ground_truth]
+    with_truth = [Metrics.from_json(o.metrics) for o in outcomes if o.metrics is not None and o.ground_truth]
     aggregate: dict[str, dict] = {}
     measures: dict[str, dict] = {}
     for condition in CONDITION_ORDER:
         name = condition.value
-        present = [m for m in with_truth if name in m["conditions"]]
+        present = [m.conditions[name] for m in with_truth if name in m.conditions]
         if not present:
             continue
         faps = {}
         for fap in PROSODY_FAPS:
-            values = [m["conditions"][name][str(fap)]["pearson_r"] for m in present]
+            values = [block.faps[str(fap)]["pearson_r"] for block in present]
             values = [v for v in values if v is not None]
             faps[str(fap)] = {"pearson_r": float(np.mean(values)) if values else None, "files": len(values)}
-        cca = [m["cca"]["head_vs_ground_truth"].get(name) for m in present]
+        cca = [m.settings["cca"]["head_vs_ground_truth"].get(name) for m in with_truth if name in m.conditions]
         cca = [v for v in cca if v is not None]
         aggregate[name] = {"faps": faps, "cca_head_vs_ground_truth": float(np.mean(cca)) if cca else None}
-        measures[name] = {"head": _measure_summary([m["conditions"][name].get("head") or {} for m in present]),
-                          "brows": _brow_summary([m["conditions"][name].get("brows") or {} for m in present]),
-                          "mouth": _mouth_summary([m["conditions"][name].get("mouth") or {} for m in present])}
+        measures[name] = {"head": _measure_summary([block.head for block in present]),
+                          "brows": _brow_summary([block.brows for block in present]),
+                          "mouth": _mouth_summary([block.mouth for block in present])}
     controls = {}
-    if with_truth and any("controls" in m for m in with_truth):
-        controls["mismatched_audio"] = _measure_summary(
-            [(m.get("controls") or {}).get("mismatched_audio") or {} for m in with_truth])
-        controls["mismatched_audio_brows"] = _brow_summary(
-            [(m.get("controls") or {}).get("mismatched_audio_brows") or {} for m in with_truth])
-        controls["mismatched_audio_mouth"] = _mouth_summary(
-            [(m.get("controls") or {}).get("mismatched_audio_mouth") or {} for m in with_truth])
+    if with_truth:
+        controls["mismatched_audio"] = _measure_summary([m.controls.head for m in with_truth])
+        controls["mismatched_audio_brows"] = _brow_summary([m.controls.brows for m in with_truth])
+        controls["mismatched_audio_mouth"] = _mouth_summary([m.controls.mouth for m in with_truth])
     if cross:
-        controls["other_recordings"] = _measure_summary(list(cross.values()))
+        controls["other_recordings"] = _measure_summary([HeadMeasures.from_json(block) for block in cross.values()])
     counts = {status: sum(o.status == status for o in outcomes) for status in ("done", "skipped", "failed")}
     counts["files"] = len(outcomes)
     counts["with_ground_truth"] = sum(o.ground_truth is not None for o in outcomes)
@@ -593,5 +593,5 @@ def _compact(metrics: dict | None) -> dict | None:
     """The part of a file's metrics the summary keeps (statistics and CCA, not the settings)."""
     if metrics is None:
         return None
-    return {key: metrics[key] for key in ("duration_s", "frames", "conditions", "cca", "controls", "seeds",
-                                          "head_model", "model_trained_on_this_recording") if key in metrics}
+    return {key: metrics[key] for key in ("version", "duration_s", "frames", "conditions", "cca", "controls",
+                                          "seeds", "head_model", "model_trained_on_this_recording") if key in metrics}
