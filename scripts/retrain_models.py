@@ -8,6 +8,9 @@ Each model of ``prosody/motion/models/`` is refitted on ``../shared/data/talking
 - ``default_head.json``: ``prosody train --kind prosodic --cv`` (cross-validation chooses its settings);
 - ``default_arx.json``: ``prosody train --kind arx --cv``;
 - ``mouth_acoustic.json``: ``prosody train --kind mouth``;
+- ``mouth_acoustic_videos.json`` (the default of ``--lips acoustic``): ``prosody train --kind mouth`` on the
+  talking-heads clips and the talking videos, tracked first by ``prosody track`` into
+  ``out/talking-videos-tracked`` (as ``experiments/mouth_videos_loso.py`` tracks them; about 20 minutes once);
 - ``live_head_<MS>ms.json``: ``prosody train --kind live --lookahead-ms MS --cv`` (minutes each);
 - ``live_mouth_<MS>ms.json``: :class:`prosody.motion.mouth_model.LiveMouthModel` fitted on every clip.
 
@@ -34,14 +37,30 @@ MODELS = Path(__file__).resolve().parents[1] / "prosody" / "motion" / "models"
 NOT_COMPARED = ("diagnostics", "cross_validation", "training")
 
 
-def _train(*arguments: str) -> Callable[[Path, Path], None]:
-    def fit(data: Path, out: Path) -> None:
+def _train(*arguments: str) -> Callable[..., None]:
+    def fit(data: Path, out: Path, extra: tuple[str, ...] = ()) -> None:
         from prosody.cli import main
 
-        if main(["train", "--data", str(data), "-o", str(out), *arguments]) != 0:
+        if main(["train", "--data", str(data), *extra, "-o", str(out), *arguments]) != 0:
             raise SystemExit(f"prosody train {' '.join(arguments)} failed")
 
     return fit
+
+
+def _with_tracked_videos(fit: Callable[..., None]) -> Callable[[Path, Path], None]:
+    """``fit`` given the talking-heads clips and the talking videos tracked into ``out/talking-videos-tracked``
+    (tracked here where that folder does not hold them yet)."""
+    def fit_both(data: Path, out: Path) -> None:
+        from experiments.common import REPO, data_folder
+        from prosody.cli import main
+
+        tracked = REPO / "out" / "talking-videos-tracked"
+        videos = data_folder("talking-videos", needs="the talking videos")
+        if main(["track", str(videos), "-o", str(tracked), "-q", "--jobs", "2"]) != 0:
+            raise SystemExit("prosody track failed on the talking videos")
+        fit(data, out, extra=("--data", str(tracked)))
+
+    return fit_both
 
 
 def _live_mouth(milliseconds: int) -> Callable[[Path, Path], None]:
@@ -60,7 +79,8 @@ def recipes() -> dict[str, Callable[[Path, Path], None]]:
 
     made = {"default_head.json": _train("--kind", "prosodic", "--cv"),
             "default_arx.json": _train("--kind", "arx", "--cv"),
-            "mouth_acoustic.json": _train("--kind", "mouth")}
+            "mouth_acoustic.json": _train("--kind", "mouth"),
+            "mouth_acoustic_videos.json": _with_tracked_videos(_train("--kind", "mouth"))}
     for ms in SHIPPED_LOOKAHEADS_MS:
         made[f"live_head_{ms}ms.json"] = _train("--kind", "live", "--lookahead-ms", str(ms), "--cv")
     for ms in SHIPPED_LIVE_MOUTH_MS:

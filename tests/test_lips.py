@@ -389,3 +389,22 @@ def test_a_mouth_model_with_other_context_offsets_is_one_line(tmp_path, speech, 
                  str(tmp_path / "x.fap")])
     err = capsys.readouterr().err
     assert code == 1 and "field 'context_s' must list this release's offsets" in err and "Traceback" not in err
+
+
+def test_combined_lips_are_the_mean_of_both_mouths_with_the_visemes_closures_kept() -> None:
+    from conftest import REPO
+
+    from audio_features import load_audio
+    from prosody.motion.face import COMBINED_CLOSED_MNS, lip_curves
+
+    audio = load_audio(REPO / "samples" / "arctic_a0009.wav")
+    n = 93
+    visemes = inner_opening(lip_curves(audio, n, fps=30))
+    acoustic = inner_opening(lip_curves(audio, n, fps=30, method="acoustic"))
+    combined = inner_opening(lip_curves(audio, n, fps=30, method="combined"))
+    closed = visemes < COMBINED_CLOSED_MNS
+    assert closed.any() and (~closed).any()
+    np.testing.assert_allclose(combined[closed], visemes[closed], atol=1e-9)
+    np.testing.assert_allclose(combined[~closed], 0.5 * (visemes[~closed] + acoustic[~closed]), atol=1e-9)
+    with pytest.raises(ConfigError, match="unknown lip method 'both'; choose visemes, acoustic, combined"):
+        lip_curves(audio, n, fps=30, method="both")

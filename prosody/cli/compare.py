@@ -12,7 +12,7 @@ def run(args: argparse.Namespace) -> int:
     from ..errors import ConfigError
     from ..evaluation.compare import compare, write_comparison
 
-    if args.transcript is not None and args.lips != "visemes":
+    if args.transcript is not None and args.lips not in ("visemes", "combined"):
         raise ConfigError(f"--transcript is read by the visemes; it is not used by --lips {args.lips}")
     if args.pad_map is not None and args.pad is None:
         raise ConfigError("--pad-map maps the state of --pad to the face; give --pad too")

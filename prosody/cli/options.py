@@ -201,10 +201,12 @@ def add_face_options(parser: argparse.ArgumentParser) -> None:
     face = parser.add_argument_group(
         "lips and expressions", "The lips move with the speech in every condition alike: phones recognised by "
         "PocketSphinx become MPEG-4 visemes blended over time by dominance functions (--lips visemes, the "
-        "default), or an acoustic model maps the spectrum to the mouth's shape (--lips acoustic, any "
-        "language). An expression is neutral unless asked.")
+        "default), an acoustic model maps the spectrum to the mouth's shape (--lips acoustic, any "
+        "language), or both are averaged, the visemes' closures kept (--lips combined: held out by speaker it "
+        "follows tracked mouths best). An expression is neutral unless asked.")
     face.add_argument("--lips", default="visemes", choices=[*LIP_METHODS, "none"],
-                      help="how the lips move (default visemes; none: no lip FAPs)")
+                      help="how the lips move (default visemes; combined: visemes and acoustic together; none: no "
+                           "lip FAPs)")
     face.add_argument("--transcript", default=None, metavar="TEXT|FILE",
                       help="what is said (the text, or a text file): its words are aligned to the audio for the "
                            "visemes; words the pronouncing dictionary lacks are left out, and a text that does "
@@ -335,9 +337,9 @@ def check_motion_options(args: argparse.Namespace) -> None:
     if channels <= off and getattr(args, "expression", None) is None:
         raise ConfigError(f"--off leaves out every channel ({', '.join(sorted(channels))}): the output would be "
                           "empty")
-    if getattr(args, "mouth_model", None) is not None and getattr(args, "lips", None) != "acoustic":
+    if getattr(args, "mouth_model", None) is not None and getattr(args, "lips", None) not in ("acoustic", "combined"):
         raise ConfigError("--mouth-model is the model of --lips acoustic; add --lips acoustic")
-    if getattr(args, "transcript", None) is not None and getattr(args, "lips", None) != "visemes":
+    if getattr(args, "transcript", None) is not None and getattr(args, "lips", None) not in ("visemes", "combined"):
         raise ConfigError("--transcript is read by the visemes; it is not used by --lips "
                           f"{getattr(args, 'lips', 'none')}")
     if getattr(args, "language", None) is not None and getattr(args, "transcript", None) is None:

@@ -15,7 +15,7 @@ def run(args: argparse.Namespace) -> int:
     from ..motion.training import train
 
     orders = {"na": args.na, "nb": args.nb, "nk": args.nk, "ridge": args.ridge}
-    if args.kind in ("mouth", "live") and len(args.data) > 1:
+    if args.kind == "live" and len(args.data) > 1:
         raise ConfigError(f"--kind {args.kind} trains on one folder; give --data once")
     if args.lookahead_ms is not None and args.kind != "live":
         raise ConfigError("--lookahead-ms sets the live head model's look-ahead: add --kind live")
@@ -25,8 +25,8 @@ def run(args: argparse.Namespace) -> int:
         given = [f"--{name}" for name, value in orders.items() if value is not None] + (["--cv"] if args.cv else [])
         if given:
             raise ConfigError(f"{', '.join(given)} do(es) not apply to the mouth model (its held-out figures come "
-                              "from experiments/mouth_loco.py)")
-        train_mouth(args.data[0], args.output, fps=args.fps, report=msg.say)
+                              "from experiments/mouth_loco.py and experiments/mouth_videos_loso.py)")
+        train_mouth(args.data, args.output, fps=args.fps, report=msg.say)
         return opt.EXIT_OK
     if args.kind == "live":
         from ..motion.live_training import train_live

@@ -15,7 +15,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..fap.stream import FapStream
 from .expressions import ExpressionSegment, add_brow_raises, expression_curves, mix_with_lips, parse_expressions
-from .lips import inner_opening, shape_faps, shapes_from_phones
+from .lips import MouthShape, inner_opening, shape_faps, shapes_from_phones
 from .pad import PadSegment, pad_face_curves, parse_pad, read_face_map
 
 
@@ -37,7 +37,7 @@ def face_layer(audio, n_frames: int, *, fps: float, lips: str | None = "visemes"
                lip_gain: float = 1.0, expressions: Sequence[ExpressionSegment] = (),
                mouth_model=None, pad: Sequence[PadSegment] = (), pad_map=None,
                language: str | None = None) -> FaceLayer:
-    """The lips (``lips``: "visemes", "acoustic" or None), the expressions and the partial expressions of a PAD
+    """The lips (``lips``: one of :data:`LIP_METHODS`, or None), the expressions and the partial expressions of a PAD
     state (:mod:`prosody.motion.pad`) of a recording, mixed by seed 000's Eq. 14 (see
     :mod:`prosody.motion.expressions`)."""
     curves: dict[int, np.ndarray] = {}
@@ -63,9 +63,9 @@ def make_face(audio: str | os.PathLike[str], features, *, lips: str | None = "vi
     ``transcript`` is the text or the path of a text file, in ``language`` (an eSpeak NG code; default: English,
     aligned by PocketSphinx); ``expression`` a ``NAME:INTENSITY``, the path of a
     timed CSV file, or segments; ``gains["lips"]`` scales the lips and ``"lips"`` in ``disabled`` leaves them out;
-    ``mouth_model`` is a file from ``prosody train --kind mouth`` for ``lips="acoustic"``; ``pad`` a ``P,A,D``, the
-    path of a timed CSV file, or segments, whose partial expressions follow ``pad_map`` (a JSON file; default
-    :data:`prosody.motion.pad.DEFAULT_FACE_MAP`).
+    ``mouth_model`` is a file from ``prosody train --kind mouth`` for ``lips="acoustic"`` (or ``"combined"``);
+    ``pad`` a ``P,A,D``, the path of a timed CSV file, or segments, whose partial expressions follow ``pad_map``
+    (a JSON file; default :data:`prosody.motion.pad.DEFAULT_FACE_MAP`).
     """
     segments = parse_expressions(expression) if isinstance(expression, str) else list(expression or ())
     states = parse_pad(pad) if isinstance(pad, str) else list(pad or ())
@@ -79,7 +79,7 @@ def make_face(audio: str | os.PathLike[str], features, *, lips: str | None = "vi
 
         transcript = read_transcript(transcript)
     model = None
-    if mouth_model is not None and lips == "acoustic":
+    if mouth_model is not None and lips in ("acoustic", "combined"):
         from .mouth_model import AcousticMouthModel
 
         model = AcousticMouthModel.load(mouth_model)
@@ -97,8 +97,11 @@ def stream_mouth(stream: FapStream) -> tuple[np.ndarray, np.ndarray] | None:
     return inner_opening(curves), rounding
 
 
-#: Ways of making lips: from recognised phones (visemes, the default) or from the spectrum (acoustic).
-LIP_METHODS = ("visemes", "acoustic")
+#: Ways of making lips: from recognised phones (visemes, the default), from the spectrum (acoustic), or both
+#: (combined: their mean, the visemes' closures kept).
+LIP_METHODS = ("visemes", "acoustic", "combined")
+#: ``combined`` keeps the visemes' mouth where they close it (an inner-lip opening under this, MNS).
+COMBINED_CLOSED_MNS = 30.0
 
 
 def lip_curves(audio, n_frames: int, *, fps: float, method: str = "visemes", transcript: str | None = None,
@@ -111,11 +114,14 @@ def lip_curves(audio, n_frames: int, *, fps: float, method: str = "visemes", tra
         The recording (a file is read block by block).
     n_frames : int >= 0
     fps : float > 0
-    method : {"visemes", "acoustic"}
+    method : {"visemes", "acoustic", "combined"}
         ``visemes``: phones (PocketSphinx) -> MPEG-4 visemes -> dominance blending; ``acoustic``: the acoustic
-        mouth model (language independent, ignores ``transcript``).
+        mouth model (language independent, ignores ``transcript``); ``combined``: the mean of the two mouths'
+        shapes, the visemes' where they close the lips (under :data:`COMBINED_CLOSED_MNS`): held out by speaker
+        it follows the opening better than either (see ``docs/languages.md``).
     transcript : str, optional
-        What is said, for ``visemes`` (aligned to the audio; see :func:`audio_features.phones.recognise_phones`).
+        What is said, for ``visemes`` and ``combined`` (aligned to the audio; see
+        :func:`audio_features.phones.recognise_phones`).
     language : str, optional
         The transcript's language, an eSpeak NG code (``es``, ``de``, ``cmn``, ...): its phones come from eSpeak NG
         and are aligned by :func:`audio_features.espeak.align_transcript` (any language, no acoustic model);
@@ -123,30 +129,49 @@ def lip_curves(audio, n_frames: int, *, fps: float, method: str = "visemes", tra
     gain : float >= 0
         Scale of every lip FAP (0: a still, closed mouth).
     mouth_model : AcousticMouthModel, optional
-        For ``acoustic``; the shipped one when omitted.
+        For ``acoustic`` and ``combined``; the shipped one when omitted.
+
+    Returns
+    -------
+    dict of int to numpy.ndarray
+        Lip FAP -> curve in its units.
     """
     if method not in LIP_METHODS:
-        raise ConfigError(f"unknown lip method {method!r}; choose {' or '.join(LIP_METHODS)}")
+        raise ConfigError(f"unknown lip method {method!r}; choose {', '.join(LIP_METHODS)}")
     if not (np.isfinite(gain) and 0 <= gain <= 100):
         raise ConfigError(f"lip gain must be a number in [0, 100], got {gain!r}")
     if method == "acoustic":
         if transcript is not None:
             raise ConfigError("the acoustic lips do not read a transcript; use method='visemes' with it")
-        from .mouth_model import AcousticMouthModel
+        return shape_faps(_acoustic_shape(audio, n_frames, fps=fps, mouth_model=mouth_model), gain=gain)
+    if language is not None and transcript is None:
+        raise ConfigError("a language is the transcript's: give the transcript too (without one, the acoustic "
+                          "lips follow any language)")
+    shape = _phone_shape(audio, n_frames, fps=fps, transcript=transcript, language=language)
+    if method == "combined":
+        heard = _acoustic_shape(audio, n_frames, fps=fps, mouth_model=mouth_model)
+        closed = shape.opening < COMBINED_CLOSED_MNS
+        shape = MouthShape(np.where(closed, shape.opening, 0.5 * (shape.opening + heard.opening)),
+                           0.5 * (shape.rounding + heard.rounding), 0.5 * (shape.spread + heard.spread))
+    return shape_faps(shape, gain=gain)
 
-        model = mouth_model if mouth_model is not None else AcousticMouthModel.load()
-        shape = model.predict(audio, n_frames, fps=fps)
-    elif language is not None:
-        if transcript is None:
-            raise ConfigError("a language is the transcript's: give the transcript too (without one, the acoustic "
-                              "lips follow any language)")
+
+def _acoustic_shape(audio, n_frames: int, *, fps: float, mouth_model=None) -> MouthShape:
+    from .mouth_model import AcousticMouthModel
+
+    model = mouth_model if mouth_model is not None else AcousticMouthModel.load()
+    return model.predict(audio, n_frames, fps=fps)
+
+
+def _phone_shape(audio, n_frames: int, *, fps: float, transcript: str | None, language: str | None) -> MouthShape:
+    """The visemes' mouth: eSpeak NG's phones aligned to the recording where a language is given, else
+    PocketSphinx's (its phone loop, or the transcript aligned)."""
+    if language is not None:
         from audio_features.audio import load_audio
         from audio_features.espeak import align_transcript
 
         recording = audio if hasattr(audio, "samples") else load_audio(audio)
-        shape = shapes_from_phones(align_transcript(recording, transcript, language), n_frames, fps=fps)
-    else:
-        from audio_features.phones import recognise_phones
+        return shapes_from_phones(align_transcript(recording, transcript or "", language), n_frames, fps=fps)
+    from audio_features.phones import recognise_phones
 
-        shape = shapes_from_phones(recognise_phones(audio, transcript=transcript), n_frames, fps=fps)
-    return shape_faps(shape, gain=gain)
+    return shapes_from_phones(recognise_phones(audio, transcript=transcript), n_frames, fps=fps)
