@@ -7,18 +7,20 @@ DEMO_STAMP := $(VENV)/.demo-stamp
 
 .PHONY: install demo test test-fast lint docs bench evaluate models clean
 
-$(STAMP): pyproject.toml
+# $(call venv_with,REQUIREMENT): the virtual environment, made if missing, with the project installed as asked
+define venv_with
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
-	touch $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '$(1)'
+	touch $@
+endef
+
+$(STAMP): pyproject.toml
+	$(call venv_with,.[test])
 
 # the demo needs the package alone (no test, track or stats extras)
 $(DEMO_STAMP): pyproject.toml
-	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e .
-	touch $(DEMO_STAMP)
+	$(call venv_with,.)
 
 install: $(STAMP)
 

@@ -33,42 +33,37 @@ def is_number(value: object) -> bool:
             and math.isfinite(float(value)))
 
 
-def valid_seed(seed: object, name: str = "seed") -> int:
-    """A random seed: a whole number >= 0.
+def valid_whole(value: object, name: str, low: int, high: int | None = None) -> int:
+    """A whole number (an int, numpy's too, not a bool) from ``low`` to ``high`` (no upper end when None).
 
     Parameters
     ----------
-    seed : object
+    value : object
         The value given.
     name : str
         How the message names it.
+    low, high : int
+        The range, both ends included.
 
     Returns
     -------
     int
     """
-    if not (isinstance(seed, numbers.Integral) and not isinstance(seed, bool) and int(seed) >= 0):
-        raise ConfigError(f"{name} must be a whole number >= 0, got {seed!r}")
-    return int(seed)
+    if not (isinstance(value, numbers.Integral) and not isinstance(value, bool)
+            and low <= int(value) and (high is None or int(value) <= high)):
+        shown = f">= {low}" if high is None else f"from {low} to {high}"
+        raise ConfigError(f"{name} must be a whole number {shown}, got {value!r}")
+    return int(value)
+
+
+def valid_seed(seed: object, name: str = "seed") -> int:
+    """A random seed: :func:`valid_whole` from 0, with no upper end."""
+    return valid_whole(seed, name, 0)
 
 
 def valid_seeds(seeds: object, name: str = "seeds") -> int:
-    """A number of seeds to average over: a whole number from 1 to :data:`MAX_SEEDS`.
-
-    Parameters
-    ----------
-    seeds : object
-        The value given.
-    name : str
-        How the message names it.
-
-    Returns
-    -------
-    int
-    """
-    if not (isinstance(seeds, numbers.Integral) and not isinstance(seeds, bool) and 1 <= int(seeds) <= MAX_SEEDS):
-        raise ConfigError(f"{name} must be a whole number from 1 to {MAX_SEEDS}, got {seeds!r}")
-    return int(seeds)
+    """A number of seeds to average over: :func:`valid_whole` from 1 to :data:`MAX_SEEDS`."""
+    return valid_whole(seeds, name, 1, MAX_SEEDS)
 
 
 def valid_number(value: object, name: str, low: float, high: float) -> float:

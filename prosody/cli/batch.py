@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
                         jobs=args.jobs, scheduler=args.scheduler, force=args.force, on_outcome=on_outcome)
     counts = summary["counts"]
     msg.say(f"{args.output}: {counts['files']} file(s), {counts['done']} processed, {counts['skipped']} already "
-          f"complete, {counts['failed']} failed; summary in summary.md and summary.json")
+            f"complete, {counts['failed']} failed; summary in summary.md and summary.json")
     return opt.EXIT_FAILURE if counts["failed"] else opt.EXIT_OK
 
 

@@ -24,7 +24,7 @@ def run(args: argparse.Namespace) -> int:
     features = extract_features(args.input, **opt.analysis_kwargs(args))
     features.write_csv(args.output)
     msg.say(f"{args.output}: {features.n_frames} frames at {features.fps:g} fps "
-          f"({features.duration_s:.2f} s, {int(features.f0.voiced.sum())} voiced)")
+            f"({features.duration_s:.2f} s, {int(features.f0.voiced.sum())} voiced)")
     return opt.EXIT_OK
 
 

@@ -110,14 +110,13 @@ def run_stimuli(args: argparse.Namespace) -> int:
                             on_video=on_video, progress=bar)
     kept = len(manifest["videos"]) - drawn[0]
     msg.say(f"{args.output}: {len(manifest['videos'])} videos of {len(plan.stimuli)} stimulus/stimuli and "
-         f"{len(plan.conditions)} conditions ({drawn[0]} drawn, {kept} already complete), listed in stimuli.json")
+            f"{len(plan.conditions)} conditions ({drawn[0]} drawn, {kept} already complete), listed in stimuli.json")
     return opt.EXIT_OK
 
 
 def run_serve(args: argparse.Namespace) -> int:
-    import time
 
-    from ..live.server import parse_address
+    from ..live.server import parse_address, serve_until_interrupted
     from ..study.designs import read_plan
     from ..study.server import StudyServer
     from ..study.stimuli import check_stimuli
@@ -142,22 +141,16 @@ def run_serve(args: argparse.Namespace) -> int:
             raise
         progress = store.progress()
         msg.say(f"prosody study serve: the study is at {server.url} ({plan.design}, {len(plan.trials)} trials each; "
-             f"{progress['participants']} participant(s) and {progress['answers']} answer(s) so far in {args.db})")
+                f"{progress['participants']} participant(s) and {progress['answers']} answer(s) so far in {args.db})")
         msg.say(f"prosody study serve: organiser's token {server.token} (export: {server.url}admin/export.csv?token="
-             f"{server.token}, or 'prosody study export {args.db} -o ballots.csv')")
+                f"{server.token}, or 'prosody study export {args.db} -o ballots.csv')")
         if host not in ("127.0.0.1", "::1", "localhost"):
             msg.say(f"prosody study serve: warning: listening on {host}: other machines can reach the study")
         server.start()
-        try:
-            while True:
-                time.sleep(3600)
-        except KeyboardInterrupt:
-            pass
-        finally:
-            server.close()
+        serve_until_interrupted(server.close)
         progress = store.progress()
         msg.say(f"prosody study serve: stopped; {progress['participants']} participant(s), {progress['finished']} "
-             f"finished, {progress['answers']} answer(s) saved in {args.db}")
+                f"finished, {progress['answers']} answer(s) saved in {args.db}")
     finally:
         store.close()
     return opt.EXIT_OK
@@ -182,7 +175,7 @@ def run_export(args: argparse.Namespace) -> int:
     with atomic_write(args.output, newline="\n") as handle:
         handle.write(text)
     msg.say(f"{args.output}: {progress['answers']} answer(s) of {progress['participants']} participant(s) "
-         f"({progress['finished']} finished), {store.design} ballots")
+            f"({progress['finished']} finished), {store.design} ballots")
     return opt.EXIT_OK
 
 

@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
     failed = sum(outcome.status == "failed" for outcome in outcomes)
     skipped = sum(outcome.status == "skipped" for outcome in outcomes)
     msg.say(f"{args.output}: {len(outcomes)} video(s), {len(outcomes) - failed - skipped} tracked, {skipped} already "
-         f"complete, {failed} failed")
+            f"complete, {failed} failed")
     return opt.EXIT_FAILURE if failed else opt.EXIT_OK
 
 

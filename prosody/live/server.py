@@ -43,6 +43,7 @@ import json
 import socket
 import struct
 import threading
+import time
 import urllib.parse
 from collections.abc import Callable, Iterable
 from importlib import resources
@@ -110,6 +111,17 @@ def _trusted_host(name: str) -> bool:
 def page_html() -> bytes:
     """The page served at ``/``."""
     return resources.files("prosody.live").joinpath("face.html").read_bytes()
+
+
+def serve_until_interrupted(close: Callable[[], object]) -> None:
+    """Block the calling thread until Ctrl-C (or SIGTERM, which the command turns into it), then ``close``."""
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        close()
 
 
 def parse_address(text: str, address_of: str = "listen address") -> tuple[str, int]:

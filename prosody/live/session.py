@@ -20,7 +20,6 @@ import contextlib
 import queue
 import signal
 import sys
-import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -325,14 +324,10 @@ class StreamSession:
         return True
 
     def _serve_only(self) -> StreamResult:
+        from .server import serve_until_interrupted
+
         self._start_server(reading=False)
-        try:
-            while True:
-                time.sleep(3600)
-        except KeyboardInterrupt:
-            pass
-        finally:
-            self.server.close()
+        serve_until_interrupted(self.server.close)
         self.report(f"stopped after serving {self.server.clients_served} client(s)")
         return StreamResult(0, 0.0, 0, True, 0, (), [], self.server.clients_served)
 
