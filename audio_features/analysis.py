@@ -40,7 +40,15 @@ SegmentReader = Callable[[int, int], np.ndarray]
 # arrays inside: equality is identity (numpy's == is elementwise), so it stays hashable
 @dataclass(frozen=True, eq=False)
 class GridAnalysis:
-    """Raw analysis results on the frame grid (before F0 conditioning)."""
+    """Raw analysis results on the frame grid (before F0 conditioning).
+
+    Attributes
+    ----------
+    f0_hz : numpy.ndarray
+        Praat's F0 per frame, NaN where unvoiced.
+    energy_db : numpy.ndarray
+        Praat's intensity per frame, dB re 2e-5 Pa.
+    """
 
     f0_hz: np.ndarray
     energy_db: np.ndarray
@@ -48,6 +56,18 @@ class GridAnalysis:
 
 def analysis_step(fps: float) -> tuple[float, int]:
     """Return ``(dt, oversample)``: the Praat time step and how many steps make one grid frame.
+
+    Parameters
+    ----------
+    fps : float
+        Frames per second of the grid.
+
+    Returns
+    -------
+    dt : float
+        Praat's time step, in s.
+    oversample : int
+        Praat steps per grid frame.
 
     Examples
     --------
@@ -98,7 +118,34 @@ def analyse_grid(
     progress: Callable[[int, int], None] | None = None,
 ) -> GridAnalysis:
     """Praat F0 (NaN where unvoiced) and intensity (dB) at every grid frame of a recording;
-    ``progress(frames_done, frames_total)`` is called after each chunk."""
+    ``progress(frames_done, frames_total)`` is called after each chunk.
+
+    Parameters
+    ----------
+    read : SegmentReader
+        Gives the mono samples of any stretch of the recording.
+    n_samples, sample_rate_hz : int
+        Length and rate of the recording.
+    global_peak : float
+        The recording's largest absolute sample (Praat's pitch thresholds are relative to it).
+    fps : float
+        Frames per second of the grid.
+    f0_floor_hz, f0_ceiling_hz : float
+        The pitch tracker's range.
+    intensity_min_pitch_hz : float
+        The intensity analysis's minimum pitch (its window is 3.2 periods of it).
+    chunk_s, margin_s : float
+        Length of the stretches analysed at a time, and the audio added on each side so that they join seamlessly.
+    source : str
+        How messages name the recording.
+    progress : callable, optional
+        Called as ``progress(frames_done, frames_total)``.
+
+    Returns
+    -------
+    GridAnalysis
+        F0 and intensity on the grid.
+    """
     import parselmouth
 
     from .tracks import frame_count
@@ -165,7 +212,17 @@ def analyse_grid(
 
 
 def array_reader(samples: np.ndarray) -> SegmentReader:
-    """A :data:`SegmentReader` over an in-memory mono signal."""
+    """A :data:`SegmentReader` over an in-memory mono signal.
+
+    Parameters
+    ----------
+    samples : numpy.ndarray
+        The signal, mono.
+
+    Returns
+    -------
+    SegmentReader
+    """
     total = samples.shape[0]
 
     def read(start: int, length: int) -> np.ndarray:
@@ -183,6 +240,19 @@ def sound_file_reader(sound, *, source: str, total: int | None = None) -> Segmen
 
     ``total`` is the number of samples to read (default: the header's count); a file that holds fewer, or
     whose decoder gives up, is reported as truncated or damaged.
+
+    Parameters
+    ----------
+    sound : soundfile.SoundFile
+        An open file.
+    source : str
+        How messages name it.
+    total : int, optional
+        Samples to read.
+
+    Returns
+    -------
+    SegmentReader
     """
     import soundfile
 

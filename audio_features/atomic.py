@@ -84,7 +84,12 @@ def _not_regular(target: Path) -> str | None:
 @contextlib.contextmanager
 def interrupts_held() -> Iterator[None]:
     """Ctrl-C and SIGTERM that arrive inside the block act when it ends (only the main thread sets handlers;
-    elsewhere the block runs as it is)."""
+    elsewhere the block runs as it is).
+
+    Yields
+    ------
+    None
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -112,6 +117,16 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     The file keeps the permissions of the file it replaces; a new one gets those a newly created file would
     (0666 less the umask), not the temporary file's private 0600. A device or FIFO at ``path`` is yielded
     itself (written through, never replaced); a directory raises :class:`IsADirectoryError`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file to replace.
+
+    Yields
+    ------
+    pathlib.Path
+        The temporary path to write.
     """
     if not os.fspath(path):
         raise FileNotFoundError(errno.ENOENT, "no output file name given", "''")
@@ -168,6 +183,20 @@ def atomic_write(path: str | os.PathLike[str], *, mode: str = "w", newline: str 
 
     A failure (or an interrupt) inside the block removes the temporary file, so no half-written output
     is ever left under the final name. A device or FIFO is written through (see :func:`atomic_path`).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file to replace.
+    mode : str
+        ``"w"`` (text) or ``"wb"`` (bytes).
+    newline : str or None
+        As for :func:`open`.
+
+    Yields
+    ------
+    file object
+        The temporary file, open for writing.
     """
     with atomic_path(path) as partial:
         handle: IO

@@ -74,7 +74,17 @@ class Audio:
 
 
 def check_shape(n_samples: int, *, source: str, sample_rate_hz: float) -> None:
-    """Raise :class:`AudioLoadError` for a recording with no samples or too low a sample rate."""
+    """Raise :class:`AudioLoadError` for a recording with no samples or too low a sample rate.
+
+    Parameters
+    ----------
+    n_samples : int
+        Samples per channel.
+    source : str
+        How the message names the recording.
+    sample_rate_hz : float
+        Its rate.
+    """
     if not sample_rate_hz >= MIN_SAMPLE_RATE_HZ:
         raise AudioLoadError(
             f"{source}: sample rate {sample_rate_hz!r} Hz is below the supported minimum of "
@@ -90,7 +100,17 @@ def check_shape(n_samples: int, *, source: str, sample_rate_hz: float) -> None:
 
 
 def check_samples(samples: np.ndarray, *, source: str, sample_rate_hz: float) -> None:
-    """Raise :class:`AudioLoadError` for audio no analysis can use (empty, non-finite, too low a rate)."""
+    """Raise :class:`AudioLoadError` for audio no analysis can use (empty, non-finite, too low a rate).
+
+    Parameters
+    ----------
+    samples : numpy.ndarray
+        The samples, (n,) or (n, channels).
+    source : str
+        How the message names the recording.
+    sample_rate_hz : float
+        Its rate.
+    """
     check_shape(samples.shape[0], source=source, sample_rate_hz=sample_rate_hz)
     finite = np.isfinite(samples)
     if not finite.all():
@@ -101,7 +121,17 @@ def check_samples(samples: np.ndarray, *, source: str, sample_rate_hz: float) ->
 
 
 def check_readable(path: str | os.PathLike[str]) -> Path:
-    """Return ``path`` as a Path if it names a readable, non-empty regular file, else raise AudioLoadError."""
+    """Return ``path`` as a Path if it names a readable, non-empty regular file, else raise AudioLoadError.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+
+    Returns
+    -------
+    pathlib.Path
+    """
     file = Path(path)
     try:
         size = check_input(file)
@@ -263,7 +293,18 @@ def _check_ogg_end(handle, file: Path, size: int) -> None:
 
 
 def open_sound_file(path: str | os.PathLike[str]):
-    """Open ``path`` with soundfile after the checks of :func:`check_readable`; errors become AudioLoadError."""
+    """Open ``path`` with soundfile after the checks of :func:`check_readable`; errors become AudioLoadError.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The audio file.
+
+    Returns
+    -------
+    soundfile.SoundFile
+        Open for reading; the caller closes it.
+    """
     import soundfile
 
     file = check_readable(path)
@@ -277,7 +318,18 @@ def open_sound_file(path: str | os.PathLike[str]):
 
 def read_whole(sound) -> np.ndarray:
     """Every remaining frame of an open SoundFile as float64 (frames, channels); in blocks where libsndfile
-    cannot seek (GSM 6.10 in WAV), since it then cannot tell how many frames are left."""
+    cannot seek (GSM 6.10 in WAV), since it then cannot tell how many frames are left.
+
+    Parameters
+    ----------
+    sound : soundfile.SoundFile
+        An open file.
+
+    Returns
+    -------
+    numpy.ndarray
+        (frames, channels), float64.
+    """
     if sound.seekable():
         return sound.read(dtype="float64", always_2d=True)
     blocks = list(read_blocks(sound, 1 << 16))
@@ -286,7 +338,20 @@ def read_whole(sound) -> np.ndarray:
 
 def read_blocks(sound, block_frames: int) -> Iterator[np.ndarray]:
     """The remaining frames of an open SoundFile in float64 blocks of ``block_frames`` (the last shorter),
-    by explicit counts, which every codec allows (SoundFile.blocks needs seeking where none is given)."""
+    by explicit counts, which every codec allows (SoundFile.blocks needs seeking where none is given).
+
+    Parameters
+    ----------
+    sound : soundfile.SoundFile
+        An open file.
+    block_frames : int
+        Frames per block.
+
+    Yields
+    ------
+    numpy.ndarray
+        (frames, channels), float64.
+    """
     while True:
         block = sound.read(frames=block_frames, dtype="float64", always_2d=True)
         if block.shape[0]:
@@ -297,7 +362,21 @@ def read_blocks(sound, block_frames: int) -> Iterator[np.ndarray]:
 
 def file_blocks(path: str | os.PathLike[str], *, seconds_per_block: float = 10.0) -> tuple[int, Iterator[np.ndarray]]:
     """``(sample rate, blocks)`` of a file read ``seconds_per_block`` at a time, mixed to mono (float64): bounded memory
-    for recordings of any length. The file is checked as :func:`load_audio` checks it."""
+    for recordings of any length. The file is checked as :func:`load_audio` checks it.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The audio file.
+    seconds_per_block : float
+        Length of each block, in s.
+
+    Returns
+    -------
+    sample_rate_hz : int
+    blocks : iterator of numpy.ndarray
+        Mono float64 blocks, in order.
+    """
     sound = open_sound_file(path)
     check_shape(max(sound.frames, 1), source=str(path), sample_rate_hz=sound.samplerate)
     rate = int(sound.samplerate)
@@ -360,12 +439,40 @@ def load_audio(path: str | os.PathLike[str]) -> Audio:
 
 
 def decode_failure(path: str | os.PathLike[str], container: str, error: BaseException) -> str:
-    """The message for a decoder that gave up part-way: the file is cut off or damaged."""
+    """The message for a decoder that gave up part-way: the file is cut off or damaged.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+    container : str
+        Its format, as the message says it.
+    error : BaseException
+        What the decoder raised.
+
+    Returns
+    -------
+    str
+    """
     detail = str(error).split(": ", 1)[-1].strip()
     return f"{path}: truncated or damaged {container} file: the decoder stopped ({detail})"
 
 
 def truncation(path: str | os.PathLike[str], container: str, promised: int, found: int) -> str:
-    """The message for a file that holds fewer samples than its header promises."""
+    """The message for a file that holds fewer samples than its header promises.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+    container : str
+        Its format, as the message says it.
+    promised, found : int
+        Samples the header promises, and those the file holds.
+
+    Returns
+    -------
+    str
+    """
     return (f"{path}: truncated {container} file: the header promises {promised} samples but only {found} "
             "could be decoded")

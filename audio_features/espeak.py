@@ -71,7 +71,17 @@ class EspeakError(ParameterError):
 
 @dataclass(frozen=True)
 class SpokenPhone:
-    """A phone of eSpeak's rendering: its IPA name, class, and start in that rendering."""
+    """A phone of eSpeak's rendering: its IPA name, class, and start in that rendering.
+
+    Attributes
+    ----------
+    ipa : str
+        The phone as eSpeak NG names it.
+    label : str
+        Its lip class.
+    start_s : float
+        Its start in eSpeak NG's rendering, in s.
+    """
 
     ipa: str
     label: str
@@ -80,6 +90,16 @@ class SpokenPhone:
 
 def phone_classes(name: str) -> list[str]:
     """The lip classes of one of eSpeak's IPA phone names (a diphthong gives one per vowel; pauses none).
+
+    Parameters
+    ----------
+    name : str
+        A phone as eSpeak NG names it in IPA (stress marks and length allowed).
+
+    Returns
+    -------
+    list of str
+        Lip classes, in order.
 
     Examples
     --------
@@ -196,12 +216,33 @@ def _engine() -> _Engine:
 
 
 def languages() -> dict[str, str]:
-    """The language codes eSpeak NG speaks, with the name of a voice of each."""
+    """The language codes eSpeak NG speaks, with the name of a voice of each.
+
+    Returns
+    -------
+    dict of str to str
+        Language code -> a voice's name.
+    """
     return _engine().languages()
 
 
 def speak(text: str, language: str) -> tuple[Audio, list[SpokenPhone]]:
-    """eSpeak NG saying ``text`` in ``language``: its audio and its phones with their start times."""
+    """eSpeak NG saying ``text`` in ``language``: its audio and its phones with their start times.
+
+    Parameters
+    ----------
+    text : str
+        What is said.
+    language : str
+        An eSpeak NG language code (``prosody languages`` lists them).
+
+    Returns
+    -------
+    audio : Audio
+        eSpeak NG's rendering.
+    phones : list of SpokenPhone
+        Its phones, with their start times in the rendering.
+    """
     if not text.strip():
         raise ParameterError("the transcript has no words")
     engine = _engine()
@@ -225,6 +266,20 @@ def _normalised(features: np.ndarray) -> np.ndarray:
 
 def align_transcript(recording: Audio, transcript: str, language: str) -> list[Phone]:
     """The transcript's phones on the recording's time line, labelled by lip class (see the module doc).
+
+    Parameters
+    ----------
+    recording : Audio
+        The recording the transcript is said in.
+    transcript : str
+        What is said.
+    language : str
+        An eSpeak NG language code.
+
+    Returns
+    -------
+    list of Phone
+        Labelled by lip class, with start and end times on the recording.
 
     Raises
     ------

@@ -37,6 +37,11 @@ def open_input(path: str | os.PathLike[str], *, text: bool = False, max_bytes: i
     encoding, newline
         As for :func:`open`, in text mode.
 
+    Returns
+    -------
+    file object
+        Open for reading; the caller closes it.
+
     Raises
     ------
     FileNotFoundError, IsADirectoryError, PermissionError
@@ -82,7 +87,20 @@ def open_input(path: str | os.PathLike[str], *, text: bool = False, max_bytes: i
 
 
 def check_input(path: str | os.PathLike[str], *, max_bytes: int | None = None) -> int:
-    """Raise as :func:`open_input` does for what it would refuse; return the file's size in bytes."""
+    """Raise as :func:`open_input` does for what it would refuse; return the file's size in bytes.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+    max_bytes : int > 0 or None
+        Largest size accepted; None: any.
+
+    Returns
+    -------
+    int
+        Its size in bytes.
+    """
     with open_input(path, max_bytes=max_bytes) as handle:
         return os.fstat(handle.fileno()).st_size
 
@@ -96,6 +114,16 @@ def _size(n_bytes: int) -> str:
 
 def file_sha256(path: str | os.PathLike[str]) -> str:
     """SHA-256 of a regular file's content, read in 1 MiB blocks.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+
+    Returns
+    -------
+    str
+        The digest in hexadecimal.
 
     Raises
     ------

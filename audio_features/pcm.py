@@ -79,6 +79,11 @@ class PcmDecoder:
     """Bytes in any piece sizes -> mono float samples (full scale +-1); a sample split between two pieces
     waits for the rest.
 
+    Parameters
+    ----------
+    pcm : PcmFormat
+        Rate, sample encoding and channels of the bytes.
+
     Examples
     --------
     >>> decoder = PcmDecoder(PcmFormat(16000))
@@ -96,6 +101,18 @@ class PcmDecoder:
         return len(self._pending)
 
     def decode(self, data: bytes) -> np.ndarray:
+        """Decode the next bytes of the stream; a partial frame at the end waits for the rest.
+
+        Parameters
+        ----------
+        data : bytes
+            The bytes that arrived, any number of them.
+
+        Returns
+        -------
+        numpy.ndarray
+            Mono float samples (channels mixed), full scale +-1.
+        """
         data = self._pending + bytes(data)
         usable = len(data) - len(data) % self.format.frame_bytes
         self._pending = data[usable:]
@@ -122,6 +139,13 @@ class PcmDecoder:
 def read_wav_header(read: Callable[[int], bytes], *, source: str = "<stream>") -> tuple[PcmFormat, int | None]:
     """Read a WAV header from a stream (``read(n)`` returns up to ``n`` bytes, ``b""`` at its end), up to
     the first byte of the samples.
+
+    Parameters
+    ----------
+    read : callable
+        ``read(n)`` returns up to ``n`` bytes of the stream.
+    source : str
+        How messages name the stream.
 
     Returns
     -------

@@ -60,7 +60,15 @@ class PhoneRecognitionError(AudioFeaturesError, RuntimeError):
 
 @dataclass(frozen=True)
 class Phone:
-    """One phone: ARPAbet label (or SIL) from ``start_s`` to ``end_s``."""
+    """One phone: ARPAbet label (or SIL) from ``start_s`` to ``end_s``.
+
+    Attributes
+    ----------
+    label : str
+        ARPAbet phone, or ``SIL``.
+    start_s, end_s : float
+        Its span on the recording, in s.
+    """
 
     label: str
     start_s: float
@@ -170,6 +178,15 @@ def transcript_words(text: str) -> list[str]:
     """The words of a transcript as the dictionary spells them: lower case, punctuation dropped (apostrophes
     inside words kept).
 
+    Parameters
+    ----------
+    text : str
+        The transcript.
+
+    Returns
+    -------
+    list of str
+
     Examples
     --------
     >>> transcript_words("He turned -- sharply, and faced Gregson's desk.")
@@ -191,6 +208,15 @@ MAX_TRANSCRIPT_BYTES = 1 << 20
 def read_transcript(path: str | os.PathLike[str]) -> str:
     """The text of a transcript file: UTF-8 (with or without a byte-order mark), or UTF-16/32 with theirs (as
     Notepad saves "Unicode"); at most :data:`MAX_TRANSCRIPT_BYTES`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The text file.
+
+    Returns
+    -------
+    str
 
     Raises
     ------

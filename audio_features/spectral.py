@@ -42,7 +42,23 @@ def _mel_to_hz(mel: np.ndarray | float) -> np.ndarray:
 def mel_filterbank(rate: int, n_fft: int, n_mels: int, low_hz: float, high_hz: float) -> np.ndarray:
     """Triangular filters evenly spaced on Slaney's mel scale, each of unit area (Slaney's normalisation),
     float32, shape ``(n_mels, n_fft // 2 + 1)``: the filterbank of ``librosa.filters.mel`` with its defaults,
-    built here so that the live path does not import librosa (and numba: about 130 MB)."""
+    built here so that the live path does not import librosa (and numba: about 130 MB).
+
+    Parameters
+    ----------
+    rate : int
+        Sample rate, Hz.
+    n_fft : int
+        FFT length.
+    n_mels : int
+        Number of filters.
+    low_hz, high_hz : float
+        The band the filters cover.
+
+    Returns
+    -------
+    numpy.ndarray
+    """
     edges = _mel_to_hz(np.linspace(_hz_to_mel(low_hz), _hz_to_mel(high_hz), n_mels + 2))
     bins = np.fft.rfftfreq(n_fft, 1.0 / rate)
     widths = np.diff(edges)
@@ -91,6 +107,16 @@ def _cepstra_of(frames: np.ndarray, taper: np.ndarray, mel: np.ndarray) -> np.nd
 def cepstra(audio: Audio) -> np.ndarray:
     """MFCCs and log energy of every 10 ms frame, shape (n, 14); frame ``j`` is centred at ``j / 100`` s.
 
+    Parameters
+    ----------
+    audio : Audio
+        The recording (mono).
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 14): 13 MFCCs and the log energy per frame.
+
     Examples
     --------
     >>> t = np.arange(16000) / 16000
@@ -113,6 +139,11 @@ def cepstra(audio: Audio) -> np.ndarray:
 class CepstraStream:
     """The frames of :func:`cepstra` for audio that arrives piece by piece: each as soon as its window is in,
     the same values as the whole-recording analysis however the audio is cut.
+
+    Parameters
+    ----------
+    sample_rate_hz : int
+        Rate of the samples that will be pushed.
 
     Examples
     --------
@@ -155,7 +186,17 @@ class CepstraStream:
         return out
 
     def push(self, samples: np.ndarray) -> np.ndarray:
-        """Add mono samples; return the frames that became complete, shape (k, 14)."""
+        """Add mono samples; return the frames that became complete, shape (k, 14).
+
+        Parameters
+        ----------
+        samples : numpy.ndarray
+            Mono samples at the stream's rate.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         samples = np.asarray(samples, float).reshape(-1)
         self._buffer = np.concatenate([self._buffer, samples])
         self._received += samples.size
@@ -165,14 +206,36 @@ class CepstraStream:
         return self._take(end)
 
     def finish(self) -> np.ndarray:
-        """The remaining frames, with silence after the end (as the whole analysis pads)."""
+        """The remaining frames, with silence after the end (as the whole analysis pads).
+
+        Returns
+        -------
+        numpy.ndarray
+            (k, 14).
+        """
         total = int(self._received / self._hop) + 1
         self._buffer = np.concatenate([self._buffer, np.zeros(self._n_fft)])
         return self._take(total)
 
 
 def on_grid(frames: np.ndarray, n_frames: int, *, fps: float, offset_s: float = 0.0) -> np.ndarray:
-    """The 10 ms frames nearest to grid times ``k / fps + offset_s`` (held at the ends), shape (n_frames, 14)."""
+    """The 10 ms frames nearest to grid times ``k / fps + offset_s`` (held at the ends), shape (n_frames, 14).
+
+    Parameters
+    ----------
+    frames : numpy.ndarray
+        10 ms frames, (n, 14).
+    n_frames : int
+        Frames of the grid.
+    fps : float
+        Frames per second of the grid.
+    offset_s : float
+        A shift of every grid time, in s.
+
+    Returns
+    -------
+    numpy.ndarray
+    """
     if not (np.isfinite(fps) and fps > 0):
         raise ParameterError(f"fps must be a positive number, got {fps!r}")
     index = np.round((np.arange(n_frames) / fps + offset_s) * CEPSTRUM_RATE).astype(int)
@@ -180,7 +243,18 @@ def on_grid(frames: np.ndarray, n_frames: int, *, fps: float, offset_s: float = 
 
 
 def file_cepstra(source: Audio | str | os.PathLike[str]) -> np.ndarray:
-    """:func:`cepstra` of a recording, a file read block by block (bounded memory for any length)."""
+    """:func:`cepstra` of a recording, a file read block by block (bounded memory for any length).
+
+    Parameters
+    ----------
+    source : Audio or path-like
+        The recording, in memory or a file.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 14), as :func:`cepstra`.
+    """
     if isinstance(source, Audio):
         return cepstra(source)
     from .audio import file_blocks

@@ -119,7 +119,13 @@ class StreamingAnalyser:
         return self._received
 
     def latency_s(self) -> float:
-        """Audio needed after a frame's time before the frame can be computed (half the longer window)."""
+        """Audio needed after a frame's time before the frame can be computed (half the longer window).
+
+        Returns
+        -------
+        float
+            In s.
+        """
         return 0.5 * max(self._pitch_window_s, self._intensity_window_s) + 2 / self.sample_rate_hz
 
     # the segments of one frame -------------------------------------------------------------------------
@@ -217,6 +223,16 @@ class StreamingAnalyser:
         """Add audio; return ``(f0_hz, energy_db)`` of the frames that became complete (NaN F0 where
         unvoiced), possibly none.
 
+        Parameters
+        ----------
+        samples : numpy.ndarray
+            Mono samples at the analyser's rate, any number of them.
+
+        Returns
+        -------
+        f0_hz, energy_db : numpy.ndarray
+            One value per completed frame.
+
         Raises
         ------
         AudioLoadError
@@ -235,7 +251,13 @@ class StreamingAnalyser:
 
     def finish(self) -> tuple[np.ndarray, np.ndarray]:
         """End of the audio: the remaining frames, analysed with silence after the end (as the whole-file
-        analysis does), so the frame count is the whole file's."""
+        analysis does), so the frame count is the whole file's.
+
+        Returns
+        -------
+        f0_hz, energy_db : numpy.ndarray
+            One value per remaining frame.
+        """
         if self._finished:
             return np.zeros(0), np.zeros(0)
         self._finished = True
@@ -279,6 +301,13 @@ class RunningMedian:
         self.count = 0
 
     def add(self, value: float) -> None:
+        """Add a value (it counts with full weight; older ones fade by the half-life).
+
+        Parameters
+        ----------
+        value : float
+            The new value.
+        """
         if self._decay != 1.0:
             self._counts *= self._decay
             if self.count % 4096 == 0:  # weights forgotten long ago: zero, not ever smaller subnormals
@@ -314,6 +343,11 @@ class CausalF0Bridge:
     bridged from that held value, so the curve never jumps. Before the first voiced frame the value is the
     first voiced F0 within the look-ahead, or 0. Values are clipped to ``[0, highest voiced F0 so far]``.
 
+    Parameters
+    ----------
+    lookahead_frames : int
+        Frames after each frame that its conditioned value may use.
+
     Examples
     --------
     With 2 frames of look-ahead, a 2-frame gap is bridged and a 4-frame gap held, then bridged once its end
@@ -341,7 +375,17 @@ class CausalF0Bridge:
 
     def push(self, f0_hz: float) -> float | None:
         """Add the next frame's raw F0 (NaN if unvoiced); return the conditioned F0 of the frame
-        ``lookahead_frames`` earlier, or None while the look-ahead fills."""
+        ``lookahead_frames`` earlier, or None while the look-ahead fills.
+
+        Parameters
+        ----------
+        f0_hz : float
+            The next frame's F0, NaN where unvoiced.
+
+        Returns
+        -------
+        float or None
+        """
         if not math.isnan(f0_hz):
             self._highest = max(self._highest, float(f0_hz))
         self._pending.append(float(f0_hz))
@@ -350,7 +394,12 @@ class CausalF0Bridge:
         return self._give()
 
     def finish(self) -> list[float]:
-        """The conditioned F0 of the frames still waiting for their look-ahead (the stream has ended)."""
+        """The conditioned F0 of the frames still waiting for their look-ahead (the stream has ended).
+
+        Returns
+        -------
+        list of float
+        """
         return [self._give() for _ in range(len(self._pending))]
 
     def _give(self) -> float:
@@ -384,7 +433,21 @@ class CausalF0Bridge:
 def stream_file(path: str, *, fps: float = DEFAULT_FPS, f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ,
                 f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ) -> tuple[np.ndarray, np.ndarray]:
     """``(f0_hz, energy_db)`` of a whole file as :class:`StreamingAnalyser` gives them live (the frames do
-    not depend on how the audio arrives, so this equals any live run on the same audio)."""
+    not depend on how the audio arrives, so this equals any live run on the same audio).
+
+    Parameters
+    ----------
+    path : str
+        The audio file.
+    fps : float
+        Frames per second of the grid.
+    f0_floor_hz, f0_ceiling_hz : float
+        The pitch tracker's range.
+
+    Returns
+    -------
+    f0_hz, energy_db : numpy.ndarray
+    """
     from .audio import check_shape, open_sound_file
     from .features import _read_all
 

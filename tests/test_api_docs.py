@@ -1,11 +1,13 @@
-"""The public API is documented: every function and method of the facade (``from prosody import ...``) and of
-``audio_features``' exports says its Parameters and Returns in numpydoc sections, and the facade's type stub
+"""The public API is documented: every function and method of the facade (``from prosody import ...``) and every
+public one of ``audio_features`` says its Parameters and Returns in numpydoc sections, and the facade's type stub
 names what the facade gives."""
 
 from __future__ import annotations
 
 import ast
+import importlib
 import inspect
+import pkgutil
 
 import pytest
 from conftest import REPO
@@ -23,11 +25,15 @@ def _members(qualname: str, value: object):
 
 
 def public_api() -> list[tuple[str, object]]:
+    """Every public function and class of :mod:`audio_features`' modules, and the facade of :mod:`prosody`."""
     found = []
-    for name in audio_features.__all__:
-        value = getattr(audio_features, name)
-        if inspect.isfunction(value) or (inspect.isclass(value) and not issubclass(value, BaseException)):
-            found += _members(f"audio_features.{name}", value)
+    for info in pkgutil.walk_packages(audio_features.__path__, prefix="audio_features."):
+        module = importlib.import_module(info.name)
+        for name, value in vars(module).items():
+            if name.startswith("_") or getattr(value, "__module__", None) != module.__name__:
+                continue
+            if inspect.isfunction(value) or (inspect.isclass(value) and not issubclass(value, BaseException)):
+                found += _members(f"{module.__name__}.{name}", value)
     for name in prosody._FACADE:
         found += _members(f"prosody.{name}", getattr(prosody, name))
     return found
