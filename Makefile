@@ -64,6 +64,7 @@ evaluate: $(STAMP)
 	$(BIN)/python -m experiments.live_loco
 	$(BIN)/python -m experiments.mouth_loco
 	$(BIN)/python -m experiments.live_mouth_loso
+	$(BIN)/python -m experiments.live_mouth_videos_loso
 	$(BIN)/python -m experiments.head_loop
 	$(BIN)/python -m experiments.mouth_videos_loso
 	$(BIN)/python -m experiments.mouth_learners_loso

@@ -1,7 +1,8 @@
-"""Fit the shipped live mouth models (``prosody/motion/models/live_mouth_<MS>ms.json``) on the talking-heads
-clips, and print each one's leave-one-speaker-out mouth measures beside the offline acoustic model's.
+"""The live mouth models (0 and 100 ms of look-ahead) held out by speaker on the talking-heads clips: each
+speaker's clips streamed through a model fitted on the other speakers' (``make evaluate``; the shipped models
+are written by ``scripts/retrain_models.py``).
 
-Usage: python experiments/live_mouth_loso.py [DIR] [--write]
+Usage: python -m experiments.live_mouth_loso [DIR]
 """
 
 from __future__ import annotations
@@ -20,11 +21,10 @@ from prosody.motion.mouth_model import (
     SHIPPED_LIVE_MOUTH_MS,
     LiveMouthModel,
     live_mouth_clips,
-    live_mouth_path,
 )
 
 
-def main(folder: Path, write: bool) -> None:
+def main(folder: Path) -> None:
     from audio_features import load_audio
 
     pairs = live_mouth_clips(folder)
@@ -46,11 +46,8 @@ def main(folder: Path, write: bool) -> None:
         print(f"| live, {ms} ms look-ahead, held out by speaker | {np.mean([r['opening_r'] for r in results]):.3f} | "
               f"{np.mean([r['closures']['f1'] or 0 for r in results]):.2f} | "
               f"{np.mean([r['rounding_r'] for r in results]):.3f} |")
-        if write:
-            LiveMouthModel(ms / 1000).fit(pairs).save(live_mouth_path(ms))
 
 
 if __name__ == "__main__":
-    arguments = [a for a in sys.argv[1:] if a != "--write"]
-    folder = Path(arguments[0]) if arguments else default_data()
-    sys.exit(record("live_mouth_loso", lambda: main(folder, "--write" in sys.argv), lambda: [folder]))
+    folder = Path(sys.argv[1]) if len(sys.argv) > 1 else default_data()
+    sys.exit(record("live_mouth_loso", lambda: main(folder), lambda: [folder]))

@@ -12,7 +12,8 @@ Each model of ``prosody/motion/models/`` is refitted on ``../shared/data/talking
   talking-heads clips and the talking videos, tracked first by ``prosody track`` into
   ``out/talking-videos-tracked`` (as ``experiments/mouth_videos_loso.py`` tracks them; about 20 minutes once);
 - ``live_head_<MS>ms.json``: ``prosody train --kind live --lookahead-ms MS --cv`` (minutes each);
-- ``live_mouth_<MS>ms.json``: :class:`prosody.motion.mouth_model.LiveMouthModel` fitted on every clip.
+- ``live_mouth_<MS>ms.json``: :class:`prosody.motion.mouth_model.LiveMouthModel` fitted on every clip of the
+  talking-heads clips and the tracked talking videos.
 
 Each refit is compared with the shipped file number by number (relative 1e-9: the last digit follows the
 machine's BLAS kernel; the training record's statistics are left out of the comparison). ``--write`` replaces
@@ -63,11 +64,14 @@ def _with_tracked_videos(fit: Callable[..., None]) -> Callable[[Path, Path], Non
     return fit_both
 
 
-def _live_mouth(milliseconds: int) -> Callable[[Path, Path], None]:
-    def fit(data: Path, out: Path) -> None:
+def _live_mouth(milliseconds: int) -> Callable[..., None]:
+    def fit(data: Path, out: Path, extra: tuple[str, ...] = ()) -> None:
         from prosody.motion.mouth_model import LiveMouthModel, live_mouth_clips
 
-        LiveMouthModel(milliseconds / 1000).fit(live_mouth_clips(data)).save(out)
+        folders = [data, *(Path(folder) for flag, folder in zip(extra[::2], extra[1::2], strict=True)
+                           if flag == "--data")]
+        LiveMouthModel(milliseconds / 1000).fit([pair for folder in folders
+                                                 for pair in live_mouth_clips(folder)]).save(out)
 
     return fit
 
@@ -84,7 +88,7 @@ def recipes() -> dict[str, Callable[[Path, Path], None]]:
     for ms in SHIPPED_LOOKAHEADS_MS:
         made[f"live_head_{ms}ms.json"] = _train("--kind", "live", "--lookahead-ms", str(ms), "--cv")
     for ms in SHIPPED_LIVE_MOUTH_MS:
-        made[f"live_mouth_{ms}ms.json"] = _live_mouth(ms)
+        made[f"live_mouth_{ms}ms.json"] = _with_tracked_videos(_live_mouth(ms))
     return made
 
 
