@@ -28,6 +28,20 @@ def talking_heads() -> Path:
     return data_folder("talking-heads", needs="the talking-heads clips (speech with tracked head, brows and mouths)")
 
 
+TRACKED_VIDEOS = REPO / "out" / "talking-videos-tracked"
+
+
+def tracked_videos() -> Path:
+    """The clips of ``<shared data>/talking-videos`` tracked by ``prosody track`` into ``out/talking-videos-tracked``
+    (complete outputs are kept and reused: about 20 minutes the first time, seconds after)."""
+    from prosody.cli import main
+
+    videos = data_folder("talking-videos", needs="the talking-videos clips")
+    if main(["track", str(videos), "-o", str(TRACKED_VIDEOS), "-q", "--jobs", "2"]) != 0:
+        raise SystemExit("prosody track failed on the talking videos")
+    return TRACKED_VIDEOS
+
+
 def data_folder(name: str, *, needs: str) -> Path:
     """``<shared data>/<name>``, or exit with one line saying what is missing and how to point at it."""
     folder = shared_data() / name

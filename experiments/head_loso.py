@@ -1,6 +1,6 @@
 """Leave-one-speaker-out head measures on every speaker at hand (``make evaluate``).
 
-The talking-videos clips are tracked first with ``prosody track`` (into ``out/tracked-videos``; complete
+The talking-videos clips are tracked first with ``prosody track`` (into ``out/talking-videos-tracked``; complete
 outputs are reused), then joined with the talking-heads clips; ``experiments/speakers.csv`` names each clip's
 speaker, so two clips of one speaker are always held out together. Rows (means over held-out clips; the
 stochastic generator over 5 seeds; the mismatched-audio control and its chance spread beside each
@@ -29,14 +29,14 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.common import REPO, data_folder, record, shipped_settings, talking_heads
+from experiments.common import TRACKED_VIDEOS, record, shipped_settings, talking_heads, tracked_videos
 from experiments.head_loco import seeded_measures
 from prosody.measures import average_head_metrics, head_metrics
 from prosody.motion.perlin import perlin_curves
 from prosody.motion.training import find_pairs, held_out_prosodic, load_training_set
 
 SEEDS = 5
-TRACKED = REPO / "out" / "tracked-videos"
+TRACKED = TRACKED_VIDEOS
 
 
 def speakers() -> dict[str, str]:
@@ -86,12 +86,7 @@ def main(argv: list[str]) -> int:
     warnings.simplefilter("ignore")
     heads = talking_heads()
     if "--no-track" not in argv:
-        from prosody.jobs.track import track_videos
-
-        videos = data_folder("talking-videos", needs="the talking-videos clips")
-        outcomes = track_videos([videos], TRACKED, jobs=2)
-        failed = [o for o in outcomes if o.status == "failed"]
-        print(f"tracked {len(outcomes)} videos into {TRACKED} ({len(failed)} failed)")
+        tracked_videos()
     table = speakers()
     pairs = find_pairs(heads) + find_pairs(TRACKED)
     data = load_training_set(pairs, speakers=table, report=lambda message: None)

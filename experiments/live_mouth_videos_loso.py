@@ -33,7 +33,7 @@ def streamed(model: LiveMouthModel, clip: dict) -> dict[int, np.ndarray]:
 
 
 def main() -> int:
-    clips = load_clips(data_folder("talking-videos", needs="the talking videos"))
+    clips = load_clips()
     heads = live_mouth_clips(data_folder("talking-heads", needs="the talking-heads clips"), fps=FPS)
     pairs = {clip["name"]: (cepstra(clip["audio"]), clip["training"]) for clip in clips}
     speakers = sorted({clip["speaker"] for clip in clips})

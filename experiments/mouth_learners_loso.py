@@ -63,7 +63,7 @@ LEARNERS = {
 
 
 def main() -> int:
-    clips = load_clips(data_folder("talking-videos", needs="the talking videos"))
+    clips = load_clips()
     heads = heads_training()
     speakers = sorted({clip["speaker"] for clip in clips})
     sexes = {clip["speaker"]: clip["sex"] for clip in clips}

@@ -22,7 +22,6 @@ Usage: python -m experiments.mouth_videos_loso
 from __future__ import annotations
 
 import csv
-import subprocess
 import sys
 import warnings
 from collections import defaultdict
@@ -32,14 +31,14 @@ import numpy as np
 
 from audio_features import extract_features, load_audio
 from audio_features.phones import recognise_phones
-from experiments.common import REPO, data_folder, record
+from experiments.common import TRACKED_VIDEOS, data_folder, record, tracked_videos
 from experiments.mouth_loco import measured
 from prosody.motion.ground_truth import read_mouth_csv
 from prosody.motion.lips import inner_opening, shape_faps, shapes_from_phones
 from prosody.motion.mouth_model import HEADS_MOUTH_MODEL_PATH, AcousticMouthModel, mouth_training_clip
 
 FPS = 30.0
-TRACKED = REPO / "out" / "talking-videos-tracked"
+TRACKED = TRACKED_VIDEOS
 
 
 def speakers() -> dict[str, dict]:
@@ -47,10 +46,8 @@ def speakers() -> dict[str, dict]:
         return {row["clip"]: row for row in csv.DictReader(handle)}
 
 
-def load_clips(folder: Path) -> list[dict]:
-    TRACKED.mkdir(parents=True, exist_ok=True)
-    subprocess.run([sys.executable, "-m", "prosody", "track", str(folder), "-o", str(TRACKED), "-q", "--jobs", "2"],
-                   check=True)
+def load_clips() -> list[dict]:
+    tracked_videos()
     who = speakers()
     clips = []
     for mouth_file in sorted(TRACKED.glob("*.mouth.csv")):
@@ -99,7 +96,7 @@ def summary(label: str, per_speaker: dict[str, list], sexes: dict[str, str]) -> 
 
 
 def main() -> None:
-    clips = load_clips(data_folder("talking-videos", needs="the talking videos"))
+    clips = load_clips()
     heads = heads_training()
     names = sorted({clip["speaker"] for clip in clips})
     sexes = {clip["speaker"]: clip["sex"] for clip in clips}

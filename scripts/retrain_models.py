@@ -52,14 +52,9 @@ def _with_tracked_videos(fit: Callable[..., None]) -> Callable[[Path, Path], Non
     """``fit`` given the talking-heads clips and the talking videos tracked into ``out/talking-videos-tracked``
     (tracked here where that folder does not hold them yet)."""
     def fit_both(data: Path, out: Path) -> None:
-        from experiments.common import REPO, data_folder
-        from prosody.cli import main
+        from experiments.common import tracked_videos
 
-        tracked = REPO / "out" / "talking-videos-tracked"
-        videos = data_folder("talking-videos", needs="the talking videos")
-        if main(["track", str(videos), "-o", str(tracked), "-q", "--jobs", "2"]) != 0:
-            raise SystemExit("prosody track failed on the talking videos")
-        fit(data, out, extra=("--data", str(tracked)))
+        fit(data, out, extra=("--data", str(tracked_videos())))
 
     return fit_both
 
