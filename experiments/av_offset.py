@@ -52,7 +52,8 @@ def _mean(table: dict, names: list[str], key: str) -> str:
 def main(argv: list[str]) -> int:
     warnings.simplefilter("ignore")
     if not TRACKED.is_dir():
-        raise SystemExit(f"{TRACKED}: not found; run python -m experiments.head_loso first to track the talking-videos clips")
+        raise SystemExit(f"{TRACKED}: not found; run python -m experiments.head_loso first to track the "
+                         "talking-videos clips")
     data = load_training_set(find_pairs(talking_heads()) + find_pairs(TRACKED), speakers=speakers(),
                              report=lambda message: None)
     leads = reliable_leads(TRACKED)

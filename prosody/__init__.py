@@ -38,6 +38,10 @@ _FACADE = {
     "write_stream": "prosody.fap.exporters",
     "FapStream": "prosody.fap.stream",
     "run_batch": "prosody.jobs.batch",
+    "AnalysisSettings": "prosody.motion.settings",
+    "MotionSettings": "prosody.motion.settings",
+    "FaceSettings": "prosody.motion.settings",
+    "ChannelSettings": "prosody.motion.settings",
 }
 __all__ = ["__version__", *_FACADE]
 

@@ -11,6 +11,10 @@ from prosody.jobs.batch import run_batch as run_batch
 from prosody.jobs.pipeline import convert as convert
 from prosody.live.converter import LiveConverter as LiveConverter
 from prosody.live.session import StreamSession as StreamSession
+from prosody.motion.settings import AnalysisSettings as AnalysisSettings
+from prosody.motion.settings import ChannelSettings as ChannelSettings
+from prosody.motion.settings import FaceSettings as FaceSettings
+from prosody.motion.settings import MotionSettings as MotionSettings
 
 __version__: str
 __all__: list[str]

@@ -11,13 +11,13 @@ import json
 import os
 import re
 import warnings
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from audio_features import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS, Features, extract_features
+from audio_features import Features, extract_features
 from audio_features.atomic import atomic_write
 
 from ..errors import ConfigError
@@ -49,14 +49,13 @@ from ..motion.conditions import (
     head_motion,
 )
 from ..motion.controls import shift_offsets, shifted_features
-from ..motion.expressions import ExpressionSegment
 from ..motion.expressivity import Expressivity
 from ..motion.eyebrows import BrowRule, EyebrowRaises, NoRaiseWarning, brow_raises, warn_if_no_raise
 from ..motion.face import make_face, stream_mouth
 from ..motion.ground_truth import RecordedMouth, fit_to_grid, mouth_beside, read_motion, read_mouth_csv
 from ..motion.head_models import HeadModel, is_stochastic, resolve_head_model, rest_pose
-from ..motion.pad import PadSegment
-from ..validate import valid_seed, valid_seeds
+from ..motion.settings import AnalysisSettings, FaceSettings, MotionSettings, takes_settings
+from ..validate import valid_seeds
 from .metrics import METRICS_VERSION, Metrics
 
 #: Seeds over which the measures of a stochastic condition (RANDOM, the prosodic SPEECH_DRIVEN head) are
@@ -211,31 +210,21 @@ def comparison_metrics(streams: Mapping[Condition, FapStream], features: Feature
                                               "audio_vs_head": audio_vs_head}}
 
 
+@takes_settings(analysis=AnalysisSettings, motion=MotionSettings, face=FaceSettings)
 def compare(
     audio: str | os.PathLike[str],
     *,
     ground_truth: str | os.PathLike[str] | FapStream | None = None,
-    model: HeadModel | str | os.PathLike[str] | None = None,
-    seed: int = 0,
     seeds: int = SUMMARY_SEEDS,
     other_head_models: Mapping[str, HeadModel | str | os.PathLike[str]] | None = None,
     normalize: bool = False,
     targets: Mapping[int, tuple[float, float]] | None = None,
     conditions: Iterable[Condition | str] | None = None,
-    eyebrow_rule: BrowRule | None = None,
-    fps: float = DEFAULT_FPS,
-    f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ,
-    f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ,
     features: Features | None = None,
-    lips: str | None = "visemes",
-    transcript: str | None = None,
-    expression: str | Sequence[ExpressionSegment] | None = None,
     mouth: str | os.PathLike[str] | RecordedMouth | None = None,
-    mouth_model: str | os.PathLike[str] | None = None,
-    expressivity: Expressivity | None = None,
-    pad: str | Sequence[PadSegment] | None = None,
-    pad_map: str | os.PathLike[str] | None = None,
-    language: str | None = None,
+    analysis: AnalysisSettings,
+    motion: MotionSettings,
+    face: FaceSettings,
 ) -> Comparison:
     """Compute every condition for a recording and compare them.
 
@@ -245,17 +234,12 @@ def compare(
         Speech recording.
     ground_truth : path or FapStream, optional
         Recorded motion (``<clip>.head.csv`` or ``.fap``); enables GROUND_TRUTH and the agreement metrics.
-    model : head model, shipped name or path, optional
-        Head model for SPEECH_DRIVEN: the shipped prosodic generator when omitted, ``"arx"`` for the
-        thesis's model, or a file from ``prosody train``.
-    seed : int >= 0
-        Seed of the RANDOM condition and of the prosodic head (the written streams use it).
+    seeds : int >= 1
+        Number of seeds (``seed``, ``seed + 1``, ...) over which the head measures of the stochastic
+        conditions and of the mismatched-audio control are averaged; the written streams use ``seed``.
     other_head_models : mapping label -> head model, shipped name or path, optional
         Head models measured beside SPEECH_DRIVEN's, with their own mismatched-audio control (for example
         ``{"arx": "arx"}``: the thesis's model next to the default); in ``metrics["other_head_models"]``.
-    seeds : int >= 1
-        Number of seeds (``seed``, ``seed + 1``, ...) over which the head measures of the stochastic
-        conditions and of the mismatched-audio control are averaged.
     normalize : bool
         Scale and offset the RANDOM, SPEECH_DRIVEN and GROUND_TRUTH prosody FAPs to one mean and standard
         deviation per FAP: the ground truth's where it has the FAP, else ``targets``, else the average of the
@@ -264,21 +248,18 @@ def compare(
         Normalisation targets in FAP units for FAPs the ground truth lacks (or without ground truth).
     conditions : iterable, optional
         Conditions to compute (default: all four, GROUND_TRUTH only with ``ground_truth``).
-    eyebrow_rule : AccentRule or EyebrowRule, optional
-        The speech-driven brows' rule (the accent rule by default).
-    fps, f0_floor_hz, f0_ceiling_hz : float
-        Analysis settings (see :func:`audio_features.extract_features`).
     features : Features, optional
         Already extracted features of ``audio``.
-    lips, transcript, expression, mouth_model, pad, pad_map
-        The lips, expression and PAD state's partial expressions given to every condition alike (see
-        :func:`prosody.jobs.pipeline.convert`).
-    expressivity : Expressivity, optional
-        Greta's expressivity controls on the generated conditions (and their controls, and the other head
-        models) alike; recorded motion is left as it is.
     mouth : path or RecordedMouth, optional
         A video-tracked mouth (``<clip>.mouth.csv``) for the mouth measures; by default the one beside
         ``ground_truth`` or ``audio``, if any.
+    analysis : AnalysisSettings, optional
+        How the recording is analysed; or its fields as keywords (below).
+    motion : MotionSettings, optional
+        The head model, the seed, the brow rule and the expressivity controls (on the generated conditions,
+        their controls and the other head models alike; recorded motion is left as it is); or its fields.
+    face : FaceSettings, optional
+        The lips, expression and PAD state's partial expressions given to every condition alike; or its fields.
 
     Returns
     -------
@@ -290,9 +271,10 @@ def compare(
             raise ConfigError("the GROUND_TRUTH condition needs recorded motion (ground_truth=FILE)")
         wanted = [c for c in wanted if c is not Condition.GROUND_TRUTH]
     if features is None:
-        features = extract_features(audio, fps=fps, f0_floor_hz=f0_floor_hz, f0_ceiling_hz=f0_ceiling_hz)
-    head_model = resolve_head_model(model) if Condition.SPEECH_DRIVEN in wanted else None
-    seed, seeds = valid_seed(seed), valid_seeds(seeds)
+        features = extract_features(audio, **analysis.as_keywords())
+    head_model = resolve_head_model(motion.model) if Condition.SPEECH_DRIVEN in wanted else None
+    seed, seeds = motion.seed, valid_seeds(seeds)
+    eyebrow_rule, expressivity = motion.eyebrow_rule, motion.expressivity
     truth = None
     if ground_truth is not None:
         recorded = ground_truth if isinstance(ground_truth, FapStream) else read_motion(ground_truth)
@@ -301,9 +283,8 @@ def compare(
     if Condition.SPEECH_DRIVEN in wanted:
         warn_if_no_raise(eyebrows)
     # the same lips and expression in every condition: the comparison is about prosody
-    face = make_face(audio, features, lips=lips, transcript=transcript, expression=expression,
-                     mouth_model=mouth_model, pad=pad, pad_map=pad_map, language=language)
-    setup = _Setup(features, eyebrows, eyebrow_rule, head_model, truth, Path(str(audio)).stem, face, expressivity,
+    layer = make_face(audio, features, face)
+    setup = _Setup(features, eyebrows, eyebrow_rule, head_model, truth, Path(str(audio)).stem, layer, expressivity,
                    seed, seeds, normalize)
     streams = setup.generate(wanted, targets)
     head_blocks, brow_blocks, control, brow_control = setup.measure_conditions(streams)

@@ -33,6 +33,7 @@ from ..evaluation.metrics import BrowMeasures, HeadMeasures, Metrics, MouthMeasu
 from ..fap.table import HEAD_FAPS, PROSODY_FAPS
 from ..motion.conditions import CONDITION_ORDER, Condition
 from ..motion.expressivity import NEUTRAL, Expressivity
+from ..motion.settings import FaceSettings
 from ..validate import valid_seeds
 
 #: Ground-truth file endings looked up beside an audio file's stem, in order of preference.
@@ -72,8 +73,7 @@ class BatchOptions:
         if not parsed:
             raise ConfigError("choose at least one condition")
         object.__setattr__(self, "conditions", parsed)
-        if self.lips not in ("visemes", "acoustic", None):
-            raise ConfigError(f"lips must be 'visemes', 'acoustic' or None, got {self.lips!r}")
+        FaceSettings(lips=self.lips)  # refuses an unknown lip method
         if self.brows not in ("accent", "thesis"):
             raise ConfigError(f"brows must be 'accent' or 'thesis', got {self.brows!r}")
         if self.brow_semitones is not None and not (isinstance(self.brow_semitones, (int, float))

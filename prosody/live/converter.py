@@ -13,28 +13,26 @@ import json
 import math
 import os
 import time
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from audio_features import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS
 from audio_features.pcm import PcmDecoder, PcmFormat, read_wav_header
 from audio_features.streaming import StreamingAnalyser
 
 from ..errors import ConfigError
 from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
-from ..jobs.pipeline import CHANNELS
 from ..motion.conditions import Condition
 from ..motion.expressions import ExpressionSegment, add_brow_raises, expressions_at, mix_with_lips, parse_expressions
 from ..motion.expressivity import BrowShaper, Expressivity, HeadShaper
-from ..motion.eyebrows import BrowRule
 from ..motion.limits import limit_frame
 from ..motion.lips import LIP_FAPS, shape_faps
 from ..motion.live import LiveHeadModel, LivePerlin, live_brows
 from ..motion.model_files import read_model_json
+from ..motion.settings import CHANNELS, AnalysisSettings, ChannelSettings, MotionSettings, takes_settings
 
 #: Look-ahead of the live head and brows by default, in ms (the measured trade: see docs/live.md).
 DEFAULT_LOOKAHEAD_MS = 100.0
@@ -78,6 +76,7 @@ class LiveFrame:
                           separators=(",", ":"))
 
 
+@takes_settings(analysis=AnalysisSettings, motion=MotionSettings, channels=ChannelSettings)
 class LiveConverter:
     """Audio in, FAP frames out, causally.
 
@@ -88,26 +87,24 @@ class LiveConverter:
     condition : {"speech", "random", "none"} or Condition
         ``speech``: live brows (accent rule by default) and the live head; ``random``: Perlin noise;
         ``none``: still.
-    model : LiveHeadModel, path or None
-        The live head model (default: the shipped one for the look-ahead).
     lookahead_ms : float >= 0, in ms
         Audio after each frame that the frame may use (whole frames of it: never more than asked).
-    seed : int >= 0
-        Seed of the head's motion and of the random condition.
-    eyebrow_rule : AccentRule or EyebrowRule, optional
-        The brows' rule (default: the accent rule).
-    gains, disabled
-        Intensity per channel and channels left out, as :func:`prosody.jobs.pipeline.convert`.
     live_lips : bool
         Lips from the live acoustic mouth model (the same in every condition; the shipped model with the most
         look-ahead within ``lookahead_ms``: 0 or 100 ms). The visemes need whole phones and their neighbours,
         so they are not offered live.
-    expressivity : Expressivity, optional
-        Greta's expressivity controls on the head and brows, exactly as offline (they look at no future frame);
-        :meth:`set_expressivity` changes them while streaming.
     expression : str or sequence of ExpressionSegment, optional
         A facial expression as ``convert``'s (``NAME:INTENSITY``, a timed CSV file, or segments), mixed with the
         lips and under the brow raises frame by frame exactly as offline: each frame's blend needs only its time.
+    analysis : AnalysisSettings, optional
+        How the stream is analysed; or its fields as keywords (below).
+    motion : MotionSettings, optional
+        The live head model (a :class:`LiveHeadModel` or its file; the shipped one for the look-ahead when
+        omitted), the seed of the head and of the random condition, the brow rule, and the expressivity
+        controls, exactly as offline (they look at no future frame; :meth:`set_expressivity` changes them while
+        streaming); or its fields as keywords.
+    channels : ChannelSettings, optional
+        Gains and channels left out, as :func:`prosody.jobs.pipeline.convert`'s; or its fields as keywords.
 
     Examples
     --------
@@ -119,34 +116,21 @@ class LiveConverter:
     """
 
     def __init__(self, sample_rate_hz: int, *, condition: Condition | str = Condition.SPEECH_DRIVEN,
-                 model: LiveHeadModel | str | os.PathLike[str] | None = None,
-                 lookahead_ms: float = DEFAULT_LOOKAHEAD_MS, seed: int = 0, fps: float = DEFAULT_FPS,
-                 f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ, f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ,
-                 eyebrow_rule: BrowRule | None = None, gains: Mapping[str, float] | None = None,
-                 disabled: Iterable[str] = (), live_lips: bool = True,
-                 expressivity: Expressivity | None = None,
-                 expression: str | Sequence[ExpressionSegment] | None = None) -> None:
+                 lookahead_ms: float = DEFAULT_LOOKAHEAD_MS, live_lips: bool = True,
+                 expression: str | Sequence[ExpressionSegment] | None = None, analysis: AnalysisSettings,
+                 motion: MotionSettings, channels: ChannelSettings) -> None:
         chosen = condition if isinstance(condition, Condition) else Condition.parse(condition)
         if chosen is Condition.GROUND_TRUTH:
             raise ConfigError("recorded motion (condition truth) has no live form; choose speech, random or none")
         if not (isinstance(lookahead_ms, (int, float)) and math.isfinite(lookahead_ms) and 0 <= lookahead_ms <= 2000):
             raise ConfigError(f"lookahead_ms must be a number in [0, 2000], got {lookahead_ms!r}")
         self.condition = chosen
-        self.analyser = StreamingAnalyser(sample_rate_hz, fps=fps, f0_floor_hz=f0_floor_hz,
-                                          f0_ceiling_hz=f0_ceiling_hz)
+        self.analyser = StreamingAnalyser(sample_rate_hz, **analysis.as_keywords())
         self.fps = self.analyser.fps
         # floored: 20 ms at 30 fps reads no frame ahead, not one (33 ms); 1e-9 keeps 100 ms at 3 frames
         self.lookahead_frames = int(math.floor(lookahead_ms / 1000 * self.fps + 1e-9))
-        gains = dict(gains or {})
-        disabled = list(disabled)
-        unknown = [name for name in [*gains, *disabled] if name not in CHANNELS]
-        if unknown:
-            raise ConfigError(f"unknown channel(s) {', '.join(map(repr, unknown))}; choose from {', '.join(CHANNELS)}")
-        for name, gain in gains.items():
-            if not math.isfinite(gain):
-                raise ConfigError(f"gain of {name!r} must be a finite number, got {gain!r}")
-        self._gain = {fap: float(gains.get(name, 1.0)) for name, faps in CHANNELS.items() for fap in faps}
-        off = {fap for name in disabled for fap in CHANNELS[name]}
+        self._gain = {fap: channels.gain(name) for name, faps in CHANNELS.items() for fap in faps}
+        off = channels.disabled_faps()
         self._mouth = None
         if live_lips and not set(LIP_FAPS) <= off:
             from ..motion.mouth_model import SHIPPED_LIVE_MOUTH_MS, LiveMouthModel, live_mouth_path
@@ -162,17 +146,17 @@ class LiveConverter:
             raise ConfigError("every channel is off: the frames would be empty")
         self._head = self._brows = self._perlin = None
         if chosen is Condition.SPEECH_DRIVEN:
-            head_model = live_head_model(model, lookahead_ms=lookahead_ms)
+            head_model = live_head_model(motion.model, lookahead_ms=lookahead_ms)
             if head_model.fps_ != self.fps:
                 raise ConfigError(f"the live head model runs at {head_model.fps_:g} fps; stream at fps="
                                   f"{head_model.fps_:g} or train a live model at {self.fps:g} fps")
-            self._head = head_model.start(lookahead=self.lookahead_frames, seed=seed)
-            self._brows = live_brows(eyebrow_rule, fps=self.fps, lookahead=self.lookahead_frames)
+            self._head = head_model.start(lookahead=self.lookahead_frames, seed=motion.seed)
+            self._brows = live_brows(motion.eyebrow_rule, fps=self.fps, lookahead=self.lookahead_frames)
         elif chosen is Condition.RANDOM:
-            self._perlin = LivePerlin(fps=self.fps, seed=seed)
+            self._perlin = LivePerlin(fps=self.fps, seed=motion.seed)
         self._shapers: tuple[HeadShaper, BrowShaper] | None = None
         if chosen is not Condition.NO_PROSODY:
-            controls = expressivity or Expressivity()
+            controls = motion.expressivity or Expressivity()
             self._shapers = (HeadShaper(controls, fps=self.fps), BrowShaper(controls, fps=self.fps))
         self._next = 0
         self.finished = False

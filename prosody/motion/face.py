@@ -7,7 +7,7 @@ ones, so that only prosody differs between them (as the thesis kept the recorded
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,6 +17,7 @@ from ..fap.stream import FapStream
 from .expressions import ExpressionSegment, add_brow_raises, expression_curves, mix_with_lips, parse_expressions
 from .lips import MouthShape, inner_opening, shape_faps, shapes_from_phones
 from .pad import PadSegment, pad_face_curves, parse_pad, read_face_map
+from .settings import LIP_METHODS, ChannelSettings, FaceSettings
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,39 +54,33 @@ def face_layer(audio, n_frames: int, *, fps: float, lips: str | None = "visemes"
     return FaceLayer(curves)
 
 
-def make_face(audio: str | os.PathLike[str], features, *, lips: str | None = "visemes", transcript: str | None = None,
-              expression: str | Sequence[ExpressionSegment] | None = None, gains: Mapping[str, float] | None = None,
-              disabled: Iterable[str] = (), mouth_model: str | os.PathLike[str] | None = None,
-              pad: str | Sequence[PadSegment] | None = None,
-              pad_map: str | os.PathLike[str] | None = None, language: str | None = None) -> FaceLayer | None:
+def make_face(audio: str | os.PathLike[str], features, face: FaceSettings,
+              channels: ChannelSettings | None = None) -> FaceLayer | None:
     """The lips and expression layer of a recording on its features' grid (None when there is neither).
 
-    ``transcript`` is the text or the path of a text file, in ``language`` (an eSpeak NG code; default: English,
-    aligned by PocketSphinx); ``expression`` a ``NAME:INTENSITY``, the path of a
-    timed CSV file, or segments; ``gains["lips"]`` scales the lips and ``"lips"`` in ``disabled`` leaves them out;
-    ``mouth_model`` is a file from ``prosody train --kind mouth`` for ``lips="acoustic"`` (or ``"combined"``);
-    ``pad`` a ``P,A,D``, the path of a timed CSV file, or segments, whose partial expressions follow ``pad_map``
-    (a JSON file; default :data:`prosody.motion.pad.DEFAULT_FACE_MAP`).
+    ``face`` says what it shows (see :class:`prosody.motion.settings.FaceSettings`); the lips' gain of
+    ``channels`` scales the lips, and the lips left out there are not made.
     """
-    segments = parse_expressions(expression) if isinstance(expression, str) else list(expression or ())
-    states = parse_pad(pad) if isinstance(pad, str) else list(pad or ())
-    face_map = read_face_map(pad_map)
-    if "lips" in disabled:
-        lips = None
+    segments = parse_expressions(face.expression) if isinstance(face.expression, str) else list(face.expression or ())
+    states = parse_pad(face.pad) if isinstance(face.pad, str) else list(face.pad or ())
+    face_map = read_face_map(face.pad_map)
+    channels = channels or ChannelSettings()
+    lips = None if "lips" in channels.disabled else face.lips
     if lips is None and not segments and not states:
         return None
+    transcript = face.transcript
     if transcript is not None and os.path.isfile(transcript):
         from audio_features.phones import read_transcript
 
         transcript = read_transcript(transcript)
     model = None
-    if mouth_model is not None and lips in ("acoustic", "combined"):
+    if face.mouth_model is not None and lips in ("acoustic", "combined"):
         from .mouth_model import AcousticMouthModel
 
-        model = AcousticMouthModel.load(mouth_model)
+        model = AcousticMouthModel.load(face.mouth_model)
     return face_layer(audio, features.n_frames, fps=features.fps, lips=lips, transcript=transcript,
-                      lip_gain=float((gains or {}).get("lips", 1.0)), expressions=segments, mouth_model=model,
-                      pad=states, pad_map=face_map, language=language)
+                      lip_gain=channels.gain("lips"), expressions=segments, mouth_model=model,
+                      pad=states, pad_map=face_map, language=face.language)
 
 
 def stream_mouth(stream: FapStream) -> tuple[np.ndarray, np.ndarray] | None:
@@ -97,9 +92,6 @@ def stream_mouth(stream: FapStream) -> tuple[np.ndarray, np.ndarray] | None:
     return inner_opening(curves), rounding
 
 
-#: Ways of making lips: from recognised phones (visemes, the default), from the spectrum (acoustic), or both
-#: (combined: their mean, the visemes' closures kept).
-LIP_METHODS = ("visemes", "acoustic", "combined")
 #: ``combined`` keeps the visemes' mouth where they close it (an inner-lip opening under this, MNS).
 COMBINED_CLOSED_MNS = 30.0
 

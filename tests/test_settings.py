@@ -1,0 +1,124 @@
+"""The settings groups (``prosody.motion.settings``): each setting declared once, taken as a group or as keywords
+alike by ``convert``, ``compare`` and ``LiveConverter``."""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+
+import numpy as np
+import pytest
+
+from prosody import (
+    AnalysisSettings,
+    ChannelSettings,
+    FaceSettings,
+    LiveConverter,
+    MotionSettings,
+    compare,
+    convert,
+)
+from prosody.errors import ConfigError
+from prosody.jobs.batch import BatchOptions
+from prosody.motion.settings import takes_settings
+
+GROUPS = (AnalysisSettings, MotionSettings, FaceSettings, ChannelSettings)
+
+
+@pytest.mark.parametrize(("target", "groups"), [(convert, GROUPS), (compare, GROUPS[:3]),
+                                                (LiveConverter, (AnalysisSettings, MotionSettings, ChannelSettings))])
+def test_each_setting_is_a_keyword_with_its_groups_default_and_documented(target, groups):
+    parameters = inspect.signature(target).parameters
+    doc = inspect.getdoc(target) or ""
+    for group in groups:
+        for field in dataclasses.fields(group):
+            assert parameters[field.name].default == field.default, (target, field.name)
+            assert parameters[field.name].kind is inspect.Parameter.KEYWORD_ONLY
+            assert f"\n{field.name} : {field.metadata['kind']}\n" in doc, (target, field.name)
+
+
+def test_a_group_and_its_keywords_give_the_same_stream(speech):
+    flat = convert(speech, fps=25, seed=4, lips=None, gains={"yaw": 0.5}, disabled=["roll"])
+    grouped = convert(speech, analysis=AnalysisSettings(fps=25), motion=MotionSettings(seed=4),
+                      face=FaceSettings(lips=None), channels=ChannelSettings(gains={"yaw": 0.5}, disabled=["roll"]))
+    assert flat.fps == grouped.fps == 25 and flat.n_frames == grouped.n_frames == 43  # 1.7 s at 25 fps
+    assert flat.active_faps == grouped.active_faps and 50 not in flat.active_faps
+    np.testing.assert_array_equal(flat.values, grouped.values)
+    other_seed = convert(speech, fps=25, seed=5, lips=None, gains={"yaw": 0.5}, disabled=["roll"])
+    assert not np.array_equal(other_seed.values, flat.values)  # the seed reached the head
+
+
+def test_a_keyword_overrides_its_groups_field_and_leaves_the_others(speech):
+    stream = convert(speech, analysis=AnalysisSettings(fps=25, f0_ceiling_hz=400.0), fps=20, lips=None)
+    assert stream.fps == 20 and stream.n_frames == 34
+
+
+def test_the_live_converter_takes_them_both_ways():
+    tone = 0.5 * np.sin(2 * np.pi * 150 * np.arange(16000) / 16000)
+    flat = LiveConverter(16000, condition="random", fps=25, seed=2, disabled=["lips"])
+    grouped = LiveConverter(16000, condition="random", analysis=AnalysisSettings(fps=25),
+                            motion=MotionSettings(seed=2), channels=ChannelSettings(disabled=("lips",)))
+    a, b = flat.push(tone) + flat.finish(), grouped.push(tone) + grouped.finish()
+    assert flat.fps == grouped.fps == 25 and len(a) == len(b) == 25
+    assert [frame.faps for frame in a] == [frame.faps for frame in b] and 3 not in a[0].faps
+    other = LiveConverter(16000, condition="random", fps=25, seed=3, disabled=["lips"])
+    assert [frame.faps for frame in other.push(tone) + other.finish()] != [frame.faps for frame in a]
+
+
+def test_a_comparison_takes_them_both_ways(speech):
+    flat = compare(speech, seed=1, seeds=1, lips=None, fps=25, conditions=["none"])
+    grouped = compare(speech, seeds=1, motion=MotionSettings(seed=1), face=FaceSettings(lips=None),
+                      analysis=AnalysisSettings(fps=25), conditions=["none"])
+    assert flat.features.fps == grouped.features.fps == 25
+    assert flat.metrics["conditions"].keys() == grouped.metrics["conditions"].keys() == {"NO_PROSODY"}
+
+
+@pytest.mark.parametrize(("make", "message"), [
+    (lambda: ChannelSettings(gains={"nose": 2.0}),
+     "unknown channel(s) 'nose'; choose from pitch, yaw, roll, brows, lips"),
+    (lambda: ChannelSettings(disabled=["ears"]), "unknown channel(s) 'ears'"),
+    (lambda: ChannelSettings(gains={"yaw": float("nan")}), "gain of 'yaw' must be a finite number, got nan"),
+    (lambda: ChannelSettings(gains={"yaw": True}), "gain of 'yaw' must be a finite number, got True"),
+    (lambda: FaceSettings(lips="phonemes"), "unknown lip method 'phonemes'; choose visemes, acoustic, combined"),
+    (lambda: MotionSettings(seed=-1), "seed"),
+    (lambda: MotionSettings(expressivity={"spatial": 1.0}), "expressivity must be an Expressivity"),
+])
+def test_a_group_refuses_what_it_cannot_do(make, message):
+    with pytest.raises(ConfigError) as caught:
+        make()
+    assert message in str(caught.value)
+
+
+def test_a_group_of_another_kind_or_an_unknown_keyword_is_refused(speech):
+    with pytest.raises(ConfigError, match="analysis must be a AnalysisSettings, got 25"):
+        convert(speech, analysis=25)
+    with pytest.raises(TypeError, match="colour"):
+        convert(speech, colour="red")
+    with pytest.raises(ConfigError, match="unknown channel"):  # checked before any analysis
+        convert("no such file.wav", gains={"nose": 1.0})
+
+
+def test_groups_are_frozen_and_compare_by_value():
+    assert FaceSettings(lips="acoustic") == FaceSettings(lips="acoustic") != FaceSettings()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        FaceSettings().lips = "acoustic"  # type: ignore[misc]
+    assert ChannelSettings(gains={"yaw": 2}).gain("yaw") == 2.0 and ChannelSettings().gain("lips") == 1.0
+
+
+def test_every_lip_method_is_accepted_by_a_batch():
+    assert BatchOptions(lips="combined").lips == "combined"  # was refused while the command offered it
+    with pytest.raises(ConfigError, match="unknown lip method"):
+        BatchOptions(lips="phonemes")
+
+
+def test_a_field_that_clashes_with_a_parameter_is_caught_when_decorating():
+    def documented(audio, *, fps=30.0, analysis):
+        """Parameters
+        ----------
+        audio : path
+        """
+
+    with pytest.raises(TypeError, match=r"clash: \['fps'\]"):
+        takes_settings(analysis=AnalysisSettings)(documented)
+    with pytest.raises(TypeError, match="documents its Parameters"):
+        takes_settings(analysis=AnalysisSettings)(lambda audio, *, analysis: None)
