@@ -97,3 +97,18 @@ def test_anchors_into_the_docs_exist(anchor_page: str) -> None:
     for page in [REPO / "README.md", *(REPO / "docs").glob("*.md")]:
         for anchor in re.findall(rf"\]\((?:docs/)?{re.escape(anchor_page)}#([^)]+)\)", page.read_text()):
             assert anchor in target, f"{page.name}: {anchor_page}#{anchor}"
+
+
+def test_the_docs_tables_are_the_recorded_ones() -> None:
+    """Every ``<!-- results: NAME TABLE -->`` block of docs/ holds that table of ``results/NAME.json`` as
+    ``python -m experiments.render`` fills it: no quoted figure drifts from its record."""
+    from experiments.render import BLOCK, filled, quoting_pages
+
+    pages = quoting_pages()
+    assert pages, "no page quotes a recorded table"
+    for path in pages:
+        text = path.read_text()
+        assert text == filled(text), (f"{path.name}: a results block differs from results/; run python -m "
+                                      "experiments.render")
+    stale = filled("<!-- results: head_loco 1 -->\n| a | b |\n<!-- /results -->")
+    assert "| a | b |" not in stale and BLOCK.search(stale)  # the check can fail
