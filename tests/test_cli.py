@@ -239,3 +239,37 @@ def test_main_leaves_the_process_as_it_found_it(tmp_path, speech, capsys) -> Non
     finally:
         signal.signal(signal.SIGTERM, before)
     capsys.readouterr()
+
+
+CLI_MESSAGES = [
+    ("convert", "f0_floor_hz must be below f0_ceiling_hz, got 500", "--f0-floor must be below --f0-ceiling, got 500"),
+    ("compare", "needs recorded motion (ground_truth=FILE)", "needs recorded motion (--ground-truth FILE)"),
+    ("convert", "give output_format=NAME or a known ending", "give --format NAME or a known ending"),
+    ("preview", "start_s= and duration_s= lie outside the stream", "--start and --duration lie outside the stream"),
+    ("convert", "resampled to 30 fps (give fps=25 to keep its rate)",
+     "resampled to 30 fps (give --fps 25 to keep its rate)"),
+    ("convert", "seed must be a whole number; the model runs at fps 30",
+     "seed must be a whole number; the model runs at fps 30"),
+    ("batch", "AccentRule(threshold_semitones=...) is 4; scheduler= is down",
+     "--brow-semitones ST is 4; --scheduler is down"),
+    ("batch", "needs recorded motion (ground_truth=FILE)", "needs recorded motion (ground_truth=FILE)"),  # no option
+]
+
+
+@pytest.mark.parametrize(("command", "said", "shown"), CLI_MESSAGES)
+def test_library_messages_name_the_commands_options_from_its_parser(command, said, shown):
+    import argparse
+
+    from prosody.cli.app import build_parser
+    from prosody.cli.messages import as_flags
+
+    commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices
+    assert as_flags(said, commands[command]) == shown
+
+
+def test_a_library_message_reaches_the_user_with_the_option_names(tmp_path, capsys):
+    wav = tmp_path / "tone.wav"
+    soundfile.write(wav, segments(16000, (1.0, 150, 0.3)), 16000)
+    code = main(["features", str(wav), "-o", str(tmp_path / "f.csv"), "--f0-floor", "400", "--f0-ceiling", "300"])
+    error = capsys.readouterr().err
+    assert code == 2 and "--f0-floor" in error and "f0_floor_hz" not in error

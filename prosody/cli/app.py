@@ -52,6 +52,7 @@ def _add_message_options(parser: argparse.ArgumentParser) -> None:
         return
     for action in subparsers:
         for sub in action.choices.values():
+            sub.set_defaults(parser=sub)  # its options name the library's parameters in messages (as_flags)
             _add_message_options(sub)
 
 
@@ -62,10 +63,12 @@ def _run(handler: Callable[[argparse.Namespace], int], args: argparse.Namespace)
         paths.check_paths(args)
         return handler(args)
     except ParameterError as error:  # prosody's ConfigError too
-        msg.MESSAGES.emit("error", f"prosody {args.command}: error: {msg.as_flags(str(error))}", exit=opt.EXIT_USAGE)
+        msg.MESSAGES.emit("error", f"prosody {args.command}: error: {msg.as_flags(str(error), args.parser)}",
+                          exit=opt.EXIT_USAGE)
         return opt.EXIT_USAGE
     except VisualProsodyError as error:
-        msg.MESSAGES.emit("error", f"prosody {args.command}: error: {msg.as_flags(str(error))}", exit=opt.EXIT_FAILURE)
+        msg.MESSAGES.emit("error", f"prosody {args.command}: error: {msg.as_flags(str(error), args.parser)}",
+                          exit=opt.EXIT_FAILURE)
         return opt.EXIT_FAILURE
     except BrokenPipeError:
         raise  # the reader of our output went away: main() ends quietly
@@ -95,7 +98,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         def show(message, category, filename, lineno, file=None, line=None):
             # a warning is a note to the user, one line, not a source listing
-            msg.MESSAGES.emit("warning", f"prosody {args.command}: warning: {msg.as_flags(str(message))}")
+            said = msg.as_flags(str(message), getattr(args, "parser", None))
+            msg.MESSAGES.emit("warning", f"prosody {args.command}: warning: {said}")
 
         def terminated(signum, frame):
             # SIGTERM unwinds like Ctrl-C, so that temporary files are removed and nothing is left half-written

@@ -22,7 +22,7 @@ def run(args: argparse.Namespace) -> int:
                            **opt.analysis_kwargs(args))
     if conditions:
         options = dataclasses.replace(options, conditions=tuple(conditions))
-    on_outcome = msg.outcome_reporter("batch", args.output, "file", len(find_audio_files(args.input)),
+    on_outcome = msg.outcome_reporter(args.parser, args.output, "file", len(find_audio_files(args.input)),
                                    lambda outcome: outcome.file)
 
     summary = run_batch(args.input, args.output, ground_truth_dir=args.ground_truth_dir, options=options,

@@ -13,28 +13,28 @@ def run(args: argparse.Namespace) -> int:
     from ..jobs.pipeline import convert
 
     opt.check_motion_options(args)
-    if args.format is None and args.output.lower().endswith((".mp4", ".gif", ".webm", ".mov", ".mkv", ".avi")):
+    if args.output_format is None and args.output.lower().endswith((".mp4", ".gif", ".webm", ".mov", ".mkv", ".avi")):
         raise ConfigError(f"-o {args.output!r}: convert writes motion (.fap, .csv, .json, .bvh, .livelink.csv); "
                           f"to draw a video, use 'prosody preview {args.input} -o {args.output}'")
     if args.output == "-":
-        if args.format is None:
+        if args.output_format is None:
             raise ConfigError("-o - writes to standard output: give --format (fap, csv, csv-physical, json, bvh, "
                               "livelink)")
         holder: list = []
 
         def write(path: str) -> None:
-            holder.append(convert(args.input, path, base=args.base, output_format=args.format,
+            holder.append(convert(args.input, path, base=args.base, output_format=args.output_format,
                                   **opt.motion_kwargs(args)))
 
         from pathlib import Path
 
-        msg.to_stdout(write, Path(args.input).stem + "." + args.format)  # the stream keeps the input's name
+        msg.to_stdout(write, Path(args.input).stem + "." + args.output_format)  # the stream keeps the input's name
         stream = holder[0]
     else:
-        stream = convert(args.input, args.output, base=args.base, output_format=args.format,
+        stream = convert(args.input, args.output, base=args.base, output_format=args.output_format,
                          progress=msg.frame_progress(args.input, "analysed"), **opt.motion_kwargs(args))
     faps = " ".join(map(str, stream.active_faps))
-    written = args.format or ""
+    written = args.output_format or ""
     if written == "bvh" or (not written and args.output.lower().endswith(".bvh")):
         faps = "48 49 50 (BVH holds the head only)"
     msg.say(f"{args.output}: {stream.n_frames} frames at {stream.fps:g} fps, FAPs {faps}")
@@ -62,7 +62,7 @@ def add_parser(commands) -> None:
                               "3D head animated, glTF 2.0, for Blender and three.js), .rhubarb.tsv, .rhubarb.json, "
                               ".rhubarb.xml, .dat and .prestonblair.dat (the lips as Rhubarb Lip Sync's mouth "
                               "cues, for its plugins); - writes to standard output (with --format)")
-    convert.add_argument("--format", default=None,
+    convert.add_argument("--format", dest="output_format", default=None,
                          choices=[*WRITERS, *DEFERRED_WRITERS],
                          help="output format, overriding the ending (csv-physical: radians and fractions of "
                               "the reference distances)")

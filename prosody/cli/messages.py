@@ -3,9 +3,11 @@ said with the command's flags."""
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import json
 import os
+import re
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -90,38 +92,51 @@ def forget_interrupt() -> None:
         ctypes.pythonapi.PyRun_SimpleString(b"")
 
 
-#: How the library's messages name Python arguments, and the options that set them on the command line.
-_FLAGS = (
+#: What the library's messages say in Python that is not one parameter, and how the command line says it.
+_PHRASES = (
     ("AccentRule(threshold_semitones=...)", "--accent-semitones ST"),
     ("EyebrowRule(threshold_semitones=...)", "--brows thesis --eyebrow-semitones ST"),
     ("eyebrow_rule=AccentRule()", "--brows accent"),
-    ("ground_truth=FILE", "--ground-truth FILE"),
-    ("output_format=NAME", "--format NAME"),
-    ("start_s= and duration_s=", "--start and --duration"),
-    ("fps=25 or 30, or FapStream.resampled", "--fps 25 or 30"),
-    ("scheduler=", "--scheduler"),
-    ("(give fps=", "(give --fps "),
-    ("f0_floor_hz", "--f0-floor"),
-    ("f0_ceiling_hz", "--f0-ceiling"),
+    ("fps=25 or 30, or FapStream.resampled", "fps=25 or 30"),
 )
 
-
 #: The same for batch, whose one option sets either rule's semitones.
-_BATCH_FLAGS = (
+_BATCH_PHRASES = (
     ("AccentRule(threshold_semitones=...)", "--brow-semitones ST"),
     ("EyebrowRule(threshold_semitones=...)", "--brows thesis --brow-semitones ST"),
 )
 
 
-def as_flags(message: str, command: str | None = None) -> str:
-    """A library message with its Python argument names replaced by the command's options."""
-    for python, flag in (_BATCH_FLAGS + _FLAGS if command == "batch" else _FLAGS):
+def flag_names(parser: argparse.ArgumentParser) -> dict[str, str]:
+    """A command's options by the name they are stored under (its parser's ``dest``s, which are the library's
+    parameter names) -> the option that sets each (its longest spelling)."""
+    return {action.dest: max(action.option_strings, key=len) for action in parser._actions if action.option_strings}
+
+
+def as_flags(message: str, parser: argparse.ArgumentParser | None = None) -> str:
+    """A library message as the command line says it: the few Python phrases of :data:`_PHRASES`, then each
+    parameter the command has an option for, named by that option (``f0_floor_hz`` -> ``--f0-floor``,
+    ``ground_truth=FILE`` -> ``--ground-truth FILE``). Without ``parser``, the message is left as it is.
+    Parameters without an underscore (``fps``, ``seed``) are renamed only as ``name=VALUE``: as words they are
+    also plain English."""
+    if parser is None:
+        return message
+    phrases = _BATCH_PHRASES + _PHRASES if parser.prog.endswith(" batch") else _PHRASES
+    for python, flag in phrases:
         message = message.replace(python, flag)
+    for name, flag in sorted(flag_names(parser).items(), key=lambda item: -len(item[0])):
+        def as_option(match: re.Match, flag: str = flag) -> str:
+            return f"{flag} {match.group(1)}".rstrip()
+
+        message = re.sub(rf"(?<![\w.-]){re.escape(name)}=(\S*)", as_option, message)
+        if "_" in name:
+            message = re.sub(rf"(?<![\w.-]){re.escape(name)}\b", flag, message)
     return message
 
 
-def outcome_reporter(command: str, output: str, unit: str, total: int, name: Callable[[Any], str],
-                      result: Callable[[Any], str | None] | None = None) -> Callable[[Any], None]:
+def outcome_reporter(parser: argparse.ArgumentParser, output: str, unit: str, total: int,
+                     name: Callable[[Any], str],
+                     result: Callable[[Any], str | None] | None = None) -> Callable[[Any], None]:
     """The per-input callback of a folder command (batch, track): one bar over the inputs, and each input's
     warnings and failure (always) and result line (unless quiet) said above it."""
     progress = ProgressBar(output, unit)
@@ -129,9 +144,9 @@ def outcome_reporter(command: str, output: str, unit: str, total: int, name: Cal
 
     def on_outcome(outcome) -> None:
         for note in outcome.warnings:
-            progress.say(f"prosody {command}: warning: {name(outcome)}: {as_flags(str(note), command)}")
+            progress.say(f"{parser.prog}: warning: {name(outcome)}: {as_flags(str(note), parser)}")
         if outcome.status == "failed":
-            progress.say(f"prosody {command}: error: {name(outcome)}: {as_flags(str(outcome.error), command)}")
+            progress.say(f"{parser.prog}: error: {name(outcome)}: {as_flags(str(outcome.error), parser)}")
         elif result is not None and (line := result(outcome)):
             progress.say(line)
         finished[0] += 1

@@ -95,9 +95,11 @@ def add_seeds_option(parser: argparse.ArgumentParser) -> None:
 def add_analysis_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fps", type=number_in(1, 1000), default=DEFAULT_FPS,
                         help="frames per second of the output grid (default 30, 1 to 1000; frame k is at k/fps s)")
-    parser.add_argument("--f0-floor", type=positive_float, default=DEFAULT_F0_FLOOR_HZ, metavar="HZ",
+    parser.add_argument("--f0-floor", dest="f0_floor_hz", type=positive_float, default=DEFAULT_F0_FLOOR_HZ,
+                        metavar="HZ",
                         help=f"lowest F0 the pitch tracker looks for, in Hz (default {DEFAULT_F0_FLOOR_HZ:g})")
-    parser.add_argument("--f0-ceiling", type=positive_float, default=DEFAULT_F0_CEILING_HZ, metavar="HZ",
+    parser.add_argument("--f0-ceiling", dest="f0_ceiling_hz", type=positive_float, default=DEFAULT_F0_CEILING_HZ,
+                        metavar="HZ",
                         help=f"highest F0 the pitch tracker looks for, in Hz (default {DEFAULT_F0_CEILING_HZ:g})")
 
 
@@ -237,7 +239,7 @@ def add_face_options(parser: argparse.ArgumentParser) -> None:
 
 
 def analysis_kwargs(args: argparse.Namespace) -> dict:
-    return {"fps": args.fps, "f0_floor_hz": args.f0_floor, "f0_ceiling_hz": args.f0_ceiling}
+    return {"fps": args.fps, "f0_floor_hz": args.f0_floor_hz, "f0_ceiling_hz": args.f0_ceiling_hz}
 
 
 def finite_float(text: str) -> float:

@@ -73,13 +73,14 @@ def run(args: argparse.Namespace) -> int:
         scales = (brow_ens, head_deg * AU_PER_DEGREE)
     say_unshown(stream, args.face, args.input)
     write_preview(stream, args.output, audio=audio, width=args.width, exaggerate=args.exaggerate,
-                  brow_scale=args.brow_scale, start_s=args.start, duration_s=args.duration,
+                  brow_scale=args.brow_scale, start_s=args.start_s, duration_s=args.duration_s,
                   progress=msg.frame_progress(args.output), scales=scales, face=args.face, strip=not args.no_strip)
     sound = " with sound" if audio is not None and Path(args.output).suffix.lower() == ".mp4" else ""
-    shown = stream.duration_s - min(args.start, stream.duration_s)
-    if args.duration is not None:
-        shown = min(shown, args.duration)
-    excerpt = f"{shown:.2f} s from {args.start:g} s" if args.start or args.duration is not None else f"{shown:.2f} s"
+    shown = stream.duration_s - min(args.start_s, stream.duration_s)
+    if args.duration_s is not None:
+        shown = min(shown, args.duration_s)
+    excerpt = (f"{shown:.2f} s from {args.start_s:g} s" if args.start_s or args.duration_s is not None
+               else f"{shown:.2f} s")
     msg.say(f"{args.output}: preview of {stream.name} ({excerpt}){sound}")
     return opt.EXIT_OK
 
@@ -113,11 +114,13 @@ def add_parser(commands) -> None:
     preview.add_argument("--face", choices=("head", "drawn"), default="head",
                          help="the 3D head (default) or the drawn diagnostic face")
     preview.add_argument("--no-strip", action="store_true", help="the face alone, without the curve strip")
-    preview.add_argument("--start", type=opt.seconds, default=0.0, metavar="S", help="first second shown (default 0)")
+    preview.add_argument("--start", dest="start_s", type=opt.seconds, default=0.0, metavar="S",
+                         help="first second shown (default 0)")
     preview.add_argument("--strip-scale", default=None, metavar="BROW_ENS,HEAD_DEG",
                          help="full scale of the curve strip: brow raise in ENS and head angle in degrees (default: "
                               "this stream's largest values); give previews you compare the same scale, e.g. 30,10")
-    preview.add_argument("--duration", type=opt.number_in(0, 1e6, low_open=True), default=None, metavar="S",
+    preview.add_argument("--duration", dest="duration_s", type=opt.number_in(0, 1e6, low_open=True), default=None,
+                         metavar="S",
                          help="seconds shown (default: to the end)")
     opt.add_motion_options(preview)
     opt.add_analysis_options(preview)

@@ -18,7 +18,7 @@ _FLAG_OF_FIELD = {"input": "an input", "output": "-o", "format": "--format"}
 
 def _flag_namer(parser: argparse.ArgumentParser) -> Callable[[str], str]:
     """A field of the session's options or source -> the flag that sets it, read from the parser's dests."""
-    flags = {action.dest: max(action.option_strings, key=len) for action in parser._actions if action.option_strings}
+    flags = msg.flag_names(parser)
 
     def flag(name: str) -> str:
         return _FLAG_OF_FIELD.get(name) or flags.get(name) or f"--{name.replace('_', '-')}"
@@ -162,4 +162,3 @@ def add_parser(commands) -> None:
     opt.add_analysis_options(stream)
     opt.add_eyebrow_options(stream)
     stream.set_defaults(handler=run)
-    stream.set_defaults(parser=stream)

@@ -24,7 +24,7 @@ def run(args: argparse.Namespace) -> int:
         return (f"{outcome.stem}: {outcome.frames} frames at 30 fps ({outcome.frames / 30:.1f} s), {took}; "
                 f"{sync.describe()}")
 
-    on_outcome = msg.outcome_reporter("track", args.output, "video", len(find_videos(args.input)),
+    on_outcome = msg.outcome_reporter(args.parser, args.output, "video", len(find_videos(args.input)),
                                    lambda outcome: outcome.video, result)
 
     outcomes = track_videos(args.input, args.output, options=options, audio=args.audio, jobs=args.jobs,
