@@ -68,6 +68,8 @@ evaluate: $(STAMP)
 	$(BIN)/python -m experiments.head_loop
 	$(BIN)/python -m experiments.mouth_videos_loso
 	$(BIN)/python -m experiments.mouth_learners_loso
+	$(BIN)/python -m experiments.grid_transcripts $(RHUBARB)
+	if [ -n "$(RHUBARB)" ]; then $(BIN)/python -m experiments.rhubarb_side_by_side $(RHUBARB); fi
 	$(BIN)/python -m experiments.render
 
 # every shipped model refitted from ../shared/data, compared with the shipped files (--write replaces them)
