@@ -6,15 +6,16 @@ puckered (UW, OW, W); the extended G (upper teeth on the lower lip: F, V), H (lo
 (idle: closed and relaxed, in pauses). Without the extended shapes Rhubarb shows G as A, H as C and X as A.
 
 Each frame's shape is read from the lip FAPs, whatever made them (visemes, the acoustic model, a Greta file):
-the inner-lip opening ``FAP 3 - FAP 4 - FAP 5`` in MNS, the rounding ``(FAP 16 + FAP 17) / 2`` over
-:data:`PUCKER_MNS`; then, in this order: opening below :data:`CLOSED_MNS` is A (X where the mouth stays closed
-for :data:`IDLE_S` or more, or at the start and end, or where the stream has no lips); rounding from
-:data:`PUCKERED` is F, from :data:`ROUNDED` E; opening from :data:`WIDE_MNS` is D, from :data:`OPEN_MNS` C;
-else B. The thresholds sit between the shapes of the project's visemes (``prosody.motion.lips``: /a/ 330 MNS,
-/e/ 260, /i/ and the consonants 110-190, /p b m/ 0; /u/ rounded 0.2, /o/ and /r/ 0.1-0.12). G and H are never
-given: lip FAPs do not tell the lower lip under the teeth (/f v/, 45 MNS open) from a mouth half closed, nor
-carry the tongue; a player with the extended shapes shows ours as they are. A shape held for a single frame
-joins the cue before it (the first: the one after), closures excepted, so that no cue flickers.
+the inner-lip opening ``FAP 3 - FAP 4 - FAP 5`` in MNS and the rounding ``(FAP 16 + FAP 17) / 2`` over
+:data:`PUCKER_MNS`. An opening below :data:`CLOSED_MNS` is A (X where the mouth stays closed for :data:`IDLE_S`
+or more, or at the start and end, or where the stream has no lips); any other frame takes the shape of
+:data:`SHAPE_SIZES` nearest to it, a rounding of :data:`ROUNDING_WEIGHT` counting as much as 100 MNS of opening.
+The sizes are the project's visemes' (``prosody.motion.lips``: /a/ 330 MNS, /e/ 260, /i/ and the consonants
+110-190, /p b m/ 0; /u/ rounded 0.2, /o/ and /r/ 0.1-0.12), so a player that draws each shape at that size shows
+the lips as near as six shapes can. G and H are never given: lip FAPs do not tell the lower lip under the teeth
+(/f v/, 45 MNS open) from a mouth half closed, nor carry the tongue; a player with the extended shapes shows ours
+as they are. A shape held for a single frame joins the cue before it (the first: the one after), closures
+excepted, so that no cue flickers.
 
 Files (Rhubarb's own layouts, so that the plugins of Blender, Godot, Unity, Spine, OpenToonz, After Effects and
 Moho read them): ``.rhubarb.tsv`` (``start<TAB>shape`` per cue, then the end of the recording with the closed
@@ -44,9 +45,12 @@ SHAPES = ("A", "B", "C", "D", "E", "F", "G", "H", "X")
 #: Rhubarb's shape names in the Preston Blair set (its ``--datUsePrestonBlair``).
 PRESTON_BLAIR = {"A": "MBP", "B": "etc", "C": "E", "D": "AI", "E": "O", "F": "U", "G": "FV", "H": "L",
                  "X": "rest"}
-#: Thresholds of the shapes, in MNS (opening) and fractions of full protrusion (rounding).
-CLOSED_MNS, OPEN_MNS, WIDE_MNS = 30.0, 225.0, 305.0
-ROUNDED, PUCKERED = 0.07, 0.16
+#: Below this opening (MNS, half of B's) the lips are closed: A, whatever their rounding.
+CLOSED_MNS = 75.0
+#: The size of each open shape: (opening MNS, rounding as a fraction of full protrusion).
+SHAPE_SIZES = {"B": (150.0, 0.0), "C": (260.0, 0.0), "D": (330.0, 0.0), "E": (240.0, 0.11), "F": (170.0, 0.2)}
+#: The rounding that weighs as much as 100 MNS of opening in choosing the nearest shape.
+ROUNDING_WEIGHT = 0.1
 #: Protrusion of each lip (FAP 16, 17) that counts as fully puckered, in MNS.
 PUCKER_MNS = 300.0
 #: A closed mouth held this long is idle (X).
@@ -71,11 +75,10 @@ def frame_shapes(stream: FapStream) -> list[str]:
     opening = curve(3) - curve(4) - curve(5)
     rounding = (curve(16) + curve(17)) / 2 / PUCKER_MNS
     has_lips = np.asarray(stream.mask[:, [2, 3, 4, 15, 16]].any(axis=1), dtype=bool)
-    shapes = np.full(stream.n_frames, "B", dtype="<U1")
-    shapes[opening >= OPEN_MNS] = "C"
-    shapes[opening >= WIDE_MNS] = "D"
-    shapes[rounding >= ROUNDED] = "E"
-    shapes[rounding >= PUCKERED] = "F"
+    names = list(SHAPE_SIZES)
+    distance = np.stack([((opening - size) / 100.0) ** 2 + ((rounding - rounded) / ROUNDING_WEIGHT) ** 2
+                         for size, rounded in SHAPE_SIZES.values()])
+    shapes = np.array(names, dtype="<U1")[distance.argmin(axis=0)] if len(opening) else np.array([], dtype="<U1")
     shapes[(opening < CLOSED_MNS) | ~has_lips] = "A"
     out = shapes.tolist()
     _merge_single_frames(out)
