@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from audio_features import AUDIO_EXTENSIONS, DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS, AudioFeaturesError
+from audio_features import AUDIO_EXTENSIONS, AudioFeaturesError
 from audio_features.atomic import atomic_write
 from audio_features.inputs import file_sha256
 
@@ -33,7 +33,7 @@ from ..evaluation.metrics import BrowMeasures, HeadMeasures, Metrics, MouthMeasu
 from ..fap.table import HEAD_FAPS, PROSODY_FAPS
 from ..motion.conditions import CONDITION_ORDER, Condition
 from ..motion.expressivity import NEUTRAL, Expressivity
-from ..motion.settings import FaceSettings
+from ..motion.settings import AnalysisSettings, FaceSettings, MotionSettings
 from ..validate import valid_seeds
 
 #: Ground-truth file endings looked up beside an audio file's stem, in order of preference.
@@ -51,19 +51,19 @@ class BatchOptions:
     """Settings applied to every file (they are stored in each metrics.json to recognise complete outputs)."""
 
     conditions: tuple[str, ...] = tuple(c.value for c in CONDITION_ORDER)
-    model: str | None = None
-    seed: int = 0
+    model: str | None = MotionSettings.model
+    seed: int = MotionSettings.seed
     normalize: bool = False
-    fps: float = DEFAULT_FPS
-    f0_floor_hz: float = DEFAULT_F0_FLOOR_HZ
-    f0_ceiling_hz: float = DEFAULT_F0_CEILING_HZ
+    fps: float = AnalysisSettings.fps
+    f0_floor_hz: float = AnalysisSettings.f0_floor_hz
+    f0_ceiling_hz: float = AnalysisSettings.f0_ceiling_hz
     plots: bool = False
     video: bool = False
     seeds: int = 10
     brows: str = "accent"
     #: The brow rule's threshold in semitones above the speaker's median pitch (None: the rule's default).
     brow_semitones: float | None = None
-    lips: str | None = "visemes"
+    lips: str | None = FaceSettings.lips
     #: Greta's expressivity controls by name (see :class:`prosody.motion.expressivity.Expressivity`).
     expressivity: Mapping[str, float] = field(default_factory=lambda: dict(NEUTRAL))
 
