@@ -84,4 +84,17 @@ def test_the_facade_stub_names_the_facade() -> None:
     stub = ast.parse((REPO / "prosody" / "__init__.pyi").read_text())
     named = {alias.asname or alias.name for node in ast.walk(stub) if isinstance(node, ast.ImportFrom)
              for alias in node.names}
+    named |= {node.name for node in stub.body if isinstance(node, (ast.FunctionDef, ast.ClassDef))}
     assert named >= set(prosody._FACADE)
+
+
+def test_the_facade_stub_spells_out_the_settings_keywords() -> None:
+    """The stub is what ``python -m scripts.facade_stub`` writes from the signatures, so a type checker sees every
+    keyword of ``convert``, ``compare`` and ``LiveConverter``."""
+    from scripts.facade_stub import render
+
+    stub = (REPO / "prosody" / "__init__.pyi").read_text()
+    assert stub == render(), "prosody/__init__.pyi is stale: run python -m scripts.facade_stub"
+    tree = ast.parse(stub)
+    convert = next(node for node in tree.body if isinstance(node, ast.FunctionDef) and node.name == "convert")
+    assert {"fps", "lips", "gains", "face"} <= {arg.arg for arg in convert.args.kwonlyargs}

@@ -33,7 +33,7 @@ import math
 import os
 import textwrap
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from typing import Any, Protocol, TypeVar, cast, overload
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar, cast, overload
 
 from audio_features import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS
 
@@ -44,6 +44,9 @@ from .expressions import ExpressionSegment
 from .expressivity import Expressivity
 from .lips import LIP_FAPS
 from .pad import PadSegment
+
+if TYPE_CHECKING:  # named in an annotation only
+    from .eyebrows import BrowRule
 
 #: Channels of the intensity controls and the FAPs each one drives.
 CHANNELS = {"pitch": HEAD_FAPS[:1], "yaw": HEAD_FAPS[1:2], "roll": HEAD_FAPS[2:], "brows": EYEBROW_FAPS,
@@ -97,12 +100,14 @@ class AnalysisSettings:
 class MotionSettings:
     """What moves the head and the brows."""
 
-    model: Any = setting(None, "head model, shipped name or path, optional",
-                         "Head model of the speech-driven condition: the shipped prosodic generator when omitted; "
-                         "offline also ``\"arx\"`` for the thesis's ARX model, ``\"pad\"`` for seed 000's gestures, "
-                         "or a file from ``prosody train``.")
+    #: Offline or live by the function that takes it (``resolve_head_model`` or ``live_head_model`` checks it).
+    model: Any = setting(
+        None, "head model, shipped name or path, optional",
+        "Head model of the speech-driven condition: the shipped prosodic generator when omitted; offline also "
+        "``\"arx\"`` for the thesis's ARX model, ``\"pad\"`` for seed 000's gestures, or a file from ``prosody "
+        "train``.")
     seed: int = setting(0, "int >= 0", "Seed of the stochastic heads (the default generator, Perlin noise).")
-    eyebrow_rule: Any = setting(None, "AccentRule or EyebrowRule, optional",
+    eyebrow_rule: BrowRule | None = setting(None, "AccentRule or EyebrowRule, optional",
                                 "The brow rule (default: the accent rule; ``EyebrowRule()`` is the thesis's 207 Hz "
                                 "rule).")
     expressivity: Expressivity | None = setting(
