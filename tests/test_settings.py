@@ -103,6 +103,7 @@ def test_groups_are_frozen_and_compare_by_value():
     with pytest.raises(dataclasses.FrozenInstanceError):
         FaceSettings().lips = "acoustic"  # type: ignore[misc]
     assert ChannelSettings(gains={"yaw": 2}).gain("yaw") == 2.0 and ChannelSettings().gain("lips") == 1.0
+    assert ChannelSettings(gains={"yaw": np.float32(0.5)}).gain("yaw") == 0.5  # numpy numbers are numbers
 
 
 def test_every_lip_method_is_accepted_by_a_batch():

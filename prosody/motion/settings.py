@@ -30,6 +30,7 @@ import dataclasses
 import functools
 import inspect
 import math
+import numbers
 import os
 import textwrap
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -169,7 +170,7 @@ class ChannelSettings:
         if unknown:
             raise ConfigError(f"unknown channel(s) {', '.join(map(repr, unknown))}; choose from {', '.join(CHANNELS)}")
         for name, gain in gains.items():
-            if isinstance(gain, bool) or not isinstance(gain, (int, float)) or not math.isfinite(gain):
+            if isinstance(gain, bool) or not isinstance(gain, numbers.Real) or not math.isfinite(gain):
                 raise ConfigError(f"gain of {name!r} must be a finite number, got {gain!r}")
         object.__setattr__(self, "gains", gains)
         object.__setattr__(self, "disabled", disabled)
