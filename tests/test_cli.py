@@ -273,3 +273,11 @@ def test_a_library_message_reaches_the_user_with_the_option_names(tmp_path, caps
     code = main(["features", str(wav), "-o", str(tmp_path / "f.csv"), "--f0-floor", "400", "--f0-ceiling", "300"])
     error = capsys.readouterr().err
     assert code == 2 and "--f0-floor" in error and "f0_floor_hz" not in error
+
+
+def test_an_unknown_option_is_named_by_its_command(capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["convert", "speech.wav", "-o", "out.fap", "--fsp", "25"])
+    assert stop.value.code == 2
+    assert capsys.readouterr().err == ("prosody convert: error: unrecognized arguments: --fsp 25 (see 'prosody convert "
+                                       "--help')\n")

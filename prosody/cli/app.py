@@ -86,7 +86,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     import warnings
 
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:  # said by the command's own parser, which names the command and its --help
+        getattr(args, "parser", parser).error(f"unrecognized arguments: {' '.join(unknown)}")
     mode = msg.MESSAGES.mode
     stderr = sys.stderr
     previous: Any = None
