@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from experiments.common import data_folder, record
-from experiments.mouth_loco import FPS, measured, row
+from experiments.mouth_loco import FPS, HEADER, measured, row
 from experiments.mouth_videos_loso import TRACKED, load_clips
 from experiments.rhubarb_side_by_side import played
 from prosody.motion.face import lip_curves
@@ -82,8 +82,7 @@ def main(argv: list[str]) -> None:
             rows["Rhubarb"].append(measured(*rhubarb_played(program, wav, n, None), clip))
             rows["Rhubarb with the dialog"].append(measured(*rhubarb_played(program, wav, n, sentence), clip))
     print(f"\n{len(clips)} GRID clips\n")
-    print("| lips | opening r | lag (s) | closure F1 (P / R) | rounding r | control: opening r | control: F1 |")
-    print("|---|---|---|---|---|---|---|")
+    print(HEADER)
     for key in keys:
         print(row(key, rows[key]))
 

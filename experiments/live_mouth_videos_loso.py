@@ -51,7 +51,7 @@ def main() -> int:
                     faps = streamed(model, clip)
                     rows[label][speaker].append(measured(inner_opening(faps)[:n], faps[16][:n], clip))
     print(f"{len(clips)} clips, {len(speakers)} speakers held out in turn\n")
-    print("| live lips | all speakers: opening r (control ± spread), closure F1 | women | men |")
+    print("| live lips | all speakers: opening r (control ± spread), closure F1, relative closure F1 | women | men |")
     print("|---|---|---|---|")
     for label, per_speaker in rows.items():
         print(summary(label, per_speaker, sexes))

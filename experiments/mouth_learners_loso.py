@@ -77,7 +77,7 @@ def main() -> int:
                 faps = shape_faps(model.predict(clip["audio"], n, fps=FPS))
                 rows[label][speaker].append(measured(inner_opening(faps)[:n], faps[16][:n], clip))
     print(f"{len(clips)} clips, {len(speakers)} speakers held out in turn\n")
-    print("| learner | all speakers: opening r (control ± spread), closure F1 | women | men |")
+    print("| learner | all speakers: opening r (control ± spread), closure F1, relative closure F1 | women | men |")
     print("|---|---|---|---|")
     for label in LEARNERS:
         print(summary(label, rows[label], sexes))

@@ -90,8 +90,8 @@ def main(argv: list[str]) -> None:
                     shapes_used[recogniser][cue["value"]] += 1
                 rows[recogniser][speaker].append(measured(*played(cues, n), clip))
             rows["loudness"][speaker].append(measured(clip["energy"], clip["energy"], clip))
-    print("| lips, played back as cues unless said | all speakers: opening r (control ± spread), closure F1 | women "
-          "| men |")
+    print("| lips, played back as cues unless said | all speakers: opening r (control ± spread), closure F1, relative "
+          "closure F1 | women | men |")
     print("|---|---|---|---|")
     print(summary("Rhubarb Lip Sync, PocketSphinx recogniser (its default)", rows["pocketSphinx"], sexes))
     print(summary("Rhubarb Lip Sync, phonetic recogniser", rows["phonetic"], sexes))

@@ -524,6 +524,62 @@ def mouth_metrics(generated_opening_mns: np.ndarray, generated_rounding: np.ndar
             "closures": {"precision": precision, "recall": recall, "f1": f1}}
 
 
+#: The relative closure measure: each curve's frames at or below its own 15th percentile, in runs of this many
+#: frames or more, matched within this many frames.
+RELATIVE_CLOSED_PERCENTILE, CLOSURE_MIN_RUN, CLOSURE_TOLERANCE_FRAMES = 15.0, 2, 2
+
+
+def relative_closures(generated_opening: np.ndarray, recorded_opening: np.ndarray, *, fps: float,
+                      lag_frames: int = 0) -> dict:
+    """Closures found by each curve against itself: the frames at or below the curve's own 15th percentile (runs
+    of 2 frames or more), the generated ones against the recorded ones (low-passed at 8 Hz, as for the opening r),
+    each counted as found when the other has a closure within 2 frames. Unlike the ``closures`` of
+    :func:`mouth_metrics`, it needs no threshold in MNS, so any curve of the opening (cues, a loudness envelope)
+    is measured alike.
+
+    Parameters
+    ----------
+    generated_opening, recorded_opening : array (n,)
+        The two openings (any units); NaN where unknown (left out).
+    fps : float > 0
+    lag_frames : int
+        Recorded frame ``k`` is compared with generated frame ``k + lag_frames`` (the lag of the opening r).
+
+    Returns
+    -------
+    dict
+        ``precision`` (the generated closure frames near a recorded one), ``recall`` (the recorded ones near a
+        generated one) and ``f1``; None where a curve has no closure.
+    """
+    recorded, known = _filled(recorded_opening)
+    recorded = np.where(known, lowpass_head(recorded, fps=fps, cutoff_hz=MOUTH_LOWPASS_HZ), np.nan)
+    generated = np.asarray(generated_opening, float)
+    n = min(generated.size, recorded.size)
+    x, y = _lagged(generated[:n], recorded[:n], lag_frames)
+    valid = np.isfinite(x) & np.isfinite(y)
+    if valid.sum() < 2:
+        return {"precision": None, "recall": None, "f1": None}
+
+    def closed(values: np.ndarray) -> np.ndarray:
+        low = valid & (values <= np.percentile(values[valid], RELATIVE_CLOSED_PERCENTILE))
+        kept = np.zeros(values.size, bool)
+        for start, end in _runs(low):
+            if end - start >= CLOSURE_MIN_RUN:
+                kept[start:end] = True
+        return kept
+
+    def near(mask: np.ndarray) -> np.ndarray:
+        spread = np.convolve(mask.astype(float), np.ones(2 * CLOSURE_TOLERANCE_FRAMES + 1), mode="same")
+        return spread > 0
+
+    ours, theirs = closed(x), closed(y)
+    precision = float((ours & near(theirs)).sum() / ours.sum()) if ours.any() else None
+    recall = float((theirs & near(ours)).sum() / theirs.sum()) if theirs.any() else None
+    f1 = (2 * precision * recall / (precision + recall) if precision is not None and recall is not None
+          and precision + recall > 0 else None)
+    return {"precision": precision, "recall": recall, "f1": f1}
+
+
 _MOUTH_LAYOUT = (MOUTH_MEASURES, "closures", ("precision", "recall", "f1"))
 
 

@@ -408,3 +408,33 @@ def test_combined_lips_are_the_mean_of_both_mouths_with_the_visemes_closures_kep
     np.testing.assert_allclose(combined[~closed], 0.5 * (visemes[~closed] + acoustic[~closed]), atol=1e-9)
     with pytest.raises(ConfigError, match="unknown lip method 'both'; choose visemes, acoustic, combined"):
         lip_curves(audio, n, fps=30, method="both")
+
+
+def _openings_with_closures(starts, n=300, length=8):
+    """An open mouth (300, swaying) closed (0) for ``length`` frames from each of ``starts``."""
+    opening = 300.0 + 20 * np.sin(np.arange(n) / 7)
+    for start in starts:
+        opening[start:start + length] = 0.0
+    return opening
+
+
+def test_relative_closures_are_found_within_two_frames_and_at_the_lag() -> None:
+    from prosody.measures import relative_closures
+
+    starts = list(range(20, 290, 40))  # 7 closures of 8 frames: 19 % of the frames, over the 15th percentile
+    recorded = _openings_with_closures(starts)
+    exact = relative_closures(recorded, recorded, fps=30.0)
+    assert exact["precision"] == exact["recall"] == exact["f1"] == 1.0
+    near = relative_closures(_openings_with_closures([s + 2 for s in starts]), recorded, fps=30.0)
+    # two frames late, every recorded closure is still found; the generated runs are longer than the recorded
+    # ones' lowest frames (the recording is low-passed), so their ends may fall three frames away
+    assert near["recall"] == 1.0 and near["precision"] > 0.9
+    late = _openings_with_closures([s + 14 for s in starts])
+    far = relative_closures(late, recorded, fps=30.0)
+    assert far["precision"] == far["recall"] == 0.0 and far["f1"] is None
+    assert relative_closures(late, recorded, fps=30.0, lag_frames=14)["f1"] == 1.0
+    flicker = np.full(300, 300.0)
+    flicker[::5] = 0.0  # a fifth of the frames closed, one at a time: no closure is two frames long
+    assert relative_closures(flicker, recorded, fps=30.0) == {"precision": None, "recall": 0.0, "f1": None}
+    unknown = np.full(300, np.nan)
+    assert relative_closures(recorded, unknown, fps=30.0) == {"precision": None, "recall": None, "f1": None}
