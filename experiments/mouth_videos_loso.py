@@ -93,8 +93,10 @@ def summary(label: str, per_speaker: dict[str, list], sexes: dict[str, str]) -> 
         control = [mean_of([c for _, c in per_speaker[s]], "opening_r") for s in names]
         f1 = [mean_of([r for r, _ in per_speaker[s]], "f1", "closures") for s in names]
         relative = [mean_of([r for r, _ in per_speaker[s]], "f1", "relative") for s in names]
+        chance = [mean_of([c for _, c in per_speaker[s]], "f1", "relative") for s in names]
         cells.append(f"{np.nanmean(speech):.3f} (control {np.nanmean(control):+.3f} ± {np.nanstd(control):.2f}), "
-                     f"F1 {np.nanmean(f1):.2f}, relative F1 {np.nanmean(relative):.2f}, n {len(names)}")
+                     f"F1 {np.nanmean(f1):.2f}, relative F1 {np.nanmean(relative):.2f} (control "
+                     f"{np.nanmean(chance):.2f}), n {len(names)}")
     return f"| {label} | " + " | ".join(cells) + " |"
 
 
