@@ -79,11 +79,14 @@ def data_digest(paths: Iterable[Path]) -> str:
 
 
 def commit() -> tuple[str, bool]:
-    """(the checkout's commit, whether its tracked files differ from it)."""
+    """(the checkout's commit, whether its tracked files differ from it; the records of ``results/`` and the page
+    rendered from them do not count, so that experiments run one after another are not marked by each other)."""
     def git(*args: str) -> str:
         return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True, check=False).stdout.strip()
 
-    return git("rev-parse", "HEAD") or "unknown", bool(git("status", "--porcelain", "--untracked-files=no"))
+    changed = git("status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)results",
+                  ":(exclude)docs/results.md")
+    return git("rev-parse", "HEAD") or "unknown", bool(changed)
 
 
 def record(name: str, main: Callable[[], int | None], data: Callable[[], Iterable[Path]]) -> int:
