@@ -219,10 +219,11 @@ def takes_settings(**groups: type) -> _Decorator:
     """Let a function (or a class's constructor) take each settings group (``name=SettingsClass``) as one
     object or as its fields.
 
-    The function is written with one parameter per group (``analysis: AnalysisSettings | None = None``); the
-    wrapper also accepts every field of the group as a keyword, builds the group from them (over the object
-    when one is given too) and passes it on, so the function always receives a complete, checked group. The
-    wrapper's signature and docstring list the fields, from the dataclasses.
+    The function is written with one keyword-only parameter per group and no default (``analysis:
+    AnalysisSettings``). The wrapper offers it as optional, accepts every field of the group as a keyword, builds
+    the group from them (over the object when one is given too) and passes it on, so the function always
+    receives a complete, checked group. The wrapper's signature and docstring list the fields, from the
+    dataclasses.
 
     Parameters
     ----------
