@@ -253,6 +253,8 @@ CLI_MESSAGES = [
     ("batch", "AccentRule(threshold_semitones=...) is 4; scheduler= is down",
      "--brow-semitones ST is 4; --scheduler is down"),
     ("batch", "needs recorded motion (ground_truth=FILE)", "needs recorded motion (ground_truth=FILE)"),  # no option
+    ("convert", "/data/seed=3/a.wav: not found", "/data/seed=3/a.wav: not found"),  # a path is left as it is
+    ("convert", "'f0_floor_hz' and a.f0_floor_hz", "'f0_floor_hz' and a.f0_floor_hz"),
 ]
 
 

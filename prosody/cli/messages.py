@@ -128,9 +128,10 @@ def as_flags(message: str, parser: argparse.ArgumentParser | None = None) -> str
         def as_option(match: re.Match, flag: str = flag) -> str:
             return f"{flag} {match.group(1)}".rstrip()
 
-        message = re.sub(rf"(?<![\w.-]){re.escape(name)}=(\S*)", as_option, message)
+        # only where a word starts (after a space or a bracket): never inside a path or a quoted name
+        message = re.sub(rf"(?<![^\s(]){re.escape(name)}=(\S*)", as_option, message)
         if "_" in name:
-            message = re.sub(rf"(?<![\w.-]){re.escape(name)}\b", flag, message)
+            message = re.sub(rf"(?<![^\s(]){re.escape(name)}\b", flag, message)
     return message
 
 
