@@ -62,6 +62,7 @@ evaluate: $(STAMP)
 	$(BIN)/python -m experiments.animation_level
 	$(BIN)/python -m experiments.expressivity_loso
 	$(BIN)/python -m experiments.live_loco
+	$(BIN)/python -m experiments.brows_heads
 	$(BIN)/python -m experiments.mouth_loco
 	$(BIN)/python -m experiments.live_mouth_loso
 	$(BIN)/python -m experiments.live_mouth_videos_loso
