@@ -28,7 +28,7 @@ import numpy as np
 from audio_features.phones import recognise_phones
 from experiments.common import REPO, data_folder, record
 from experiments.mouth_loco import CUE_SHAPES, FPS, cue_curves
-from experiments.mouth_videos_loso import TRACKED, heads_training, load_clips, measured, summary
+from experiments.mouth_videos_loso import TRACKED, heads_training, load_clips, measured, reference_table, summary
 from prosody.motion.face import COMBINED_CLOSED_MNS
 from prosody.motion.lips import inner_opening, shape_faps, shapes_from_phones
 from prosody.motion.mouth_model import AcousticMouthModel
@@ -93,17 +93,20 @@ def main(argv: list[str]) -> None:
     print("| lips, played back as cues unless said | all speakers: opening r (control ± spread), closure F1, relative "
           "closure F1 | women | men |")
     print("|---|---|---|---|")
-    print(summary("Rhubarb Lip Sync, PocketSphinx recogniser (its default)", rows["pocketSphinx"], sexes))
-    print(summary("Rhubarb Lip Sync, phonetic recogniser", rows["phonetic"], sexes))
-    print(summary("ours: default visemes as cues (`-o X.rhubarb.json`)", rows["visemes cues"], sexes))
-    print(summary("ours: `--lips combined` as cues (acoustic held out)", rows["combined cues"], sexes))
-    print(summary("ours: default visemes, continuous", rows["visemes"], sexes))
-    print(summary("ours: `--lips combined`, continuous", rows["combined"], sexes))
-    print(summary("loudness envelope (baseline)", rows["loudness"], sexes))
+    labels = {"pocketSphinx": "Rhubarb Lip Sync, PocketSphinx recogniser (its default)",
+              "phonetic": "Rhubarb Lip Sync, phonetic recogniser",
+              "visemes cues": "ours: default visemes as cues (`-o X.rhubarb.json`)",
+              "combined cues": "ours: `--lips combined` as cues (acoustic held out)",
+              "visemes": "ours: default visemes, continuous",
+              "combined": "ours: `--lips combined`, continuous",
+              "loudness": "loudness envelope (baseline)"}
+    for key, label in labels.items():
+        print(summary(label, rows[key], sexes))
     for recogniser in RECOGNISERS:
         total = sum(shapes_used[recogniser].values())
         print(f"\nRhubarb {recogniser}: {total} cues, shapes "
               + ", ".join(f"{shape} {count / total:.0%}" for shape, count in sorted(shapes_used[recogniser].items())))
+    reference_table(rows, labels, clips)
 
 
 if __name__ == "__main__":

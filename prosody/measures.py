@@ -524,6 +524,38 @@ def mouth_metrics(generated_opening_mns: np.ndarray, generated_rounding: np.ndar
             "closures": {"precision": precision, "recall": recall, "f1": f1}}
 
 
+def opening_agreement(first: np.ndarray, second: np.ndarray, *, fps: float) -> float | None:
+    """How well two tracked measures of the same mouth's opening agree: the Pearson r of the two, each low-passed
+    at 8 Hz as the recorded opening is for :func:`mouth_metrics`, over the frames where both are known.
+
+    ``prosody track`` measures the opening twice, by the gap between the inner-lip landmarks (``lip_opening``)
+    and by the face model's ``jawOpen`` blendshape. Where they disagree (a face turned away, a hand, a smile
+    that stretches the lips, a tracker that lost the lips) the recording is a poor reference for lips made from
+    the sound, whatever makes them: every method's opening r is bounded by how much of the recorded curve is the
+    mouth itself.
+
+    Parameters
+    ----------
+    first, second : array (n,)
+        Two measures of the opening (any units); NaN where unknown.
+    fps : float > 0
+
+    Returns
+    -------
+    float or None
+        None where fewer than 3 frames are known in both, or where either is constant.
+    """
+    a, known_a = _filled(first)
+    b, known_b = _filled(second)
+    n = min(a.size, b.size)
+    both = known_a[:n] & known_b[:n]
+    if both.sum() < 3:
+        return None
+    a = lowpass_head(a[:n], fps=fps, cutoff_hz=MOUTH_LOWPASS_HZ)
+    b = lowpass_head(b[:n], fps=fps, cutoff_hz=MOUTH_LOWPASS_HZ)
+    return pearson(a[both], b[both])
+
+
 #: The relative closure measure: each curve's frames at or below its own 15th percentile, in runs of this many
 #: frames or more, matched within this many frames.
 RELATIVE_CLOSED_PERCENTILE, CLOSURE_MIN_RUN, CLOSURE_TOLERANCE_FRAMES = 15.0, 2, 2

@@ -438,3 +438,49 @@ def test_relative_closures_are_found_within_two_frames_and_at_the_lag() -> None:
     assert relative_closures(flicker, recorded, fps=30.0) == {"precision": None, "recall": 0.0, "f1": None}
     unknown = np.full(300, np.nan)
     assert relative_closures(recorded, unknown, fps=30.0) == {"precision": None, "recall": None, "f1": None}
+
+def test_two_measures_of_one_opening_agree_once_low_passed() -> None:
+    from prosody.measures import opening_agreement
+
+    frames = np.arange(300)
+    opening = 0.1 + 0.05 * np.sin(2 * np.pi * 2.0 * frames / 30.0)  # a 2 Hz syllable rhythm at 30 fps
+    blendshape = 0.3 + 2.0 * opening  # another scale and offset: the same curve
+    assert opening_agreement(opening, blendshape, fps=30.0) == pytest.approx(1.0)
+    assert opening_agreement(opening, -blendshape, fps=30.0) == pytest.approx(-1.0)
+    # a 12 Hz tremor of the tracker is above the 8 Hz low-pass: the two still agree
+    jitter = 0.15 * np.sin(2 * np.pi * 12.0 * frames / 30.0 + 0.3)
+    assert np.corrcoef(opening, blendshape + jitter)[0, 1] < 0.6
+    assert opening_agreement(opening, blendshape + jitter, fps=30.0) > 0.97
+    # a measure that follows something else (a 0.7 Hz smile) does not
+    smile = np.sin(2 * np.pi * 0.7 * frames / 30.0)
+    assert abs(opening_agreement(opening, smile, fps=30.0)) < 0.1
+    # frames unknown in either are left out; too few known, or a constant, has no answer
+    gaps = blendshape.copy()
+    gaps[100:150] = np.nan
+    assert opening_agreement(opening, gaps, fps=30.0) == pytest.approx(1.0, abs=1e-3)
+    assert opening_agreement(opening[:2], blendshape[:2], fps=30.0) is None
+    assert opening_agreement(opening, np.full(300, 0.2), fps=30.0) is None
+    assert opening_agreement(np.full(300, np.nan), blendshape, fps=30.0) is None
+
+
+@pytest.mark.parametrize("with_jaw", [True, False])
+def test_the_mouth_reader_keeps_the_jaw_blendshape_when_the_file_has_it(tmp_path, with_jaw) -> None:
+    from prosody.motion.ground_truth import read_mouth_csv
+
+    header = ["frame", "time_s", *(["jaw_open"] if with_jaw else []), "mouth_funnel", "mouth_pucker",
+              "lip_opening", "mouth_width"]
+    lines = [",".join(header)]
+    for frame in range(4):
+        jaw = [f"{0.1 * frame:.1f}"] if with_jaw else []
+        opening = "" if frame == 2 else f"{0.02 * frame:.2f}"  # no face in frame 2
+        lines.append(",".join([str(frame), f"{frame / 30:.4f}", *jaw, "0.1", "0.2", opening, "0.5"]))
+    path = tmp_path / "clip.mouth.csv"
+    path.write_text("\n".join(lines) + "\n")
+    mouth = read_mouth_csv(path)
+    assert np.allclose(mouth.lip_opening, [0.0, 0.02, np.nan, 0.06], equal_nan=True)
+    assert np.allclose(mouth.rounding, 0.3) and np.allclose(mouth.mouth_width, 0.5)
+    if with_jaw:
+        assert np.allclose(mouth.jaw_open, [0.0, 0.1, 0.2, 0.3])
+    else:
+        assert mouth.jaw_open is None
+

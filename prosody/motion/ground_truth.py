@@ -166,23 +166,26 @@ BROWS_CSV_HEIGHTS = ("inner_height_l", "inner_height_r", "outer_height_l", "oute
 ENS_PER_EYE_WIDTH = 2048.0
 
 
-def _tracked_columns(path: str | os.PathLike[str], columns: tuple[str, ...]) -> np.ndarray:
-    """The named columns of a video-tracked CSV (frames 0, 1, 2, ...), NaN where the cell is empty (no face)."""
+def _tracked_columns(path: str | os.PathLike[str], columns: tuple[str, ...],
+                     optional: tuple[str, ...] = ()) -> np.ndarray:
+    """The named columns of a video-tracked CSV (frames 0, 1, 2, ...), NaN where the cell is empty (no face),
+    then the ``optional`` ones (all NaN where the file has no such column)."""
     name = str(path)
     rows = _csv_rows(path, name)
     header = [cell.strip() for cell in rows[0]] if rows else []
     missing = [column for column in ("frame", *columns) if column not in header]
     if missing:
         raise GroundTruthError(f"{name}, line 1: missing column(s) {', '.join(missing)}")
-    index = {column: header.index(column) for column in ("frame", *columns)}
-    data = np.full((len(rows) - 1, len(columns)), np.nan)
+    wanted = (*columns, *(column for column in optional if column in header))
+    index = {column: header.index(column) for column in ("frame", *wanted)}
+    data = np.full((len(rows) - 1, len(wanted)), np.nan)
     for line, row in enumerate(rows[1:], start=2):
         try:
             if len(row) != len(header):
                 raise ValueError(f"{len(row)} columns, expected {len(header)}")
             if float(row[index["frame"]]) != line - 2:
                 raise GroundTruthError(f"{name}, line {line}: frames must be numbered 0, 1, 2, ... in order")
-            for column, key in enumerate(columns):
+            for column, key in enumerate(wanted):
                 cell = row[index[key]].strip()
                 if cell:
                     data[line - 2, column] = float(cell)
@@ -190,8 +193,11 @@ def _tracked_columns(path: str | os.PathLike[str], columns: tuple[str, ...]) -> 
             raise GroundTruthError(f"{name}, line {line}: expected numbers or empty cells ({error})") from None
     if not np.all(np.isfinite(data) | np.isnan(data)):
         raise GroundTruthError(f"{name}: values must be finite numbers or empty cells")
-    if data.shape[0] == 0 or not np.isfinite(data).any(axis=1).any():
+    if data.shape[0] == 0 or not np.isfinite(data[:, :len(columns)]).any(axis=1).any():
         raise GroundTruthError(f"{name}: no frame with a tracked face")
+    absent = [index for index, column in enumerate(optional) if column not in header]
+    for position in absent:
+        data = np.insert(data, len(columns) + position, np.nan, axis=1)
     return data
 
 
@@ -204,13 +210,16 @@ class RecordedMouth:
     """A video-tracked mouth at 30 fps: NaN where no face was found.
 
     ``lip_opening`` and ``mouth_width`` are in outer-eye-corner widths; ``rounding`` is the blendshape
-    weights ``mouth_funnel + mouth_pucker``.
+    weights ``mouth_funnel + mouth_pucker``; ``jaw_open`` is the tracker's own ``jawOpen`` blendshape weight (a
+    second measure of the same opening, see :func:`prosody.measures.opening_agreement`), or None where the file
+    has no such column.
     """
 
     lip_opening: np.ndarray
     rounding: np.ndarray
     mouth_width: np.ndarray
     fps: float = HEAD_CSV_FPS
+    jaw_open: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
@@ -225,8 +234,8 @@ def read_mouth_csv(path: str | os.PathLike[str]) -> RecordedMouth:
     GroundTruthError
         Missing file or columns, frames not numbered 0, 1, 2, ..., non-numeric cells, or no face at all.
     """
-    opening, funnel, pucker, width = _tracked_columns(path, MOUTH_CSV_COLUMNS).T
-    return RecordedMouth(opening, funnel + pucker, width)
+    opening, funnel, pucker, width, jaw = _tracked_columns(path, MOUTH_CSV_COLUMNS, optional=("jaw_open",)).T
+    return RecordedMouth(opening, funnel + pucker, width, jaw_open=jaw if np.isfinite(jaw).any() else None)
 
 
 def mouth_beside(path: str | os.PathLike[str]) -> Path | None:
