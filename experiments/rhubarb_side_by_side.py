@@ -106,7 +106,26 @@ def main(argv: list[str]) -> None:
         total = sum(shapes_used[recogniser].values())
         print(f"\nRhubarb {recogniser}: {total} cues, shapes "
               + ", ".join(f"{shape} {count / total:.0%}" for shape, count in sorted(shapes_used[recogniser].items())))
+    print("\nPaired by speaker (each speaker's clips averaged first): ours minus Rhubarb's, opening r, mean ± standard "
+          "error, and the speakers where ours is higher")
+    for ours in ("visemes cues", "combined cues", "visemes", "combined"):
+        print(f"- {labels[ours]}: " + "; ".join(f"against {recogniser}: {paired(rows[ours], rows[recogniser])}"
+                                                for recogniser in RECOGNISERS))
     reference_table(rows, labels, clips)
+
+
+def paired(ours: dict[str, list], theirs: dict[str, list]) -> str:
+    """The per-speaker difference of the opening r of two sets of lips: mean ± standard error, and how many
+    speakers it favours."""
+    def speaker_r(per_speaker: dict[str, list], speaker: str) -> float:
+        values = [r["opening_r"] for r, _ in per_speaker[speaker] if r["opening_r"] is not None]
+        return float(np.mean(values)) if values else float("nan")
+
+    differences = np.array([speaker_r(ours, s) - speaker_r(theirs, s) for s in sorted(ours)])
+    differences = differences[np.isfinite(differences)]
+    error = differences.std(ddof=1) / np.sqrt(differences.size) if differences.size > 1 else float("nan")
+    return (f"{differences.mean():+.3f} ± {error:.3f}, higher for {int((differences > 0).sum())} of "
+            f"{differences.size}")
 
 
 if __name__ == "__main__":
