@@ -69,6 +69,7 @@ evaluate: $(STAMP)
 	$(BIN)/python -m experiments.head_loop
 	$(BIN)/python -m experiments.mouth_videos_loso
 	$(BIN)/python -m experiments.mouth_learners_loso
+	$(BIN)/python -m experiments.phone_warp
 	$(BIN)/python -m experiments.grid_transcripts $(RHUBARB)
 	if [ -n "$(RHUBARB)" ]; then $(BIN)/python -m experiments.rhubarb_side_by_side $(RHUBARB); fi
 	$(BIN)/python -m experiments.render
