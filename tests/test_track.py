@@ -170,6 +170,8 @@ def test_track_writes_the_talking_heads_files(tracked):
     record = json.loads((tracked / f"{CLIP.stem}.track.json").read_text())
     assert record["video"]["fps"] == 25 and record["video_frames"] == 75 and record["faces_seen"] == 1
     assert record["missing_frames"] == 0
+    assert record["mouth_agreement"] == pytest.approx(opening_agreement(mouth.lip_opening, mouth.jaw_open,
+                                                                         fps=30.0), abs=1e-3)
     # the sound was not silent: the GRID speaker says a sentence
     assert np.sqrt(np.mean(samples**2)) > 0.01
 

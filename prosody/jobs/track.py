@@ -6,7 +6,8 @@ For each video ``<stem>``, written into the output folder, each file atomically:
 - ``<stem>.head.csv``, ``<stem>.brows.csv``, ``<stem>.mouth.csv``: the talking-heads formats at 30 fps,
   frame k at k / 30 s of the sound, empty cells where the face was not found;
 - ``<stem>.track.json``: what was done (the video's properties, the face followed, frames without it, the
-  audio-video sync estimate, the model's SHA-256), written last, so a folder holding it for the same video
+  audio-video sync estimate, how well the two measures of the mouth's opening agree, the model's SHA-256),
+  written last, so a folder holding it for the same video
   and settings is complete and is skipped on a re-run.
 
 A video without sound takes the WAV of the same stem beside it (or given with ``audio=``), read as starting
@@ -30,6 +31,7 @@ import numpy as np
 from audio_features.atomic import atomic_path, atomic_write
 
 from ..errors import ConfigError, TrackingError, VisualProsodyError, require_extra
+from ..measures import opening_agreement
 from ..motion.ground_truth import HEAD_CSV_FPS
 from ..tracking.curves import (
     ALL_COLUMNS,
@@ -56,6 +58,9 @@ from .batch import _completed, _one_line, file_digest, make_executor, natural_ke
 TRACK_VERSION = 1
 #: Largest difference between the sound's and the picture's lengths before a warning, in s.
 LENGTH_WARNING_S = 0.5
+#: Below this agreement of the two measures of the mouth's opening (:func:`prosody.measures.opening_agreement`)
+#: a video's note says its mouth is a poor reference (4 of the 42 usable talking videos; their median is 0.83).
+POOR_MOUTH_AGREEMENT = 0.6
 
 
 class TrackWarning(UserWarning):
@@ -311,6 +316,10 @@ def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options:
              "there, or the sound outlasts the picture")
     sync = (estimate_sync(curves.columns["lip_opening"], envelope.envelope(curves.n_frames))
             if has_sound else SyncEstimate(None, None, None, "no sound"))
+    agreement = opening_agreement(curves.columns["lip_opening"], curves.columns["jaw_open"], fps=curves.fps)
+    if agreement is not None and agreement < POOR_MOUTH_AGREEMENT:
+        note(f"the two measures of the mouth's opening (inner-lip landmarks, jawOpen) agree only r {agreement:.2f}: "
+             "a poor reference for training or measuring lips")
     written = write_curves(curves, stem, pending=pending)
     summary = {
         "video": {key: value for key, value in asdict(info).items() if key != "path"} | {"file": path.name},
@@ -318,6 +327,7 @@ def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options:
         "video_frames_with_face": with_face, "faces_seen": faces_seen,
         "bridged_frames": curves.bridged_frames, "missing_frames": curves.missing_frames,
         "sync": asdict(sync) | {"description": sync.describe()},
+        "mouth_agreement": None if agreement is None else round(agreement, 3),
         "files": [Path(name).name for name in written] + ([f"{path.stem}.wav"] if has_sound else []),
     }
     return TrackOutcome(str(path), "done", str(stem), frames=curves.n_frames, missing_frames=curves.missing_frames,
