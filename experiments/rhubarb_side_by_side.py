@@ -30,7 +30,7 @@ from experiments.common import REPO, data_folder, record
 from experiments.mouth_loco import CUE_SHAPES, FPS, cue_curves
 from experiments.mouth_videos_loso import TRACKED, heads_training, load_clips, measured, reference_table, summary
 from prosody.motion.face import COMBINED_CLOSED_MNS
-from prosody.motion.lips import inner_opening, shape_faps, shapes_from_phones
+from prosody.motion.lips import VISEME_FAP, inner_opening, shape_faps, shapes_from_phones
 from prosody.motion.mouth_model import AcousticMouthModel
 
 CUES = REPO / "out" / "rhubarb-cues"
@@ -78,9 +78,10 @@ def main(argv: list[str]) -> None:
             n = clip["mouth"].n_frames
             visemes = shape_faps(shapes_from_phones(recognise_phones(clip["audio"]), n, fps=FPS))
             acoustic = shape_faps(model.predict(clip["audio"], n, fps=FPS))
-            combined = {fap: 0.5 * (visemes[fap][:n] + acoustic[fap][:n]) for fap in visemes}
+            combined = {fap: 0.5 * (visemes[fap][:n] + acoustic[fap][:n]) for fap in acoustic}
             closed = inner_opening(visemes)[:n] < COMBINED_CLOSED_MNS
             combined = {fap: np.where(closed, visemes[fap][:n], combined[fap]) for fap in combined}
+            combined[VISEME_FAP] = visemes[VISEME_FAP][:n]  # as `--lips combined` carries the visemes said
             for key, faps in (("visemes", visemes), ("combined", combined)):
                 rows[key][speaker].append(measured(inner_opening(faps)[:n], faps[16][:n], clip))
                 rows[f"{key} cues"][speaker].append(measured(*cue_curves(faps, n), clip))

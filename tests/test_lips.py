@@ -25,10 +25,13 @@ from prosody.motion.expressions import (
 from prosody.motion.face import lip_curves
 from prosody.motion.lips import (
     LIP_FAPS,
+    VISEME_FAP,
     VISEMES,
+    MouthShape,
     blend,
     dominance,
     inner_opening,
+    said_visemes,
     shape_faps,
     shapes_from_phones,
     viseme_of,
@@ -80,7 +83,7 @@ def test_a_bilabial_closes_the_lips_between_open_vowels():
 
 def test_the_opening_is_shared_by_jaw_and_lips_and_the_outer_lips_follow():
     faps = shape_faps(shapes_from_phones([Phone("AA", 0.0, 1.0)], 30, fps=30))
-    assert set(faps) == set(LIP_FAPS)
+    assert set(faps) == set(LIP_FAPS) | {VISEME_FAP}
     a = next(v for v in VISEMES if v.name == "a")
     np.testing.assert_allclose(inner_opening(faps), a.opening)
     np.testing.assert_allclose(faps[3], 0.6 * a.opening)
@@ -483,4 +486,32 @@ def test_the_mouth_reader_keeps_the_jaw_blendshape_when_the_file_has_it(tmp_path
         assert np.allclose(mouth.jaw_open, [0.0, 0.1, 0.2, 0.3])
     else:
         assert mouth.jaw_open is None
+
+
+def test_the_viseme_said_is_carried_as_fap_1_by_lips_from_phones() -> None:
+    phones = [Phone("SIL", 0.0, 0.2), Phone("M", 0.2, 0.3), Phone("AA1", 0.3, 0.5), Phone("F", 0.5, 0.6),
+              Phone("UW", 0.6, 0.8)]
+    numbers = said_visemes(phones, 10, fps=10.0)
+    assert numbers.tolist() == [0, 0, 1, 10, 10, 2, 14, 14, 0, 0]
+    # phones given out of order, or overlapping a gap, are read by their times
+    assert said_visemes(phones[::-1], 10, fps=10.0).tolist() == numbers.tolist()
+    assert said_visemes([], 4, fps=10.0).tolist() == [0, 0, 0, 0]
+    faps = shape_faps(shapes_from_phones(phones, 10, fps=10.0))
+    assert faps[VISEME_FAP].tolist() == numbers.tolist()
+    # a still mouth says nothing, and a mouth not made from phones has no viseme
+    assert VISEME_FAP not in shape_faps(shapes_from_phones(phones, 10, fps=10.0), gain=0.0)
+    assert VISEME_FAP not in shape_faps(MouthShape(np.full(3, 100.0), np.zeros(3), np.zeros(3)))
+
+
+def test_the_viseme_fap_is_resampled_from_the_nearest_frame_and_never_written_to_fap_files(tmp_path) -> None:
+    from prosody.fap.fapfile import format_fap
+    from prosody.fap.stream import FapStream
+
+    stream = FapStream.from_curves({1: np.array([0.0, 1.0, 10.0, 10.0, 2.0, 0.0]), 3: np.arange(6) * 30.0},
+                                   fps=10.0)
+    resampled = stream.resampled(25.0)
+    assert set(resampled.curve(1).tolist()) <= {0.0, 1.0, 2.0, 10.0}  # never a viseme between two
+    assert resampled.curve(3)[1] == pytest.approx(12.0)  # the low-level FAPs still interpolate
+    mask_line = format_fap(stream).splitlines()[1].split()
+    assert mask_line[0] == "0" and mask_line[2] == "1"  # FAP 1 masked off, FAP 3 on
 

@@ -52,6 +52,25 @@ def test_a_single_frame_does_not_flicker_but_a_short_closure_stays() -> None:
     assert shapes == ["B", "A", "B"]
 
 
+def test_the_viseme_said_gives_its_shape_whatever_the_lips_opening() -> None:
+    # FAP 1 (the viseme said) over lips held half open: the cues follow the visemes, as Rhubarb follows phones
+    said = [(10, 0), (6, 10), (3, 1), (6, 10), (4, 2), (6, 13), (5, 11), (6, 12), (6, 14), (12, 0)]
+    numbers = np.concatenate([np.full(n, number, float) for n, number in said])
+    stream = FapStream.from_curves({1: numbers, 3: np.full(numbers.size, 0.6 * 200.0),
+                                    4: np.full(numbers.size, -0.15 * 200.0), 5: np.full(numbers.size, -0.25 * 200.0)},
+                                   fps=FPS)
+    shapes = [cue.shape for cue in mouth_cues(stream)]
+    # silence at the ends idle (X), /a/ D, /p b m/ A, /f v/ G, /o/ F, /e/ C, /i/ B, /u/ F
+    assert shapes == ["X", "D", "A", "D", "G", "F", "C", "B", "F", "X"]
+    starts = [cue.start_s for cue in mouth_cues(stream)]
+    assert starts == [round(sum(n for n, _ in said[:k]) / FPS, 2) for k in range(len(said))]
+    # where the stream does not say the viseme (FAP 1 masked off), the lips' opening chooses the shape
+    mask = stream.mask.copy()
+    mask[:19, 0] = False  # the silence, /a/ and /p b m/: the lips are 200 MNS open there
+    partial = FapStream(stream.values, mask, FPS)
+    assert [cue.shape for cue in mouth_cues(partial)][:3] == ["B", "D", "G"]
+
+
 def test_a_stream_without_lips_is_idle() -> None:
     stream = FapStream.from_curves({48: np.zeros(45)}, fps=FPS)
     assert [(c.start_s, c.end_s, c.shape) for c in mouth_cues(stream)] == [(0.0, 1.5, "X")]
@@ -108,8 +127,9 @@ def test_convert_writes_rhubarb_cues_of_a_recording(tmp_path: Path) -> None:
     assert rows[0][0] == 0.0 and rows[-1] == (3.1, "X")
     assert all(a[0] < b[0] for a, b in zip(rows, rows[1:], strict=False))
     shapes = {shape for _, shape in rows}
-    assert shapes <= set("ABCDEFX") and len(shapes) >= 4  # speech moves through several shapes
+    assert shapes <= set("ABCDEFGX") and len(shapes) >= 4  # speech moves through several shapes
     assert "A" in shapes  # "Philip": the /p/ closes
+    assert "G" in shapes  # "of", "Philip": the lower lip under the teeth, known from the phones' visemes
 
 
 @pytest.mark.parametrize("ending", [".rhubarb.json", ".dat"])

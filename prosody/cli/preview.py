@@ -13,6 +13,8 @@ def say_unshown(stream, face: str, source: str) -> None:
     import numpy as np
 
     present = [int(f) + 1 for f in np.flatnonzero(stream.mask.any(axis=0))]
+    if 3 in present:  # a viseme (FAP 1) that came with low-level lips is shown by them
+        present = [f for f in present if f != 1]
     if face == "head":
         from ..head.rig import head_rig
 

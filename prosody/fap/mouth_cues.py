@@ -5,17 +5,20 @@ teeth (most consonants, the EE of "bee"), C open (EH, AE), D wide open (AA), E s
 puckered (UW, OW, W); the extended G (upper teeth on the lower lip: F, V), H (long L, the tongue raised) and X
 (idle: closed and relaxed, in pauses). Without the extended shapes Rhubarb shows G as A, H as C and X as A.
 
-Each frame's shape is read from the lip FAPs, whatever made them (visemes, the acoustic model, a Greta file):
-the inner-lip opening ``FAP 3 - FAP 4 - FAP 5`` in MNS and the rounding ``(FAP 16 + FAP 17) / 2`` over
-:data:`PUCKER_MNS`. An opening below :data:`CLOSED_MNS` is A (X where the mouth stays closed for :data:`IDLE_S`
-or more, or at the start and end, or where the stream has no lips); any other frame takes the shape of
-:data:`SHAPE_SIZES` nearest to it, a rounding of :data:`ROUNDING_WEIGHT` counting as much as 100 MNS of opening.
-The sizes are the project's visemes' (``prosody.motion.lips``: /a/ 330 MNS, /e/ 260, /i/ and the consonants
-110-190, /p b m/ 0; /u/ rounded 0.2, /o/ and /r/ 0.1-0.12), so a player that draws each shape at that size shows
-the lips as near as six shapes can. G and H are never given: lip FAPs do not tell the lower lip under the teeth
-(/f v/, 45 MNS open) from a mouth half closed, nor carry the tongue; a player with the extended shapes shows ours
-as they are. A shape held for a single frame joins the cue before it (the first: the one after), closures
-excepted, so that no cue flickers.
+Where the stream says which viseme is spoken (MPEG-4's FAP 1, which lips made from phones carry:
+``prosody.motion.lips.VISEME_FAP``), each frame takes that viseme's shape (:data:`VISEME_SHAPES`), as Rhubarb
+takes each phone's: /p b m/ and silence A, /f v/ G, the other consonants and /i/ B, /e/ C, /a/ D, /o/ and /u/ F.
+Otherwise (the acoustic lips, a file of lip FAPs) each frame's shape is read from the lip FAPs: the inner-lip
+opening ``FAP 3 - FAP 4 - FAP 5`` in MNS and the rounding ``(FAP 16 + FAP 17) / 2`` over :data:`PUCKER_MNS`. An
+opening below :data:`CLOSED_MNS` is A; any other frame takes the shape of :data:`SHAPE_SIZES` nearest to it, a
+rounding of :data:`ROUNDING_WEIGHT` counting as much as 100 MNS of opening. The sizes are the project's
+visemes' (``prosody.motion.lips``: /a/ 330 MNS, /e/ 260, /i/ and the consonants 110-190, /p b m/ 0; /u/ rounded
+0.2, /o/ and /r/ 0.1-0.12), so a player that draws each shape at that size shows the lips as near as six shapes
+can; from lip FAPs alone G is never given (they do not tell the lower lip under the teeth, /f v/, 45 MNS open,
+from a mouth half closed). Either way, a closed mouth (A) becomes X where it stays closed for :data:`IDLE_S` or
+more, at the start and end, and where the stream has no lips; H (the tongue raised for a long L) is never given.
+A shape held for a single frame joins the cue before it (the first: the one after), closures excepted, so that
+no cue flickers.
 
 Files (Rhubarb's own layouts, so that the plugins of Blender, Godot, Unity, Spine, OpenToonz, After Effects and
 Moho read them): ``.rhubarb.tsv`` (``start<TAB>shape`` per cue, then the end of the recording with the closed
@@ -40,6 +43,7 @@ import numpy as np
 from audio_features.atomic import atomic_write
 
 from .stream import FapStream
+from .table import Fap
 
 SHAPES = ("A", "B", "C", "D", "E", "F", "G", "H", "X")
 #: Rhubarb's shape names in the Preston Blair set (its ``--datUsePrestonBlair``).
@@ -51,6 +55,12 @@ CLOSED_MNS = 75.0
 SHAPE_SIZES = {"B": (150.0, 0.0), "C": (260.0, 0.0), "D": (330.0, 0.0), "E": (240.0, 0.11), "F": (170.0, 0.2)}
 #: The rounding that weighs as much as 100 MNS of opening in choosing the nearest shape.
 ROUNDING_WEIGHT = 0.1
+#: The shape of each MPEG-4 viseme (FAP 1: 0 neutral, 1 /p b m/, 2 /f v/, 3 /th dh/, 4 /t d/, 5 /k g/, 6 /ch jh sh/,
+#: 7 /s z/, 8 /n l/, 9 /r/, 10 /a/, 11 /e/, 12 /i/, 13 /o/, 14 /u/), after Rhubarb's descriptions of its shapes. /a/
+#: (AA, AE, AH, AW, AY) is D, /r/ (R, ER) B and /o/ (AO, OW, OY) F: of C or D, B or E and E or F, the ones whose cues
+#: followed the tracked mouths of the seven talking-heads clips best (``docs/languages.md``).
+VISEME_SHAPES = {0: "A", 1: "A", 2: "G", 3: "B", 4: "B", 5: "B", 6: "B", 7: "B", 8: "B", 9: "B", 10: "D", 11: "C",
+                 12: "B", 13: "F", 14: "F"}
 #: Protrusion of each lip (FAP 16, 17) that counts as fully puckered, in MNS.
 PUCKER_MNS = 300.0
 #: A closed mouth held this long is idle (X).
@@ -58,6 +68,8 @@ IDLE_S = 0.3
 #: Frame rate of Moho switch files (Rhubarb's default).
 DAT_FPS = 24.0
 RESOLUTION_S = 0.01
+#: MPEG-4's high-level viseme FAP.
+VISEME_FAP = int(Fap.VISEME)
 
 
 @dataclass(frozen=True)
@@ -74,12 +86,17 @@ def frame_shapes(stream: FapStream) -> list[str]:
     curve = stream.curve
     opening = curve(3) - curve(4) - curve(5)
     rounding = (curve(16) + curve(17)) / 2 / PUCKER_MNS
-    has_lips = np.asarray(stream.mask[:, [2, 3, 4, 15, 16]].any(axis=1), dtype=bool)
+    said = np.asarray(stream.mask[:, VISEME_FAP - 1], dtype=bool)
+    has_lips = np.asarray(stream.mask[:, [2, 3, 4, 15, 16]].any(axis=1), dtype=bool) | said
     names = list(SHAPE_SIZES)
     distance = np.stack([((opening - size) / 100.0) ** 2 + ((rounding - rounded) / ROUNDING_WEIGHT) ** 2
                          for size, rounded in SHAPE_SIZES.values()])
     shapes = np.array(names, dtype="<U1")[distance.argmin(axis=0)] if len(opening) else np.array([], dtype="<U1")
     shapes[(opening < CLOSED_MNS) | ~has_lips] = "A"
+    if said.any():
+        numbers = np.rint(curve(VISEME_FAP)).astype(int)
+        known = said & np.isin(numbers, list(VISEME_SHAPES))
+        shapes[known] = [VISEME_SHAPES[number] for number in numbers[known].tolist()]
     out = shapes.tolist()
     _merge_single_frames(out)
     # closed for long, at the ends, or without lips: idle

@@ -264,7 +264,8 @@ class FapStream:
         return FapStream._adopt(self.values, self.mask, self.fps, name)
 
     def resampled(self, fps: float, *, n_frames: int | None = None) -> FapStream:
-        """The stream on another frame grid: values linearly interpolated, masks from the nearest frame.
+        """The stream on another frame grid: values linearly interpolated (those of the high-level FAPs 1 and 2,
+        which number a viseme or an expression, from the nearest frame), masks from the nearest frame.
 
         Parameters
         ----------
@@ -288,6 +289,7 @@ class FapStream:
         source = np.arange(self.n_frames)
         for column in range(N_FAPS):
             values[:, column] = np.interp(position, source, self.values[:, column])
+        values[:, :2] = self.values[nearest, :2]
         return FapStream(values, self.mask[nearest], fps, self.name)
 
     def merged_over(self, base: FapStream) -> FapStream:

@@ -144,7 +144,8 @@ def lip_curves(audio, n_frames: int, *, fps: float, method: str = "visemes", tra
         heard = _acoustic_shape(audio, n_frames, fps=fps, mouth_model=mouth_model)
         closed = shape.opening < COMBINED_CLOSED_MNS
         shape = MouthShape(np.where(closed, shape.opening, 0.5 * (shape.opening + heard.opening)),
-                           0.5 * (shape.rounding + heard.rounding), 0.5 * (shape.spread + heard.spread))
+                           0.5 * (shape.rounding + heard.rounding), 0.5 * (shape.spread + heard.spread),
+                           shape.viseme)
     return shape_faps(shape, gain=gain)
 
 

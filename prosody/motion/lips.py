@@ -39,9 +39,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from ..fap.table import Fap
 
 #: Lip FAPs this module writes.
 LIP_FAPS = (3, 4, 5, 6, 7, 8, 9, 10, 11, 16, 17, 51, 52, 53, 54, 55, 56, 57, 58)
+#: MPEG-4's high-level viseme FAP: lips made from phones also carry the number of the viseme said at each frame
+#: (its ``viseme_select1``), which mouth cues read (``prosody.fap.mouth_cues``). The .fap writer leaves it out,
+#: as it does every high-level FAP, and nothing draws it: the low-level lip FAPs show it.
+VISEME_FAP = int(Fap.VISEME)
 #: Inner-lip FAP -> the outer-lip FAP that follows it.
 OUTER_OF_INNER = {4: 51, 5: 52, 6: 53, 7: 54, 8: 55, 9: 56, 10: 57, 11: 58, 12: 59, 13: 60}
 #: Shares of the opening taken by the jaw (FAP 3), the top lip (FAP 4, up: negative) and the bottom lip
@@ -215,29 +220,60 @@ def viseme_weights(times_s: np.ndarray, phones: Sequence, *, visemes: Sequence[V
 
 @dataclass(frozen=True)
 class MouthShape:
-    """Mouth-shape tracks on a frame grid: opening (MNS), rounding (0..1), spread (fraction of width)."""
+    """Mouth-shape tracks on a frame grid: opening (MNS), rounding (0..1), spread (fraction of width), and where
+    the mouth comes from phones, ``viseme``: the number of the viseme said at each frame (0 between phones)."""
 
     opening: np.ndarray
     rounding: np.ndarray
     spread: np.ndarray
+    viseme: np.ndarray | None = None
 
 
 def shapes_from_phones(phones: Sequence, n_frames: int, *, fps: float,
                        visemes: Sequence[Viseme] = VISEMES) -> MouthShape:
     """The mouth shape at every frame of a grid, from timed phones (objects with ``label``, ``start_s``,
-    ``end_s``), coarticulated by :func:`blend`. No phones: a neutral mouth."""
+    ``end_s``), coarticulated by :func:`blend`, with the viseme said at each frame (:func:`said_visemes`). No
+    phones: a neutral mouth."""
     if n_frames == 0 or len(phones) == 0:
         neutral = visemes[0]
         return MouthShape(np.full(n_frames, neutral.opening), np.full(n_frames, neutral.rounding),
-                          np.full(n_frames, neutral.spread))
+                          np.full(n_frames, neutral.spread), np.zeros(n_frames, dtype=int))
     weights = viseme_weights(np.arange(n_frames) / fps, phones, visemes=visemes)
     table = np.array([[v.opening, v.rounding, v.spread] for v in visemes])
     shape = weights @ table
-    return MouthShape(shape[:, 0], shape[:, 1], shape[:, 2])
+    return MouthShape(shape[:, 0], shape[:, 1], shape[:, 2], said_visemes(phones, n_frames, fps=fps))
+
+
+def said_visemes(phones: Sequence, n_frames: int, *, fps: float) -> np.ndarray:
+    """The number of the viseme of the phone said at each frame of a grid (frame ``k`` at ``k / fps``), 0
+    (neutral) where no phone covers it: what MPEG-4's FAP 1 (``viseme_select``) carries.
+
+    Examples
+    --------
+    >>> from audio_features.phones import Phone
+    >>> said_visemes([Phone("B", 0.1, 0.2), Phone("AA1", 0.2, 0.4)], 6, fps=10.0).tolist()
+    [0, 1, 10, 10, 0, 0]
+    """
+    numbers = np.zeros(n_frames, dtype=int)
+    starts = np.array([phone.start_s for phone in phones], float)
+    ends = np.array([phone.end_s for phone in phones], float)
+    if not n_frames or not starts.size:
+        return numbers
+    times = np.arange(n_frames) / fps
+    order = np.argsort(starts, kind="stable")
+    # the last phone started at or before each frame, if the frame is before its end
+    index = np.searchsorted(starts[order], times + 1e-9, side="right") - 1
+    inside = index >= 0
+    chosen = order[np.clip(index, 0, None)]
+    inside &= times < ends[chosen] - 1e-9
+    labels = [viseme_of(phone.label).number for phone in phones]
+    numbers[inside] = np.array(labels)[chosen[inside]]
+    return numbers
 
 
 def shape_faps(shape: MouthShape, *, gain: float = 1.0) -> dict[int, np.ndarray]:
-    """Low-level lip FAPs of a mouth shape (see the module's geometry), scaled by ``gain``.
+    """Low-level lip FAPs of a mouth shape (see the module's geometry), scaled by ``gain``, and FAP 1 (the viseme
+    said, :data:`VISEME_FAP`) where the shape has one and the lips move (``gain`` above 0).
 
     Examples
     --------
@@ -256,7 +292,10 @@ def shape_faps(shape: MouthShape, *, gain: float = 1.0) -> dict[int, np.ndarray]
         if inner in curves:
             curves[outer] = curves[inner]
     # rounding noise of the blend (1e-20 where a shape is 0) is no motion
-    return {fap: np.where(np.abs(curves[fap]) < 1e-9, 0.0, curves[fap]) for fap in LIP_FAPS}
+    out = {fap: np.where(np.abs(curves[fap]) < 1e-9, 0.0, curves[fap]) for fap in LIP_FAPS}
+    if shape.viseme is not None and gain > 0:
+        out[VISEME_FAP] = np.asarray(shape.viseme, float)
+    return out
 
 
 def inner_opening(curves: dict[int, np.ndarray]) -> np.ndarray:
