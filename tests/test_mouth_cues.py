@@ -69,6 +69,11 @@ def test_the_viseme_said_gives_its_shape_whatever_the_lips_opening() -> None:
     mask[:19, 0] = False  # the silence, /a/ and /p b m/: the lips are 200 MNS open there
     partial = FapStream(stream.values, mask, FPS)
     assert [cue.shape for cue in mouth_cues(partial)][:3] == ["B", "D", "G"]
+    # and where the lips are closed (a /p/'s closure carried onto the vowel before it), the viseme is closed too
+    values = stream.values.copy()
+    values[13:16, 2:5] = 0.0  # the last three frames of the first /a/
+    closing = [(cue.start_s, cue.shape) for cue in mouth_cues(FapStream(values, stream.mask, FPS))]
+    assert closing[1:3] == [(round(10 / FPS, 2), "D"), (round(13 / FPS, 2), "A")]
 
 
 def test_a_stream_without_lips_is_idle() -> None:

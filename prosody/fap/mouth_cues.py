@@ -7,11 +7,12 @@ puckered (UW, OW, W); the extended G (upper teeth on the lower lip: F, V), H (lo
 
 Where the stream says which viseme is spoken (MPEG-4's FAP 1, which lips made from phones carry:
 ``prosody.motion.lips.VISEME_FAP``), each frame takes that viseme's shape (:data:`VISEME_SHAPES`), as Rhubarb
-takes each phone's: /p b m/ and silence A, /f v/ G, the other consonants and /i/ B, /e/ C, /a/ D, /o/ and /u/ F.
-Otherwise (the acoustic lips, a file of lip FAPs) each frame's shape is read from the lip FAPs: the inner-lip
-opening ``FAP 3 - FAP 4 - FAP 5`` in MNS and the rounding ``(FAP 16 + FAP 17) / 2`` over :data:`PUCKER_MNS`. An
-opening below :data:`CLOSED_MNS` is A; any other frame takes the shape of :data:`SHAPE_SIZES` nearest to it, a
-rounding of :data:`ROUNDING_WEIGHT` counting as much as 100 MNS of opening. The sizes are the project's
+takes each phone's: /p b m/ and silence A, /f v/ G, the other consonants and /i/ B, /e/ C, /a/ D, /o/ and /u/ F;
+and A wherever the lips themselves are closed (an opening below :data:`CLOSED_MNS`), as they are about a /p/ by
+coarticulation, but for /f v/ (G, the lower lip under the teeth, is nearly closed). Otherwise (the acoustic lips, a file of lip FAPs) each frame's shape is read from the lip FAPs:
+the inner-lip opening ``FAP 3 - FAP 4 - FAP 5`` in MNS and the rounding ``(FAP 16 + FAP 17) / 2`` over
+:data:`PUCKER_MNS`. An opening below :data:`CLOSED_MNS` is A; any other frame takes the shape of
+:data:`SHAPE_SIZES` nearest to it, a rounding of :data:`ROUNDING_WEIGHT` counting as much as 100 MNS of opening. The sizes are the project's
 visemes' (``prosody.motion.lips``: /a/ 330 MNS, /e/ 260, /i/ and the consonants 110-190, /p b m/ 0; /u/ rounded
 0.2, /o/ and /r/ 0.1-0.12), so a player that draws each shape at that size shows the lips as near as six shapes
 can; from lip FAPs alone G is never given (they do not tell the lower lip under the teeth, /f v/, 45 MNS open,
@@ -97,6 +98,8 @@ def frame_shapes(stream: FapStream) -> list[str]:
         numbers = np.rint(curve(VISEME_FAP)).astype(int)
         known = said & np.isin(numbers, list(VISEME_SHAPES))
         shapes[known] = [VISEME_SHAPES[number] for number in numbers[known].tolist()]
+        # the lips closed about a /p b m/ by coarticulation are closed; /f v/'s nearly closed lips stay G
+        shapes[known & (opening < CLOSED_MNS) & (shapes != "G")] = "A"
     out = shapes.tolist()
     _merge_single_frames(out)
     # closed for long, at the ends, or without lips: idle
