@@ -137,6 +137,24 @@ def test_convert_writes_rhubarb_cues_of_a_recording(tmp_path: Path) -> None:
     assert "G" in shapes  # "of", "Philip": the lower lip under the teeth, known from the phones' visemes
 
 
+def test_the_viseme_said_is_in_json_outputs_and_never_in_fap_files(tmp_path: Path, capsys) -> None:
+    from conftest import REPO
+
+    from prosody.fap.fapfile import read_fap
+
+    speech = str(REPO / "samples" / "arctic_a0009.wav")
+    assert main(["convert", speech, "-o", str(tmp_path / "a9.json")]) == 0
+    said = capsys.readouterr()
+    assert "FAPs 1 3 4 5" in said.out + said.err
+    document = json.loads((tmp_path / "a9.json").read_text())
+    visemes = next(entry for entry in document["faps"] if entry["fap"] == 1)
+    assert visemes["name"] == "viseme" and set(visemes["values"]) <= set(range(15)) and 1 in visemes["values"]
+    assert main(["convert", speech, "-o", str(tmp_path / "a9.fap")]) == 0
+    said = capsys.readouterr()
+    assert "FAPs 3 4 5" in said.out + said.err  # the message names what the file holds
+    assert 1 not in read_fap(tmp_path / "a9.fap").stream.active_faps
+
+
 @pytest.mark.parametrize("ending", [".rhubarb.json", ".dat"])
 def test_convert_can_write_cues_to_standard_output(ending, capsys) -> None:
     from conftest import REPO

@@ -33,9 +33,12 @@ def run(args: argparse.Namespace) -> int:
     else:
         stream = convert(args.input, args.output, base=args.base, output_format=args.output_format,
                          progress=msg.frame_progress(args.input, "analysed"), **opt.motion_kwargs(args))
-    faps = " ".join(map(str, stream.active_faps))
-    written = args.output_format or ""
-    if written == "bvh" or (not written and args.output.lower().endswith(".bvh")):
+    from ..fap.exporters import format_for
+
+    written = format_for(args.output, args.output_format)
+    # a .fap file leaves out the high-level FAPs 1 (the viseme said) and 2
+    faps = " ".join(str(fap) for fap in stream.active_faps if written != "fap" or fap > 2)
+    if written == "bvh":
         faps = "48 49 50 (BVH holds the head only)"
     msg.say(f"{args.output}: {stream.n_frames} frames at {stream.fps:g} fps, FAPs {faps}")
     return opt.EXIT_OK

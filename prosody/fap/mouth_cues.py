@@ -6,20 +6,23 @@ puckered (UW, OW, W); the extended G (upper teeth on the lower lip: F, V), H (lo
 (idle: closed and relaxed, in pauses). Without the extended shapes Rhubarb shows G as A, H as C and X as A.
 
 Where the stream says which viseme is spoken (MPEG-4's FAP 1, which lips made from phones carry:
-``prosody.motion.lips.VISEME_FAP``), each frame takes that viseme's shape (:data:`VISEME_SHAPES`), as Rhubarb
-takes each phone's: /p b m/ and silence A, /f v/ G, the other consonants and /i/ B, /e/ C, /a/ D, /o/ and /u/ F;
-and A wherever the lips themselves are closed (an opening below :data:`CLOSED_MNS`), as they are about a /p/ by
-coarticulation, but for /f v/ (G, the lower lip under the teeth, is nearly closed). Otherwise (the acoustic lips, a file of lip FAPs) each frame's shape is read from the lip FAPs:
-the inner-lip opening ``FAP 3 - FAP 4 - FAP 5`` in MNS and the rounding ``(FAP 16 + FAP 17) / 2`` over
-:data:`PUCKER_MNS`. An opening below :data:`CLOSED_MNS` is A; any other frame takes the shape of
-:data:`SHAPE_SIZES` nearest to it, a rounding of :data:`ROUNDING_WEIGHT` counting as much as 100 MNS of opening. The sizes are the project's
-visemes' (``prosody.motion.lips``: /a/ 330 MNS, /e/ 260, /i/ and the consonants 110-190, /p b m/ 0; /u/ rounded
-0.2, /o/ and /r/ 0.1-0.12), so a player that draws each shape at that size shows the lips as near as six shapes
-can; from lip FAPs alone G is never given (they do not tell the lower lip under the teeth, /f v/, 45 MNS open,
-from a mouth half closed). Either way, a closed mouth (A) becomes X where it stays closed for :data:`IDLE_S` or
-more, at the start and end, and where the stream has no lips; H (the tongue raised for a long L) is never given.
-A shape held for a single frame joins the cue before it (the first: the one after), closures excepted, so that
-no cue flickers.
+``prosody.motion.lips.VISEME_FAP``), each frame takes that viseme's shape (:data:`VISEME_SHAPES`), as Rhubarb takes
+each phone's: /p b m/ and silence A, /f v/ G, the other consonants and /i/ B, /e/ C, /a/ D, /o/ and /u/ F; and A
+wherever the lips themselves are closed (an opening below :data:`CLOSED_MNS`), as they are about a /p/ by
+coarticulation, but for /f v/ (G, the lower lip under the teeth, is nearly closed).
+
+Otherwise (the acoustic lips, a file of lip FAPs) each frame's shape is read from the lip FAPs: the inner-lip
+opening ``FAP 3 - FAP 4 - FAP 5`` in MNS and the rounding ``(FAP 16 + FAP 17) / 2`` over :data:`PUCKER_MNS`. An
+opening below :data:`CLOSED_MNS` is A; any other frame takes the shape of :data:`SHAPE_SIZES` nearest to it, a
+rounding of :data:`ROUNDING_WEIGHT` counting as much as 100 MNS of opening. The sizes are the project's visemes'
+(``prosody.motion.lips``: /a/ 330 MNS, /e/ 260, /i/ and the consonants 110-190, /p b m/ 0; /u/ rounded 0.2, /o/ and
+/r/ 0.1-0.12), so a player that draws each shape at that size shows the lips as near as six shapes can; from lip
+FAPs alone G is never given (they do not tell the lower lip under the teeth, /f v/, 45 MNS open, from a mouth half
+closed).
+
+Either way, a closed mouth (A) becomes X where it stays closed for :data:`IDLE_S` or more, at the start and end, and
+where the stream has no lips; H (the tongue raised for a long L) is never given. A shape held for a single frame
+joins the cue before it (the first: the one after), closures excepted, so that no cue flickers.
 
 Files (Rhubarb's own layouts, so that the plugins of Blender, Godot, Unity, Spine, OpenToonz, After Effects and
 Moho read them): ``.rhubarb.tsv`` (``start<TAB>shape`` per cue, then the end of the recording with the closed
