@@ -72,8 +72,6 @@ IDLE_S = 0.3
 #: Frame rate of Moho switch files (Rhubarb's default).
 DAT_FPS = 24.0
 RESOLUTION_S = 0.01
-#: MPEG-4's high-level viseme FAP.
-VISEME_FAP = int(Fap.VISEME)
 
 
 @dataclass(frozen=True)
@@ -90,7 +88,7 @@ def frame_shapes(stream: FapStream) -> list[str]:
     curve = stream.curve
     opening = curve(3) - curve(4) - curve(5)
     rounding = (curve(16) + curve(17)) / 2 / PUCKER_MNS
-    said = np.asarray(stream.mask[:, VISEME_FAP - 1], dtype=bool)
+    said = np.asarray(stream.mask[:, Fap.VISEME - 1], dtype=bool)
     has_lips = np.asarray(stream.mask[:, [2, 3, 4, 15, 16]].any(axis=1), dtype=bool) | said
     names = list(SHAPE_SIZES)
     distance = np.stack([((opening - size) / 100.0) ** 2 + ((rounding - rounded) / ROUNDING_WEIGHT) ** 2
@@ -98,7 +96,7 @@ def frame_shapes(stream: FapStream) -> list[str]:
     shapes = np.array(names, dtype="<U1")[distance.argmin(axis=0)] if len(opening) else np.array([], dtype="<U1")
     shapes[(opening < CLOSED_MNS) | ~has_lips] = "A"
     if said.any():
-        numbers = np.rint(curve(VISEME_FAP)).astype(int)
+        numbers = np.rint(curve(Fap.VISEME)).astype(int)
         known = said & np.isin(numbers, list(VISEME_SHAPES))
         shapes[known] = [VISEME_SHAPES[number] for number in numbers[known].tolist()]
         # the lips closed about a /p b m/ by coarticulation are closed; /f v/'s nearly closed lips stay G

@@ -7,8 +7,7 @@ For each video ``<stem>``, written into the output folder, each file atomically:
   frame k at k / 30 s of the sound, empty cells where the face was not found;
 - ``<stem>.track.json``: what was done (the video's properties, the face followed, frames without it, the
   audio-video sync estimate, how well the two measures of the mouth's opening agree, the model's SHA-256),
-  written last, so a folder holding it for the same video
-  and settings is complete and is skipped on a re-run.
+  written last, so a folder holding it for the same video and settings is complete and is skipped on a re-run.
 
 A video without sound takes the WAV of the same stem beside it (or given with ``audio=``), read as starting
 with the first frame; with neither, the curves are timed from the first frame and no WAV is written.

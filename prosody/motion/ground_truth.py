@@ -176,28 +176,25 @@ def _tracked_columns(path: str | os.PathLike[str], columns: tuple[str, ...],
     missing = [column for column in ("frame", *columns) if column not in header]
     if missing:
         raise GroundTruthError(f"{name}, line 1: missing column(s) {', '.join(missing)}")
-    wanted = (*columns, *(column for column in optional if column in header))
-    index = {column: header.index(column) for column in ("frame", *wanted)}
-    data = np.full((len(rows) - 1, len(wanted)), np.nan)
+    frame = header.index("frame")
+    present = [(position, header.index(key)) for position, key in enumerate((*columns, *optional)) if key in header]
+    data = np.full((len(rows) - 1, len(columns) + len(optional)), np.nan)
     for line, row in enumerate(rows[1:], start=2):
         try:
             if len(row) != len(header):
                 raise ValueError(f"{len(row)} columns, expected {len(header)}")
-            if float(row[index["frame"]]) != line - 2:
+            if float(row[frame]) != line - 2:
                 raise GroundTruthError(f"{name}, line {line}: frames must be numbered 0, 1, 2, ... in order")
-            for column, key in enumerate(wanted):
-                cell = row[index[key]].strip()
+            for position, column in present:
+                cell = row[column].strip()
                 if cell:
-                    data[line - 2, column] = float(cell)
+                    data[line - 2, position] = float(cell)
         except ValueError as error:
             raise GroundTruthError(f"{name}, line {line}: expected numbers or empty cells ({error})") from None
     if not np.all(np.isfinite(data) | np.isnan(data)):
         raise GroundTruthError(f"{name}: values must be finite numbers or empty cells")
     if data.shape[0] == 0 or not np.isfinite(data[:, :len(columns)]).any(axis=1).any():
         raise GroundTruthError(f"{name}: no frame with a tracked face")
-    absent = [index for index, column in enumerate(optional) if column not in header]
-    for position in absent:
-        data = np.insert(data, len(columns) + position, np.nan, axis=1)
     return data
 
 
