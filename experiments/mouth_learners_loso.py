@@ -22,7 +22,7 @@ from collections import defaultdict
 import numpy as np
 
 from experiments.common import data_folder, record
-from experiments.mouth_videos_loso import FPS, heads_training, load_clips, measured, summary
+from experiments.mouth_videos_loso import FPS, heads_training, load_clips, measured, summary_table
 from prosody.motion.lips import MouthShape, inner_opening, shape_faps
 from prosody.motion.mouth_model import AcousticMouthModel
 
@@ -86,10 +86,7 @@ def main() -> int:
                 faps = shape_faps(model.predict(clip["audio"], n, fps=FPS))
                 rows[label][speaker].append(measured(inner_opening(faps)[:n], faps[16][:n], clip))
     print(f"{len(clips)} clips, {len(speakers)} speakers held out in turn\n")
-    print("| learner | all speakers: opening r (control ± spread), closure F1, relative closure F1 | women | men |")
-    print("|---|---|---|---|")
-    for label in learners:
-        print(summary(label, rows[label], sexes))
+    summary_table("learner", {label: label for label in learners}, rows, sexes)
     return 0
 
 

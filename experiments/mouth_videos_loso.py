@@ -107,6 +107,16 @@ def summary(label: str, per_speaker: dict[str, list], sexes: dict[str, str]) -> 
     return f"| {label} | " + " | ".join(cells) + " |"
 
 
+def summary_table(first_column: str, labels: dict[str, str], rows: dict[str, dict[str, list]],
+                  sexes: dict[str, str]) -> None:
+    """Print a table of :func:`summary` rows: each method's label and its measures, all speakers, women, men."""
+    print(f"| {first_column} | all speakers: opening r (control ± spread), closure F1, relative closure F1 | women "
+          "| men |")
+    print("|---|---|---|---|")
+    for key, label in labels.items():
+        print(summary(label, rows[key], sexes))
+
+
 #: A clip's tracked mouth counts as a reliable reference where its two measures of the opening (inner-lip
 #: landmarks and the jawOpen blendshape) agree at least this well (:func:`prosody.measures.opening_agreement`);
 #: a round bar near the median clip's agreement (0.83).
@@ -174,16 +184,13 @@ def main() -> None:
             rows["closing"][speaker].append(measured(np.where(closed, phones_mouth[0], mean_opening), mean_rounding,
                                                      clip))
             rows["loudness"][speaker].append(measured(clip["energy"], clip["energy"], clip))
-    print("| lips | all speakers: opening r (control ± spread), closure F1, relative closure F1 | women | men |")
-    print("|---|---|---|---|")
     labels = {"visemes": "visemes (default, phone loop)",
               "shipped": "acoustic, trained on the talking-heads clips alone",
               "held": "acoustic, refitted without the held-out speaker (the shipped model's recipe)",
               "combined": "combined: mean of visemes and acoustic held out",
               "closing": "combined, the visemes' closures kept (`--lips combined`)",
               "loudness": "loudness envelope (baseline)"}
-    for key, label in labels.items():
-        print(summary(label, rows[key], sexes))
+    summary_table("lips", labels, rows, sexes)
     reference_table(rows, labels, clips)
     print("\nper speaker, visemes / acoustic held out (opening r):")
     def mean_r(key: str, speaker: str) -> float:

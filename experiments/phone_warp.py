@@ -31,7 +31,7 @@ import numpy as np
 import audio_features.phones as phones
 from audio_features import extract_features, load_audio
 from experiments.common import data_folder, record
-from experiments.mouth_videos_loso import FPS, load_clips, measured, summary
+from experiments.mouth_videos_loso import FPS, load_clips, measured, summary_table
 from prosody.motion.ground_truth import read_mouth_csv
 from prosody.motion.lips import inner_opening, shape_faps, shapes_from_phones
 
@@ -91,13 +91,11 @@ def main() -> None:
     clips = load_clips()
     sexes = {clip["speaker"]: clip["sex"] for clip in clips}
     print(f"\nThe talking videos: {len(clips)} clips, {len(sexes)} speakers\n")
-    print("| phones | all speakers: opening r (control ± spread), closure F1, relative closure F1 | women | men |")
-    print("|---|---|---|---|")
+    rows: dict[str, dict[str, list]] = {label: defaultdict(list) for label in methods}
     for label, method in methods.items():
-        rows: dict[str, list] = defaultdict(list)
         for clip in clips:
-            rows[clip["speaker"]].append(visemes_measured(clip, alpha_of(method, clip)))
-        print(summary(label, rows, sexes))
+            rows[label][clip["speaker"]].append(visemes_measured(clip, alpha_of(method, clip)))
+    summary_table("phones", {label: label for label in methods}, rows, sexes)
 
 
 if __name__ == "__main__":

@@ -28,7 +28,14 @@ import numpy as np
 from audio_features.phones import recognise_phones
 from experiments.common import REPO, data_folder, record
 from experiments.mouth_loco import CUE_SHAPES, FPS, cue_curves
-from experiments.mouth_videos_loso import TRACKED, heads_training, load_clips, measured, reference_table, summary
+from experiments.mouth_videos_loso import (
+    TRACKED,
+    heads_training,
+    load_clips,
+    measured,
+    reference_table,
+    summary_table,
+)
 from prosody.motion.face import COMBINED_CLOSED_MNS
 from prosody.motion.lips import VISEME_FAP, inner_opening, shape_faps, shapes_from_phones
 from prosody.motion.mouth_model import AcousticMouthModel
@@ -91,9 +98,6 @@ def main(argv: list[str]) -> None:
                     shapes_used[recogniser][cue["value"]] += 1
                 rows[recogniser][speaker].append(measured(*played(cues, n), clip))
             rows["loudness"][speaker].append(measured(clip["energy"], clip["energy"], clip))
-    print("| lips, played back as cues unless said | all speakers: opening r (control ± spread), closure F1, relative "
-          "closure F1 | women | men |")
-    print("|---|---|---|---|")
     labels = {"pocketSphinx": "Rhubarb Lip Sync, PocketSphinx recogniser (its default)",
               "phonetic": "Rhubarb Lip Sync, phonetic recogniser",
               "visemes cues": "ours: default visemes as cues (`-o X.rhubarb.json`)",
@@ -101,8 +105,7 @@ def main(argv: list[str]) -> None:
               "visemes": "ours: default visemes, continuous",
               "combined": "ours: `--lips combined`, continuous",
               "loudness": "loudness envelope (baseline)"}
-    for key, label in labels.items():
-        print(summary(label, rows[key], sexes))
+    summary_table("lips, played back as cues unless said", labels, rows, sexes)
     for recogniser in RECOGNISERS:
         total = sum(shapes_used[recogniser].values())
         print(f"\nRhubarb {recogniser}: {total} cues, shapes "
