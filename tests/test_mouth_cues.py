@@ -133,8 +133,8 @@ def test_convert_writes_rhubarb_cues_of_a_recording(tmp_path: Path) -> None:
     assert all(a[0] < b[0] for a, b in zip(rows, rows[1:], strict=False))
     shapes = {shape for _, shape in rows}
     assert shapes <= set("ABCDEFGX") and len(shapes) >= 4  # speech moves through several shapes
-    assert "A" in shapes  # "Philip": the /p/ closes
-    assert "G" in shapes  # "of", "Philip": the lower lip under the teeth, known from the phones' visemes
+    assert "A" in shapes  # "He turned sharply, and faced Gregson across the table": the /p/ and /b/ close
+    assert "G" in shapes  # the /f/ of "faced": the lower lip under the teeth, known from the phones' visemes
 
 
 def test_the_viseme_said_is_in_json_outputs_and_never_in_fap_files(tmp_path: Path, capsys) -> None:
