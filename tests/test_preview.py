@@ -330,3 +330,12 @@ def test_the_mouth_at_rest_is_straight_and_joy_and_sadness_bend_it_their_ways():
     assert bend(joy) == pytest.approx(240 * mns)  # the corners rise by FAP 12/13, the middle stays
     sad = {fap: value for fap, value in EXPRESSIONS["sadness"].items() if fap in (4, 5, 6, 7, 12, 13)}
     assert bend(sad) == pytest.approx(-80 * mns)
+
+
+def test_a_csv_export_is_refused_with_what_preview_reads(tmp_path: Path, capsys) -> None:
+    exported = tmp_path / "talk.csv"
+    exported.write_text("frame,time_s,fap3_open_jaw_mns\n0,0.000000,12\n")
+    assert main(["preview", str(exported), "-o", str(tmp_path / "talk.gif")]) == 2
+    said = capsys.readouterr().err
+    assert "a .csv export is not read back" in said and ".json" in said
+    assert not (tmp_path / "talk.gif").exists()

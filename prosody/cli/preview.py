@@ -54,6 +54,11 @@ def run(args: argparse.Namespace) -> int:
         from ..fap.exporters import read_stream_json
 
         stream = read_stream_json(args.input)
+    elif Path(args.input).suffix.lower() == ".csv":
+        from ..errors import ConfigError
+
+        raise ConfigError(f"{args.input}: preview draws a recording or a .fap, .json or .jsonl stream; a .csv "
+                          "export is not read back (convert to .json to preview the stream)")
     else:
         from ..jobs.pipeline import convert
 
