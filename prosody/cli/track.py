@@ -44,7 +44,8 @@ def add_parser(commands) -> None:
         description="Run a face tracker (MediaPipe FaceLandmarker) on each video and write, into OUTDIR, "
                     "<stem>.wav (its sound, 16 kHz mono), <stem>.head.csv, <stem>.brows.csv and <stem>.mouth.csv "
                     "(30 fps, frame k at k/30 s of the sound; empty cells where the face is not found) and "
-                    "<stem>.track.json (what was done, and how the mouth's motion lines up with the sound). "
+                    "<stem>.track.json (what was done, how the mouth's motion lines up with the sound, and how far "
+                    "the tracked mouth can be trusted: mouth_agreement). "
                     "Folders are searched for videos recursively. With several faces in view, the largest one of "
                     "the first frame is followed. A video without sound takes the WAV of the same name beside it. "
                     "Complete outputs are skipped on a re-run. Needs: pip install 'visual-prosody[track]'.",
