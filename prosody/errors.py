@@ -13,7 +13,7 @@ from __future__ import annotations
 from audio_features.errors import MissingExtraError, ParameterError, VisualProsodyError, require_extra
 
 __all__ = ["BallotError", "ConfigError", "FapFormatError", "FapIrregularityWarning", "FapWriteError",
-           "GroundTruthError", "MissingExtraError", "ModelError", "ParameterError", "PreviewError", "ProsodyError",
+           "GroundTruthError", "MissingExtraError", "ModelError", "ParameterError", "PhotoError", "PreviewError", "ProsodyError",
            "TrackingError", "UnknownFapError", "VisualProsodyError", "require_extra"]
 
 
@@ -34,6 +34,11 @@ class UnknownFapError(ProsodyError, KeyError):
 
 class PreviewError(ProsodyError, OSError):
     """A preview cannot be made: no ffmpeg, ffmpeg failed, or a GIF too long to hold."""
+
+
+class PhotoError(ProsodyError, ValueError):
+    """A photo cannot become the head: unreadable or too large, no face, a face too small or turned too far,
+    or the packages that find faces missing (the message says how to install them)."""
 
 
 class FapIrregularityWarning(UserWarning):

@@ -28,6 +28,29 @@ def say_unshown(stream, face: str, source: str) -> None:
         msg.say(f"{source}: the {shown} does not show FAP {fap_ranges(missing)} (in the stream; left out)")
 
 
+def face_choice(text: str) -> str:
+    """``--face``: head, drawn, or the path of a JPEG or PNG photo."""
+    from pathlib import Path
+
+    from ..evaluation.preview import FACES, PHOTO_ENDINGS
+
+    if text in FACES or Path(text).suffix.lower() in PHOTO_ENDINGS:
+        return text
+    raise argparse.ArgumentTypeError(f"{', '.join(FACES)} or a photo ({', '.join(PHOTO_ENDINGS)}), not {text!r}")
+
+
+def preview_face(face: str):
+    """The face a preview shows: a name, or the head made from the photo (its notes said once)."""
+    from ..evaluation.preview import FACES, resolve_face
+
+    if face in FACES:
+        return face
+    head = resolve_face(face)
+    for note in head.notes:
+        msg.say(f"{face}: {note}")
+    return head
+
+
 def fap_ranges(faps: list[int]) -> str:
     """[1, 2, 3, 5] -> '1-3, 5'."""
     runs: list[list[int]] = []
@@ -45,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
     from ..evaluation.preview import write_preview
 
     opt.check_motion_options(args)
+    face = preview_face(args.face)  # a photo is read, and its face found, before the audio
     audio = args.audio
     if Path(args.input).suffix.lower() == ".fap":
         from ..fap.fapfile import read_fap
@@ -78,10 +102,10 @@ def run(args: argparse.Namespace) -> int:
         from ..fap.units import AU_PER_DEGREE
 
         scales = (brow_ens, head_deg * AU_PER_DEGREE)
-    say_unshown(stream, args.face, args.input)
+    say_unshown(stream, "drawn" if args.face == "drawn" else "head", args.input)
     write_preview(stream, args.output, audio=audio, width=args.width, exaggerate=args.exaggerate,
                   brow_scale=args.brow_scale, start_s=args.start_s, duration_s=args.duration_s,
-                  progress=msg.frame_progress(args.output), scales=scales, face=args.face, strip=not args.no_strip)
+                  progress=msg.frame_progress(args.output), scales=scales, face=face, strip=not args.no_strip)
     sound = " with sound" if audio is not None and Path(args.output).suffix.lower() == ".mp4" else ""
     shown = stream.duration_s - min(args.start_s, stream.duration_s)
     if args.duration_s is not None:
@@ -111,15 +135,19 @@ def add_parser(commands) -> None:
     preview.add_argument("--audio", default=None, metavar="FILE",
                          help="sound for the MP4 when INPUT is a .fap file (default: INPUT itself if audio)")
     preview.add_argument("--no-audio", action="store_true", help="write the MP4 without sound")
-    preview.add_argument("--width", type=int, default=480, metavar="PX",
-                         help="frame width in pixels (default 480; the height is 5/4 of it)")
+    preview.add_argument("--width", type=int, default=None, metavar="PX",
+                         help="frame width in pixels (default 480, the height 5/4 of it; with a photo, the "
+                              "photo's own width and proportions)")
     preview.add_argument("--exaggerate", type=opt.exaggeration, default=1.0, metavar="X",
                          help="draw head angles and brow raises X times larger (default 1: true scale)")
     preview.add_argument("--brow-scale", type=opt.exaggeration, default=4.0, metavar="X",
                          help="draw the brow raises X times larger again (default 4, said on every frame: a brow "
                               "raise of speech is under a millimetre, invisible at true scale; 1: true size)")
-    preview.add_argument("--face", choices=("head", "drawn"), default="head",
-                         help="the 3D head (default) or the drawn diagnostic face")
+    preview.add_argument("--face", type=face_choice, default="head", metavar="head|drawn|PHOTO",
+                         help="the 3D head (default), the drawn diagnostic face, or PHOTO (a JPEG or PNG of one "
+                              "person, roughly frontal, lips closed animates best): that person's head, the face "
+                              "fitted to the photo's landmarks and textured by it, hair, neck and background "
+                              "from the photo (needs pip install 'visual-prosody[track]')")
     preview.add_argument("--no-strip", action="store_true", help="the face alone, without the curve strip")
     preview.add_argument("--start", dest="start_s", type=opt.seconds, default=0.0, metavar="S",
                          help="first second shown (default 0)")

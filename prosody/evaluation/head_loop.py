@@ -28,19 +28,21 @@ AMPLITUDES = {"pitch": 10.0, "yaw": 15.0, "roll": 8.0, "jaw": 500.0, "brows": 25
 PASS_HEAD_R, PASS_SPREAD, PASS_LIPS_R, PASS_BROWS_R, PASS_FOUND = 0.9, (0.75, 1.33), 0.9, 0.8, 0.98
 
 
-def known_motion(duration_s: float, *, fps: float = 30.0) -> FapStream:
-    """The loop's FAP stream: head sinusoids, a jaw opening 0..amplitude, brows raised and lowered."""
+def known_motion(duration_s: float, *, fps: float = 30.0, amplitudes: dict[str, float] | None = None) -> FapStream:
+    """The loop's FAP stream: head sinusoids, a jaw opening 0..amplitude, brows raised and lowered (sizes
+    :data:`AMPLITUDES`, or ``amplitudes`` in their place)."""
+    sizes = {**AMPLITUDES, **(amplitudes or {})}
     t = np.arange(round(duration_s * fps)) / fps
     degrees_to_au = AU_PER_DEGREE
 
     def wave(name: str, phase: float = 0.0) -> np.ndarray:
         return np.sin(2 * np.pi * t / PERIODS_S[name] + phase)
 
-    curves = {48: AMPLITUDES["pitch"] * degrees_to_au * wave("pitch"),
-              49: AMPLITUDES["yaw"] * degrees_to_au * wave("yaw", 0.7),
-              50: AMPLITUDES["roll"] * degrees_to_au * wave("roll", 1.9),
-              3: AMPLITUDES["jaw"] * 0.5 * (1 - np.cos(2 * np.pi * t / PERIODS_S["jaw"]))}
-    brows = AMPLITUDES["brows"] * wave("brows", 0.3)
+    curves = {48: sizes["pitch"] * degrees_to_au * wave("pitch"),
+              49: sizes["yaw"] * degrees_to_au * wave("yaw", 0.7),
+              50: sizes["roll"] * degrees_to_au * wave("roll", 1.9),
+              3: sizes["jaw"] * 0.5 * (1 - np.cos(2 * np.pi * t / PERIODS_S["jaw"]))}
+    brows = sizes["brows"] * wave("brows", 0.3)
     for fap in range(31, 37):
         curves[fap] = brows
     return FapStream.from_curves(curves, fps=fps, name="head loop")

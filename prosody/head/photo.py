@@ -1,0 +1,582 @@
+"""One photo of a person becomes the head: MPEG-4's facial definition parameters measured on that face.
+
+MPEG-4 calibrates its generic face to a person with facial definition parameters (FDP: the feature points
+and a texture). Here the photo gives both:
+
+1. **The face.** MediaPipe's face landmarker (:mod:`.landmarks`) finds the face's 478 landmarks in the photo.
+   The canonical face is fitted to them by a similarity (Umeyama's least squares: scale, rotation,
+   translation), which gives the photo's head pose; the landmarks taken back through it are the person's
+   face in the head's axes, in place of the canonical one (the depth half the landmarker's, half the
+   canonical face's, which is steadier). :func:`~.mesh.build_head` builds the head on it, so the feature points
+   and the face units (IRISD0, ES0, ENS0, MNS0, MW0) are this person's and every FAP moves the face by its
+   own proportions.
+2. **The texture.** Each vertex of the face and of the eyeballs takes the colour of the photo where it is
+   seen at rest: a still stream shows the photo as it was. The lips are closed at rest (MPEG-4's neutral
+   face); where they are apart in the photo, the lips' texture stretches over the gap. The teeth, the tongue
+   and the mouth's dark inside are the head's own, shaded, sized to this mouth.
+3. **The rest of the person.** The person is told from the background by OpenCV's GrabCut, started from the
+   face (certain), a head-sized region round it and the neck and shoulders below it (likely). A grid over the
+   person carries the photo's hair, ears, neck and shoulders on a plausible depth (the face's own near its
+   edge, a skull's front further out, a plane behind the neck lower down); it turns with the head above
+   the chin and stays still at the shoulders, the neck bending between.
+4. **The background** stays as photographed; behind the person it is filled with the background round it,
+   blurred (a normalised convolution), so that what a turned head uncovers is background, not a hole, a
+   streak or the head twice.
+
+The photo is seen by an orthographic camera (a face's depth is small beside its distance from the camera),
+so the frames keep the photo's framing and pixels. Everything needs the ``track`` extra (MediaPipe, whose
+wheel brings OpenCV): ``pip install 'visual-prosody[track]'``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import PhotoError
+from ..fap.table import HEAD_FAPS, N_FAPS, RADIANS_PER_AU
+from .landmarks import INSTALL_HINT, faces_in_image
+from .mesh import (
+    EYE_LEFT,
+    EYE_RIGHT,
+    FACE,
+    LIDS_LEFT,
+    LIDS_RIGHT,
+    LIP_OUTER_LOWER,
+    LIP_OUTER_UPPER,
+    LOWER_TEETH,
+    MOUTH_INSIDE,
+    N_FACE_VERTICES,
+    NECK_PIVOT,
+    TONGUE,
+    UPPER_TEETH,
+    canonical_face,
+)
+from .raster import Canvas, rasterise_textured
+from .render import SUPERSAMPLE, SUPERSAMPLED_PIXELS
+from .rig import HeadRig, build_rig, rotation
+
+#: Photos larger than this are refused before they are decoded (bounded memory).
+MAX_PHOTO_PIXELS = 60_000_000
+#: Larger photos are scaled down to about this many pixels before use (the frames' default size).
+WORK_PIXELS = 1920 * 1080
+#: A face narrower than this (in the photo's pixels, after scaling) is too small to animate.
+MIN_FACE_PIXELS = 80
+#: A face turned further than this from the camera (yaw or pitch) is refused.
+MAX_TURN_DEG = 30.0
+#: Lips apart by more than this fraction of the mouth's width: said in a note (a closed mouth animates best).
+LIPS_APART = 0.08
+#: The share of the landmarker's depth kept in the fitted face (the rest is the canonical face's).
+DEPTH_TRUST = 0.0
+#: The mouth's inside is drawn as if this much further back, so the skin round the lips always hides it.
+MOUTH_DEPTH_BIAS_CM = 3.0
+#: The light that stays put while the head turns (towards the light, camera axes) and its ambient share.
+_RELIGHT_DIRECTION = np.array([0.0, 0.35, 1.0]) / np.linalg.norm([0.0, 0.35, 1.0])
+RELIGHT_AMBIENT = 0.35  # > 0: the ratio below is bounded
+#: Side of the person layer's grid cells, as a fraction of the photo's longer side.
+GRID_STEP = 1 / 110
+
+# Head axes (cm): the skull whose front carries the hair round the face, and the plane behind the neck.
+_SKULL_CENTRE, _SKULL_RADII = np.array([0.0, 2.5, -3.0]), np.array([8.2, 11.0, 9.4])
+_NECK_PLANE_Z = -4.0
+#: Parts of the head drawn on a photo: the textured face and eyes, the mouth's inside shaded.
+_TEXTURED_PARTS = (FACE, EYE_LEFT, EYE_RIGHT)
+_SHADED_PARTS = (UPPER_TEETH, LOWER_TEETH, TONGUE, MOUTH_INSIDE)
+
+
+@dataclass(frozen=True)
+class PhotoHead:
+    """A person's head made from one photo (see the module doc); :class:`PhotoRenderer` draws its frames.
+
+    Attributes
+    ----------
+    name : the photo's file name.
+    image : uint8 (height, width, 3), the photo as used (scaled down if it was larger than
+        :data:`WORK_PIXELS`; even sides).
+    rig : the head fitted to the face, with its FAP fields.
+    scale : photo pixels per cm of the head.
+    rotation : (3, 3), head axes to photo axes (x right, y up, z towards the camera; pixels).
+    offset : (3,), where the head's origin is in photo axes.
+    uv : float (n, 2), each rig vertex's place in the photo at rest (pixels, y down).
+    layer_vertices : float (k, 3), the person layer's grid at rest, in head axes.
+    layer_uv : float (k, 2), its place in the photo.
+    layer_weight : float (k,), how much of the head's turn each grid vertex follows (1 above the chin,
+        0 at the shoulders).
+    layer_triangles : int (q, 3).
+    background : uint8 (height, width, 3), the photo with the person filled in.
+    person : bool (height, width), where the person is.
+    notes : things worth telling the user (several faces, lips apart, scaled down).
+    """
+
+    name: str
+    image: np.ndarray
+    rig: HeadRig
+    scale: float
+    rotation: np.ndarray
+    offset: np.ndarray
+    uv: np.ndarray
+    layer_vertices: np.ndarray
+    layer_uv: np.ndarray
+    layer_weight: np.ndarray
+    layer_triangles: np.ndarray
+    background: np.ndarray
+    person: np.ndarray
+    notes: tuple[str, ...] = ()
+
+    @property
+    def width(self) -> int:
+        return int(self.image.shape[1])
+
+    @property
+    def height(self) -> int:
+        return int(self.image.shape[0])
+
+    def to_photo(self, vertices: np.ndarray) -> np.ndarray:
+        """Head-axes points (n, 3), cm -> photo axes (x right, y up, z towards the camera), pixels."""
+        return self.scale * (np.asarray(vertices, float) @ self.rotation.T) + self.offset
+
+    def from_photo(self, points: np.ndarray) -> np.ndarray:
+        """Photo-axes points (n, 3) -> head axes (cm)."""
+        return ((np.asarray(points, float) - self.offset) @ self.rotation) / self.scale
+
+    @property
+    def pose_deg(self) -> tuple[float, float, float]:
+        """The photo's head pose (pitch, yaw, roll) in degrees, with the FAP signs."""
+        return tuple(math.degrees(a) for a in _angles(self.rotation))  # type: ignore[return-value]
+
+
+# ---------------------------------------------------------------------------------------------------------
+# reading the photo
+
+
+def read_photo(path: str | os.PathLike[str]) -> tuple[np.ndarray, list[str]]:
+    """The photo at ``path`` as RGB uint8 (EXIF orientation applied, scaled down to about
+    :data:`WORK_PIXELS`, cropped to even sides), and notes.
+
+    Raises
+    ------
+    PhotoError
+        Not a readable image, or larger than :data:`MAX_PHOTO_PIXELS`.
+    """
+    from PIL import Image, ImageOps, UnidentifiedImageError
+
+    source = Path(path)
+    if not source.is_file():
+        raise PhotoError(f"{source}: no such photo" if not source.exists() else f"{source}: not a file")
+    notes = []
+    try:
+        with Image.open(source) as opened:
+            width, height = opened.size
+            if width * height > MAX_PHOTO_PIXELS:
+                raise PhotoError(f"{source}: {width} x {height} pixels is too large a photo (at most "
+                                 f"{MAX_PHOTO_PIXELS / 1e6:.0f} megapixels)")
+            if opened.format not in ("JPEG", "PNG", "MPO", "WEBP"):
+                raise PhotoError(f"{source}: a {opened.format} image; give a JPEG or PNG photo")
+            opened.draft("RGB", (width, height))
+            image = ImageOps.exif_transpose(opened).convert("RGB")
+    except (UnidentifiedImageError, Image.DecompressionBombError, OSError, SyntaxError, ValueError) as error:
+        if isinstance(error, PhotoError):
+            raise
+        raise PhotoError(f"{source}: not an image that can be read as a photo (JPEG or PNG): "
+                         f"{str(error).splitlines()[0] if str(error) else type(error).__name__}") from None
+    if image.width * image.height > WORK_PIXELS:
+        factor = math.sqrt(WORK_PIXELS / (image.width * image.height))
+        size = (max(2, int(image.width * factor)), max(2, int(image.height * factor)))
+        notes.append(f"the photo is scaled down from {image.width} x {image.height} to {size[0]} x {size[1]}")
+        image = image.resize(size, Image.Resampling.LANCZOS)
+    pixels = np.asarray(image)
+    even = pixels[: pixels.shape[0] // 2 * 2, : pixels.shape[1] // 2 * 2]
+    if even.shape[0] < 16 or even.shape[1] < 16:
+        raise PhotoError(f"{source}: {image.width} x {image.height} pixels is too small a photo")
+    return np.ascontiguousarray(even), notes
+
+
+# ---------------------------------------------------------------------------------------------------------
+# fitting the face
+
+
+def similarity(source: np.ndarray, target: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(s, R, t)`` minimising ``|target - (s R source + t)|^2`` over points (n, 3) (Umeyama, 1991).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> points = rng.normal(size=(20, 3))
+    >>> turn = rotation(0.1, -0.3, 0.2)
+    >>> s, r, t = similarity(points, 2.5 * points @ turn.T + [1.0, 2.0, 3.0])
+    >>> round(s, 6), bool(np.allclose(r, turn)), np.round(t, 6).tolist()
+    (2.5, True, [1.0, 2.0, 3.0])
+    """
+    mu_s, mu_t = source.mean(axis=0), target.mean(axis=0)
+    a, b = source - mu_s, target - mu_t
+    covariance = b.T @ a / len(source)
+    u, d, vt = np.linalg.svd(covariance)
+    sign = np.eye(3)
+    if np.linalg.det(u) * np.linalg.det(vt) < 0:
+        sign[2, 2] = -1.0
+    turn = u @ sign @ vt
+    scale = float(np.trace(np.diag(d) @ sign) / (a * a).sum(axis=1).mean())
+    return scale, turn, mu_t - scale * turn @ mu_s
+
+
+def _angles(turn: np.ndarray) -> tuple[float, float, float]:
+    """(pitch, yaw, roll) in rad of R = Rz(roll) Ry(yaw) Rx(pitch)."""
+    yaw = math.asin(max(-1.0, min(1.0, -float(turn[2, 0]))))
+    return math.atan2(turn[2, 1], turn[2, 2]), yaw, math.atan2(turn[1, 0], turn[0, 0])
+
+
+def fit_face(landmarks: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+    """The person's face in head axes (468, 3), and the similarity (scale, rotation, offset) that puts the
+    head into the photo's axes, from the landmarks (468+, 3) in pixels (x right, y down, z away)."""
+    canonical, _ = canonical_face()
+    points = np.asarray(landmarks, float)[:N_FACE_VERTICES] * np.array([1.0, -1.0, -1.0])
+    scale, turn, offset = similarity(canonical, points)
+    face = ((points - offset) @ turn) / scale
+    face[:, 2] = DEPTH_TRUST * face[:, 2] + (1 - DEPTH_TRUST) * canonical[:, 2]
+    return face, scale, turn, offset
+
+
+# ---------------------------------------------------------------------------------------------------------
+# the person and the background
+
+
+def _cv2():
+    try:
+        import cv2
+    except ImportError:
+        raise PhotoError(f"a photo head needs OpenCV, which comes with MediaPipe: {INSTALL_HINT}") from None
+    return cv2
+
+
+def person_mask(image: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
+    """bool (height, width): the person (face, hair, ears, neck, shoulders), by GrabCut started from the
+    face (certain) and the head and shoulder regions round it (likely)."""
+    cv2 = _cv2()
+    height, width = image.shape[:2]
+    factor = min(1.0, 400.0 / max(height, width))  # GrabCut on a small copy: its cost grows with the pixels
+    small = cv2.resize(image, (max(8, round(width * factor)), max(8, round(height * factor))),
+                       interpolation=cv2.INTER_AREA)
+    points = landmarks[:N_FACE_VERTICES, :2] * factor
+    face_w = float(np.ptp(points[:, 0]))
+    face_h = float(np.ptp(points[:, 1]))
+    centre = points.mean(axis=0)
+    chin_y = float(points[152, 1])
+    rows, columns = np.mgrid[0:small.shape[0], 0:small.shape[1]]
+    mask = np.full(small.shape[:2], cv2.GC_PR_BGD, np.uint8)
+    head = (((columns - centre[0]) / (0.85 * face_w)) ** 2 + ((rows - (centre[1] - 0.12 * face_h))
+                                                               / (0.92 * face_h)) ** 2) <= 1.0
+    below = rows > chin_y - 0.1 * face_h
+    half = 0.33 * face_w + np.maximum(rows - chin_y, 0) * 1.1
+    body = below & (np.abs(columns - centre[0]) <= half)
+    mask[head | body] = cv2.GC_PR_FGD
+    far = (np.abs(columns - centre[0]) > 1.6 * face_w) & (rows < chin_y)
+    mask[far] = cv2.GC_BGD
+    mask[: max(1, round(0.02 * small.shape[0]))] = np.where(head[: max(1, round(0.02 * small.shape[0]))],
+                                                            mask[: max(1, round(0.02 * small.shape[0]))],
+                                                            cv2.GC_BGD)
+    hull = cv2.convexHull(points.astype(np.float32)).astype(np.int32)
+    cv2.fillConvexPoly(mask, hull, int(cv2.GC_FGD))
+    bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+    try:
+        cv2.grabCut(cv2.cvtColor(small, cv2.COLOR_RGB2BGR), mask, None, bgd, fgd, 4, cv2.GC_INIT_WITH_MASK)
+    except cv2.error:  # a flat image: every likely pixel stays as started
+        pass
+    person = np.isin(mask, (cv2.GC_FGD, cv2.GC_PR_FGD)).astype(np.uint8)
+    # the largest piece joined to the face, holes closed
+    count, labels = cv2.connectedComponents(person)
+    if count > 2:
+        centre_label = labels[int(np.clip(centre[1], 0, small.shape[0] - 1)),
+                              int(np.clip(centre[0], 0, small.shape[1] - 1))]
+        if centre_label:
+            person = (labels == centre_label).astype(np.uint8)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+    person = cv2.morphologyEx(person, cv2.MORPH_CLOSE, kernel)
+    full = cv2.resize(person, (width, height), interpolation=cv2.INTER_LINEAR)
+    return full > 0
+
+
+def fill_background(image: np.ndarray, person: np.ndarray, *, margin_px: int) -> np.ndarray:
+    """The photo with the person (grown by ``margin_px``) filled in from the background round it: normalised
+    convolution (a Gaussian average of the background pixels alone), at the finest of a few widths where
+    enough background is near, so the fill is the surrounding background blurred, without streaks."""
+    from scipy.ndimage import binary_dilation, gaussian_filter, zoom
+
+    height, width = image.shape[:2]
+    grown = binary_dilation(person, iterations=max(1, margin_px))
+    factor = min(1.0, 256.0 / max(height, width))  # the fill is smooth: worked out on a small copy
+    small_size = (max(8, round(height * factor)), max(8, round(width * factor)))
+    small = np.stack([zoom(image[..., k].astype(np.float64), (small_size[0] / height, small_size[1] / width),
+                           order=1) for k in range(3)], axis=-1)
+    known = zoom(1.0 - grown.astype(np.float64), (small_size[0] / height, small_size[1] / width), order=1)
+    known = (known > 0.99).astype(np.float64)
+    # coarsest first, each finer width laid over it where it has background enough (blended, no edges)
+    filled = np.broadcast_to(image.reshape(-1, 3).mean(axis=0), small.shape).astype(np.float64)
+    side = max(small_size)
+    for sigma in (1.0 * side, 0.3 * side, 0.12 * side, 0.05 * side, 0.02 * side):
+        weight = gaussian_filter(known, sigma, mode="nearest")
+        values = np.stack([gaussian_filter(small[..., k] * known, sigma, mode="nearest") for k in range(3)], -1)
+        alpha = np.clip((weight - 0.05) / 0.25, 0.0, 1.0)[..., None]
+        filled = alpha * values / np.maximum(weight, 1e-9)[..., None] + (1 - alpha) * filled
+    full = np.stack([zoom(filled[..., k], (height / small_size[0], width / small_size[1]), order=1)
+                     for k in range(3)], axis=-1)[:height, :width]
+    out = image.copy()
+    out[grown] = np.clip(full[grown] + 0.5, 0, 255).astype(np.uint8)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------------
+# building the photo head
+
+
+def _smoothstep(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3 - 2 * x)
+
+
+def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None = None) -> PhotoHead:
+    """The head of the person in ``photo`` (a JPEG or PNG path, or an RGB uint8 array).
+
+    Raises
+    ------
+    PhotoError
+        No face, a face too small or turned too far, an unreadable or too large image, or the track extra
+        missing; several faces and lips apart are said in :attr:`PhotoHead.notes`.
+    """
+    from ..errors import TrackingError
+
+    if isinstance(photo, np.ndarray):
+        image = np.ascontiguousarray(np.asarray(photo, np.uint8)[: photo.shape[0] // 2 * 2,
+                                                                 : photo.shape[1] // 2 * 2, :3])
+        notes: list[str] = []
+        label = name or "photo"
+    else:
+        image, notes = read_photo(photo)
+        label = name or Path(photo).name
+    try:
+        faces = faces_in_image(image)
+    except TrackingError as error:
+        raise PhotoError(f"{label}: {error}") from None
+    if not faces:
+        raise PhotoError(f"{label}: no face found in the photo (one person, roughly frontal, well lit)")
+    landmarks = faces[0]
+    if len(faces) > 1:
+        x, y = landmarks[:, :2].mean(axis=0)
+        notes.append(f"{len(faces)} faces in the photo: the largest is used (centred at x {x:.0f}, y {y:.0f})")
+    face_w = float(np.ptp(landmarks[:N_FACE_VERTICES, 0]))
+    if face_w < MIN_FACE_PIXELS:
+        raise PhotoError(f"{label}: the face is {face_w:.0f} pixels wide, too small to animate (at least "
+                         f"{MIN_FACE_PIXELS}): a closer or larger photo")
+    face, scale, turn, offset = fit_face(landmarks)
+    pitch, yaw, _ = (math.degrees(a) for a in _angles(turn))
+    if abs(yaw) > MAX_TURN_DEG or abs(pitch) > MAX_TURN_DEG:
+        raise PhotoError(f"{label}: the face is turned {abs(yaw):.0f} degrees sideways and {abs(pitch):.0f} up "
+                         f"or down; at most {MAX_TURN_DEG:.0f}: a roughly frontal photo")
+    gap = float(np.linalg.norm(landmarks[13, :2] - landmarks[14, :2]))
+    width_lips = float(np.linalg.norm(landmarks[61, :2] - landmarks[291, :2]))
+    if gap > LIPS_APART * width_lips:
+        notes.append("the lips are apart in the photo: they close at rest, and a closed-mouth photo animates best")
+
+    from .mesh import build_head
+
+    rig = build_rig(build_head(face))
+    mesh = rig.mesh
+
+    def project(vertices: np.ndarray) -> np.ndarray:
+        photo_points = scale * (vertices @ turn.T) + offset
+        return np.column_stack([photo_points[:, 0], -photo_points[:, 1]])
+
+    uv = project(mesh.vertices.astype(float))
+    uv[:N_FACE_VERTICES] = project(mesh.layout[:N_FACE_VERTICES].astype(float))  # the lips as photographed
+
+    person = person_mask(image, landmarks)
+    layer = _person_layer(image.shape[:2], person, face, scale, turn, offset, landmarks)
+    background = fill_background(image, person, margin_px=max(2, round(2.5 * GRID_STEP * max(image.shape[:2]))))
+    return PhotoHead(label, image, rig, scale, turn, offset, uv, *layer, background, person, tuple(notes))
+
+
+def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, scale: float, turn: np.ndarray,
+                  offset: np.ndarray, landmarks: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The grid over the person: rest vertices in head axes, their place in the photo, how much of the
+    head's turn they follow, and the triangles over the person."""
+    from scipy.ndimage import binary_dilation
+    from scipy.interpolate import LinearNDInterpolator
+    from scipy.spatial import cKDTree
+
+    height, width = size
+    step = max(3.0, GRID_STEP * max(height, width))
+    columns = np.linspace(0, width, max(2, round(width / step)) + 1)
+    rows = np.linspace(0, height, max(2, round(height / step)) + 1)
+    grid_x, grid_y = np.meshgrid(columns, rows)
+    uv = np.column_stack([grid_x.ravel(), grid_y.ravel()])
+    n_rows, n_columns = len(rows), len(columns)
+
+    # depth: the face's own near its edge, the skull's front further out, the neck's plane lower down
+    from .mesh import _outline
+
+    _, triangles = canonical_face()
+    outline = _outline(triangles)
+    edge = face[outline]
+    tree = cKDTree(edge[:, :2])
+    inside = _inside_polygon(uv, landmarks[outline, :2])
+    surface = LinearNDInterpolator(face[:, :2], face[:, 2])
+    vertices = np.zeros((len(uv), 3))
+    photo_z = np.full(len(uv), offset[2])
+    for _ in range(4):  # z such that the point lies on the surface wanted (a few fixed-point steps)
+        points = np.column_stack([uv[:, 0], -uv[:, 1], photo_z])
+        vertices = ((points - offset) @ turn) / scale
+        distance, nearest = tree.query(vertices[:, :2])
+        relative = (vertices[:, :2] - _SKULL_CENTRE[:2]) / _SKULL_RADII[:2]
+        cover = 1.0 - (relative ** 2).sum(axis=1)
+        skull = np.where(cover > 0, _SKULL_CENTRE[2] + _SKULL_RADII[2] * np.sqrt(np.clip(cover, 0, 1)),
+                         _NECK_PLANE_Z)
+        skull = np.maximum(skull, _NECK_PLANE_Z)
+        blend = _smoothstep(distance / 3.0)
+        wanted = (1 - blend) * edge[nearest, 2] + blend * skull
+        under = surface(vertices[:, :2])  # behind the face, which is drawn there, and moving as it does
+        wanted = np.where(inside & np.isfinite(under), np.nan_to_num(under) - 0.3, wanted)
+        photo_z = photo_z + scale * (wanted - vertices[:, 2]) / max(turn[2, 2], 0.5)
+    points = np.column_stack([uv[:, 0], -uv[:, 1], photo_z])
+    vertices = ((points - offset) @ turn) / scale
+
+    chin_y = float(face[152, 1])
+    weight = _smoothstep((vertices[:, 1] - (chin_y - 4.5)) / 4.5)
+
+    # triangles where the person is (grown by a cell, so the layer covers the filled background at rest)
+    r = np.clip(((rows[:-1] + rows[1:]) / 2).astype(int), 0, height - 1)
+    c = np.clip(((columns[:-1] + columns[1:]) / 2).astype(int), 0, width - 1)
+    sample = person[np.ix_(r, c)]
+    for dy in (0, 1):
+        for dx in (0, 1):
+            corner = person[np.ix_(np.clip(rows[dy:n_rows - 1 + dy].astype(int), 0, height - 1),
+                                   np.clip(columns[dx:n_columns - 1 + dx].astype(int), 0, width - 1))]
+            sample |= corner
+    cells = binary_dilation(sample, iterations=2)
+    # none over the mouth and the eyes: their insides show there, through the face's openings
+    centres = np.column_stack([np.repeat((columns[:-1] + columns[1:])[None, :] / 2, n_rows - 1, axis=0).ravel(),
+                               np.repeat((rows[:-1] + rows[1:])[:, None] / 2, n_columns - 1, axis=1).ravel()])
+    for ring in (LIP_OUTER_UPPER + LIP_OUTER_LOWER[::-1][1:-1], LIDS_LEFT[0] + LIDS_LEFT[1][::-1][1:-1],
+                 LIDS_RIGHT[0] + LIDS_RIGHT[1][::-1][1:-1]):
+        cells &= ~_inside_polygon(centres, landmarks[list(ring), :2]).reshape(cells.shape)
+    index = np.arange(n_rows * n_columns).reshape(n_rows, n_columns)
+    a, b = index[:-1, :-1][cells], index[:-1, 1:][cells]
+    d, e = index[1:, :-1][cells], index[1:, 1:][cells]
+    layer_triangles = np.vstack([np.column_stack([a, d, b]), np.column_stack([b, d, e])])
+    return vertices, uv, weight, layer_triangles
+
+
+def _inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    from matplotlib.path import Path as Polygon
+
+    return Polygon(polygon).contains_points(points)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# drawing it
+
+
+class PhotoRenderer:
+    """Frames of a :class:`PhotoHead`: the photo's framing, ``width`` pixels wide (default: the photo's).
+
+    Parameters
+    ----------
+    head : PhotoHead
+    width : int, optional
+        Frame width in pixels (the height keeps the photo's proportions; both even).
+    relight : bool
+        Shade the photo's surfaces as they turn, the light staying where it was (default); False shows the
+        texture as photographed in every pose.
+    """
+
+    def __init__(self, head: PhotoHead, width: int | None = None, *, relight: bool = True) -> None:
+        from PIL import Image
+
+        self.head = head
+        self.width = head.width if width is None else int(width) + int(width) % 2
+        self.zoom = self.width / head.width
+        self.height = max(2, round(head.height * self.zoom / 2) * 2)
+        self.supersample = SUPERSAMPLE if self.width * self.height <= SUPERSAMPLED_PIXELS else 1
+        self._canvas = Canvas(self.width, self.height, self.supersample)
+        mesh = head.rig.mesh
+        drawn = np.isin(mesh.part, _TEXTURED_PARTS + _SHADED_PARTS)
+        rig_triangles = mesh.triangles[drawn[mesh.triangles].all(axis=1)]
+        textured_rig = np.isin(mesh.part[rig_triangles[:, 0]], _TEXTURED_PARTS)
+        n_rig = mesh.n_vertices
+        self.triangles = np.ascontiguousarray(np.vstack([rig_triangles, head.layer_triangles + n_rig]), np.int32)
+        self.textured = np.concatenate([textured_rig, np.ones(len(head.layer_triangles), bool)])
+        # the mouth's inside is seen through the lips' opening only, never through the skin round it
+        self._behind = np.zeros(n_rig + len(head.layer_uv))
+        self._behind[:n_rig][np.isin(mesh.part, _SHADED_PARTS)] = MOUTH_DEPTH_BIAS_CM * head.scale
+        self.uv = np.vstack([head.uv, head.layer_uv])
+        self.colors = np.vstack([mesh.colors.astype(np.float64), np.ones((len(head.layer_uv), 3))])
+        self.texture = head.image.astype(np.float32) / 255.0
+        background = Image.fromarray(head.background)
+        if (self.width, self.height) != (head.width, head.height):
+            background = background.resize((self.width, self.height), Image.Resampling.LANCZOS)
+        self.background = np.asarray(background, np.float32) / 255.0
+        self._corners = self.triangles.reshape(-1)
+        self._n = n_rig + len(head.layer_uv)
+        self.relight = relight
+        self._pivot = head.to_photo(np.asarray([NECK_PIVOT], float))[0]
+        self._follows = np.concatenate([mesh.rotates.astype(float), head.layer_weight])
+        self._lit = np.zeros(self._n, bool)
+        self._lit[np.unique(self.triangles[self.textured])] = True
+        self._rest_light = self._light(self._normals(self.vertices(np.zeros(N_FAPS))))
+        # the nearest point of the head is about a head's depth in front of its origin: depth stays positive
+        self._far = float(head.scale * 60.0 + abs(head.offset[2])) * max(self.zoom, 1.0) * SUPERSAMPLE
+
+    def vertices(self, values: np.ndarray) -> np.ndarray:
+        """Every drawn vertex (the head's, then the person layer's) in photo axes for one frame's values.
+
+        The head turns about the neck by FAP 48-50 in the camera's axes, from the pose it has in the photo
+        (that pose is its neutral one): a nod is about the picture's horizontal, whatever the photo's pose."""
+        values = np.nan_to_num(np.asarray(values, float).reshape(N_FAPS))
+        head = self.head
+        angles = [values[f - 1] * RADIANS_PER_AU for f in HEAD_FAPS]
+        still = values.copy()
+        still[[f - 1 for f in HEAD_FAPS]] = 0.0
+        points = head.to_photo(np.vstack([head.rig.deform(still), head.layer_vertices]))
+        if any(angles):
+            turn = rotation(*angles)
+            turned = (points - self._pivot) @ turn.T + self._pivot
+            points = points + self._follows[:, None] * (turned - points)
+        return points
+
+    @staticmethod
+    def _light(normals: np.ndarray) -> np.ndarray:
+        """How much light a surface of these normals takes from a light above the camera, with ambient."""
+        return RELIGHT_AMBIENT + (1 - RELIGHT_AMBIENT) * np.clip(normals @ _RELIGHT_DIRECTION, 0.0, None)
+
+    def _normals(self, points: np.ndarray) -> np.ndarray:
+        t = self.triangles
+        face_normals = np.cross(points[t[:, 1]] - points[t[:, 0]], points[t[:, 2]] - points[t[:, 0]])
+        repeated = np.repeat(face_normals, 3, axis=0)
+        summed = np.column_stack([np.bincount(self._corners, weights=repeated[:, k], minlength=self._n)
+                                  for k in range(3)])
+        return summed / np.maximum(np.linalg.norm(summed, axis=1, keepdims=True), 1e-12)
+
+    def render(self, values: np.ndarray) -> np.ndarray:
+        """RGB uint8 (height, width, 3) of one frame's 68 FAP values (NaN and 0 are neutral)."""
+        values = np.asarray(values, float)
+        if values.shape != (N_FAPS,):
+            raise PhotoError(f"a head frame takes {N_FAPS} FAP values, got shape {values.shape}")
+        points = self.vertices(values)
+        normals = self._normals(points)
+        colors = self.colors
+        if self.relight:
+            # the light stays where it was when the photo was taken: a turned surface darkens or brightens by
+            # its light now over its light then
+            colors = colors.copy()
+            now, then = self._light(normals), self._rest_light
+            colors[self._lit] = np.clip(now[self._lit] / np.maximum(then[self._lit], RELIGHT_AMBIENT), 0.6,
+                                        1.4)[:, None]
+        s = self.supersample * self.zoom
+        screen = np.column_stack([points[:, 0] * s, -points[:, 1] * s,
+                                  self._far + (self._behind - points[:, 2]) * s])
+        return rasterise_textured(screen, self.triangles, normals, colors, self.uv,
+                                  self.textured, self.texture, self.background, factor=self.supersample,
+                                  canvas=self._canvas)

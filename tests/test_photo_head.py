@@ -1,0 +1,200 @@
+"""The head from a photo: the face fitted to the photo's landmarks, the photo kept at rest, motion that the
+tracker reads back, and one-line refusals. The photos are frames of the project's own 3D head (known
+geometry, known face units) and, where ``../shared/data`` is there, frames of real talking-head videos."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mediapipe", reason="the face landmarker (pip install 'visual-prosody[track]')")
+pytest.importorskip("cv2", reason="OpenCV, which comes with MediaPipe (pip install 'visual-prosody[track]')")
+
+from PIL import Image  # noqa: E402
+
+from prosody.errors import PhotoError  # noqa: E402
+from prosody.fap.table import RADIANS_PER_AU  # noqa: E402
+from prosody.head.photo import PhotoRenderer, photo_head, read_photo, similarity  # noqa: E402
+from prosody.head.render import HeadRenderer  # noqa: E402
+from prosody.head.rig import head_rig, rotation  # noqa: E402
+
+
+def _values(**faps: float) -> np.ndarray:
+    values = np.zeros(68)
+    for name, value in faps.items():
+        values[int(name[1:]) - 1] = value
+    return values
+
+
+def _degrees(value: float) -> float:
+    return math.radians(value) / RADIANS_PER_AU
+
+
+@pytest.fixture(scope="module")
+def render_photo() -> np.ndarray:
+    """A 'photo' of the canonical 3D head (its geometry and face units are known)."""
+    return HeadRenderer(480, 480).render(np.zeros(68))
+
+
+@pytest.fixture(scope="module")
+def head(render_photo):
+    return photo_head(render_photo, name="canonical.png")
+
+
+def _grey(image: np.ndarray) -> np.ndarray:
+    return image.astype(float) @ np.array([0.299, 0.587, 0.114])
+
+
+def test_similarity_recovers_a_known_scale_turn_and_shift() -> None:
+    rng = np.random.default_rng(4)
+    points = rng.normal(size=(50, 3))
+    turn = rotation(0.3, -0.2, 0.5)
+    s, r, t = similarity(points, 3.0 * points @ turn.T + [4.0, -1.0, 2.0])
+    assert s == pytest.approx(3.0)
+    np.testing.assert_allclose(r, turn, atol=1e-9)
+    np.testing.assert_allclose(t, [4.0, -1.0, 2.0], atol=1e-9)
+
+
+def test_a_still_stream_shows_the_photo_as_it_was(head, render_photo) -> None:
+    from skimage.metrics import structural_similarity
+
+    frame = PhotoRenderer(head).render(np.zeros(68))
+    assert frame.shape == render_photo.shape
+    ssim = structural_similarity(_grey(frame), _grey(render_photo), data_range=255.0)
+    assert ssim >= 0.95, ssim
+    # --width scales it, keeping the proportions
+    assert PhotoRenderer(head, 240).render(np.zeros(68)).shape == (240, 240, 3)
+
+
+def test_the_face_units_are_measured_on_the_face_in_the_photo(head) -> None:
+    """A photo of the canonical head gives back about the canonical head's face units and a frontal pose."""
+    canonical, fitted = head_rig().mesh.units, head.rig.mesh.units
+    for unit in ("es0", "ens0", "mns0", "mw0"):
+        assert getattr(fitted, unit) == pytest.approx(getattr(canonical, unit), rel=0.2), unit
+    assert all(abs(angle) < 8 for angle in head.pose_deg), head.pose_deg
+
+
+def test_the_same_face_scaled_in_the_photo_keeps_its_face_units(render_photo) -> None:
+    """Units are in the head's centimetres: a photo of the same face at 0.6 of the size measures the same."""
+    small = np.asarray(Image.fromarray(render_photo).resize((288, 288), Image.Resampling.LANCZOS))
+    a, b = photo_head(render_photo).rig.mesh.units, photo_head(small).rig.mesh.units
+    for unit in ("es0", "ens0", "mns0", "mw0"):
+        assert getattr(b, unit) == pytest.approx(getattr(a, unit), rel=0.08), unit
+
+
+def test_motion_moves_the_photo_head_where_the_faps_say(head) -> None:
+    renderer = PhotoRenderer(head)
+    rest = renderer.vertices(np.zeros(68))
+    chin = head.rig.mesh.feature_points["2.1"]
+    # the jaw lowers the chin by MNS0 x value / 1024 (in the photo's pixels: the fitted scale)
+    opened = renderer.vertices(_values(f3=512))
+    drop_cm = (rest[chin, 1] - opened[chin, 1]) / head.scale
+    assert drop_cm == pytest.approx(head.rig.mesh.units.mns0 * 0.5, rel=0.1)
+    # a yaw to the head's own left moves the nose tip to the viewer's right; the shoulders stay
+    turned = renderer.vertices(_values(f49=_degrees(10)))
+    assert turned[1, 0] > rest[1, 0] + 0.5 * head.scale
+    shoulders = np.flatnonzero(head.layer_weight == 0)
+    assert shoulders.size and np.allclose(turned[-len(head.layer_weight):][shoulders],
+                                          rest[-len(head.layer_weight):][shoulders])
+
+
+def test_turning_uncovers_background_not_a_hole(head, render_photo) -> None:
+    """The canonical render stands on one grey: the person's place is filled with that grey (not a hole, not
+    a smear of the head), and a turned head uncovers it."""
+    grey = render_photo[0, 0].astype(float)
+    assert head.person.mean() > 0.2
+    assert np.abs(head.background[head.person].astype(float) - grey).max() <= 3
+    frame = PhotoRenderer(head).render(_values(f49=_degrees(15), f48=_degrees(9)))
+    uncovered = head.person & np.all(np.abs(frame.astype(float) - grey) <= 3, axis=2)
+    assert uncovered.sum() > 200  # pixels where the head was and the background now shows
+
+
+@pytest.mark.slow
+def test_the_tracker_reads_the_photo_heads_motion_back(head, tmp_path: Path) -> None:
+    """Known head turns, jaw and brows rendered on a photo head, tracked back by prosody track."""
+    pytest.importorskip("av", reason="the video reader of prosody track (pip install 'visual-prosody[track]')")
+    from prosody.evaluation.head_loop import known_motion, measure
+    from prosody.evaluation.preview import write_preview
+
+    stream = known_motion(5.0, amplitudes={"pitch": 9.0, "yaw": 14.0, "roll": 7.0})
+    write_preview(stream, tmp_path / "loop.mp4", face=head, strip=False, captioned=False, brow_scale=1.0)
+    done = subprocess.run([sys.executable, "-m", "prosody", "track", str(tmp_path / "loop.mp4"), "-o",
+                           str(tmp_path / "tracked"), "-q"], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    result = measure(stream, tmp_path / "tracked" / "loop")
+    assert result.found >= 0.98
+    assert all(abs(r) >= 0.9 for r in result.head_r.values()), result.lines()
+    assert result.lips_r >= 0.9 and result.brows_r >= 0.7, result.lines()
+
+
+@pytest.mark.parametrize("make, expected", [
+    (lambda path: path.write_text("not an image"), "not an image"),
+    (lambda path: Image.new("RGB", (300, 300), (90, 120, 150)).save(path), "no face found"),
+    (lambda path: Image.new("L", (9000, 8000)).save(path), "too large a photo"),
+    (lambda path: None, "no such photo"),
+])
+def test_photos_that_cannot_become_a_head_are_refused_in_one_line(tmp_path: Path, make, expected) -> None:
+    path = tmp_path / "photo.png"
+    make(path)
+    with pytest.raises(PhotoError, match=expected) as caught:
+        photo_head(path)
+    assert "\n" not in str(caught.value)
+
+
+def test_a_face_too_small_or_turned_too_far_is_refused(render_photo) -> None:
+    tiny = np.zeros((600, 600, 3), np.uint8)
+    tiny[:] = render_photo[0, 0]
+    tiny[260:340, 260:340] = np.asarray(Image.fromarray(render_photo).resize((80, 80)))
+    with pytest.raises(PhotoError, match="too small|no face"):
+        photo_head(tiny)
+    turned = HeadRenderer(480, 480).render(_values(f49=_degrees(45)))
+    with pytest.raises(PhotoError, match="turned"):
+        photo_head(turned)
+
+
+def test_lips_apart_and_several_faces_are_said_in_notes(render_photo) -> None:
+    apart = HeadRenderer(480, 480).render(_values(f3=500))
+    assert any("lips are apart" in note for note in photo_head(apart).notes)
+    small = np.asarray(Image.fromarray(render_photo).resize((360, 360)))
+    pair = np.concatenate([render_photo[60:420], small], axis=1)
+    notes = photo_head(pair).notes
+    assert any(note.startswith("2 faces in the photo: the largest is used") for note in notes), notes
+
+
+def test_large_photos_are_scaled_down_and_exif_turned(tmp_path: Path, render_photo) -> None:
+    big = Image.fromarray(render_photo).resize((2400, 2400))
+    big.save(tmp_path / "big.png")
+    image, notes = read_photo(tmp_path / "big.png")
+    assert image.shape[0] * image.shape[1] <= 1920 * 1080 and image.shape[0] % 2 == 0
+    assert notes and "scaled down" in notes[0]
+    # a JPEG whose EXIF says "turned 90 degrees" is read upright
+    exif = Image.Exif()
+    exif[0x0112] = 6
+    Image.fromarray(render_photo[:, :400]).save(tmp_path / "turned.jpg", exif=exif)
+    upright, _ = read_photo(tmp_path / "turned.jpg")
+    assert upright.shape[:2] == (400, 480)
+
+
+@pytest.mark.slow
+def test_preview_face_photo_makes_a_video_of_the_photos_size(tmp_path: Path, render_photo) -> None:
+    from prosody.fap.fapfile import write_fap
+    from prosody.fap.stream import FapStream
+
+    Image.fromarray(render_photo[:, 40:440]).save(tmp_path / "me.png")
+    write_fap(FapStream.from_curves({3: np.linspace(0, 400, 10)}, fps=25), tmp_path / "x.fap")
+    done = subprocess.run([sys.executable, "-m", "prosody", "preview", str(tmp_path / "x.fap"), "-o",
+                           str(tmp_path / "x.gif"), "--face", str(tmp_path / "me.png"), "--no-strip"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    with Image.open(tmp_path / "x.gif") as gif:
+        assert gif.size == (400, 480) and gif.n_frames == 10
+    refused = subprocess.run([sys.executable, "-m", "prosody", "preview", str(tmp_path / "x.fap"), "-o",
+                              str(tmp_path / "y.gif"), "--face", str(tmp_path / "none.png")],
+                             capture_output=True, text=True, timeout=300)
+    assert refused.returncode == 1 and refused.stderr.count("\n") == 1 and "no such photo" in refused.stderr
+    assert not (tmp_path / "y.gif").exists()
