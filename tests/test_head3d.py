@@ -219,7 +219,6 @@ def test_the_closed_loop_tracks_back_the_motion_the_head_was_given(tmp_path: Pat
 def test_convert_writes_an_animated_gltf_head_that_a_reader_opens(tmp_path: Path) -> None:
     pygltflib = pytest.importorskip("pygltflib", reason="the glTF reader of the tests (pip install pygltflib)")
     from prosody.fap.exporters import write_stream
-    from prosody.head.gltf import target_scale
 
     frames = 12
     stream = FapStream.from_curves({3: np.linspace(0, 600, frames), 31: np.full(frames, 120.0),
@@ -243,9 +242,11 @@ def test_convert_writes_an_animated_gltf_head_that_a_reader_opens(tmp_path: Path
     times = read(animation.samplers[0].input, 1)
     assert times[-1] == pytest.approx((frames - 1) / 25) and len(times) == frames
     weights = read(animation.samplers[0].output, 1).reshape(frames, len(names))
-    jaw = names.index("open_jaw")
-    assert weights[:, jaw] == pytest.approx(np.linspace(0, 600, frames) / target_scale(3), rel=1e-6)
-    assert weights[:, names.index("raise_l_i_eyebrow")] == pytest.approx(np.full(frames, 120 / 1024), rel=1e-6)
+    jaw = names.index("open_jaw+")
+    assert head.extras["targetUnits"][jaw] == 1024
+    assert weights[:, jaw] == pytest.approx(np.linspace(0, 600, frames) / 1024, rel=1e-6)
+    assert weights[:, names.index("raise_l_i_eyebrow+")] == pytest.approx(np.full(frames, 120 / 1024), rel=1e-6)
+    assert weights[:, names.index("raise_l_i_eyebrow-")] == pytest.approx(np.zeros(frames))
     # the jaw's target moves the chin down by 1024 MNS units (in metres)
     chin_target = read(head.primitives[0].targets[jaw]["POSITION"], 3)
     rotates = np.flatnonzero(MESH.rotates)

@@ -1,36 +1,57 @@
 """The head as an animated glTF 2.0 binary (``.glb``), for Blender, three.js and game engines.
 
-The file holds two meshes in one scene: the body (neck and shoulders, still) and the head, whose node turns
-about the top of the spine. The head mesh carries one morph target per FAP it shows (named by the FAP's
-MPEG-4 name in ``mesh.extras.targetNames``, as Blender and three.js read them): the target is the FAP's field
-times :data:`TARGET_SCALE` of its unit (1024 units, the whole reference distance, for distances; 0.5 rad for
-the eyeballs' angles), so a weight is the FAP value divided by that. One animation lasting the stream animates
-the weights (LINEAR) and the head node's rotation (quaternions of R = Rz(roll) Ry(yaw) Rx(pitch)), one key per
-frame at k / fps seconds. Units are metres (glTF's), +y up, the face looking along +z. Sound is not part of
-glTF: add the recording in the player (docs/cli.md says how in Blender).
+The file holds the head under a ``neck`` node at the top of the spine, whose rotation the animation turns
+(quaternions of R = Rz(roll) Ry(yaw) Rx(pitch)), and what stays still: the body (neck and shoulders), or with
+a photo (:mod:`.photo`) the person's hair, neck and shoulders as a mesh skinned to the neck (each vertex
+following the head by its share) and the photo's background on a quad behind. The head carries morph
+targets, one per FAP direction it shows (``NAME+`` and, for the two-way FAPs, ``NAME-``, MPEG-4's names, in
+``mesh.extras.targetNames``), so that every weight the animation keys lies in 0..1: Blender's importer cuts
+weights below 0. A target is the FAP's field times its units at weight 1 (``mesh.extras.targetUnits``:
+1024 units, the whole reference distance, for distances; 50,000 AU for the eyeballs; or the stream's largest
+value where that is larger). The animation keys the weights (LINEAR) and the neck's rotation at every frame,
+at k / fps seconds.
+
+Colours are glTF's: ``COLOR_0`` holds linear values (the renderers' display colours, converted). Triangles
+are counter-clockwise seen from where they are seen; the mouth's inside, teeth and tongue use a double-sided
+material. With a photo the face and the eyes carry ``TEXCOORD_0`` into the photo, their base colour texture.
+Units are metres (glTF's), +y up, the face looking along +z (with a photo: the photo's own axes, its camera
+looking along -z). Sound is not part of glTF: add the recording in the player (docs/cli.md says how in
+Blender).
 """
 
 from __future__ import annotations
 
+import io
 import json
+import math
 import os
 import struct
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from audio_features.atomic import atomic_write
 
 from ..errors import FapWriteError
+from ..fap.fapfile import MAX_PLAYABLE_VALUE
 from ..fap.stream import FapStream
 from ..fap.table import BY_NUMBER, HEAD_FAPS, RADIANS_PER_AU
-from .mesh import NECK_PIVOT
+from .mesh import EYE_LEFT, EYE_RIGHT, FACE, LOWER_TEETH, MOUTH_INSIDE, NECK, NECK_PIVOT, SKULL, TONGUE, UPPER_TEETH
 from .rig import HeadRig, head_rig, rotation
+
+if TYPE_CHECKING:
+    from .photo import PhotoHead
+
+#: The head's parts drawn with the mouth's material (seen from both sides).
+MOUTH_PARTS = (UPPER_TEETH, LOWER_TEETH, TONGUE, MOUTH_INSIDE)
+#: The largest FAP value written (the .fap writer's bound).
+FAP_VALUE_LIMIT = float(MAX_PLAYABLE_VALUE)
 
 #: A morph target is this many FAP units of its FAP (weight 1 = this value).
 TARGET_SCALE = {"AU": 50_000.0, "default": 1024.0}
 CM_PER_M = 100.0
-_FLOAT, _UNSIGNED_INT = 5126, 5125
+_FLOAT, _UNSIGNED_INT, _UNSIGNED_BYTE = 5126, 5125, 5121
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
 
 
@@ -63,7 +84,7 @@ class _Buffer:
 
     def add(self, array: np.ndarray, kind: str, *, target: int | None = None, bounds: bool = False) -> int:
         array = np.ascontiguousarray(array)
-        component = _UNSIGNED_INT if array.dtype == np.uint32 else _FLOAT
+        component = {np.dtype(np.uint32): _UNSIGNED_INT, np.dtype(np.uint8): _UNSIGNED_BYTE}.get(array.dtype, _FLOAT)
         while len(self.data) % 4:
             self.data.append(0)
         view = {"buffer": 0, "byteOffset": len(self.data), "byteLength": array.nbytes}
@@ -82,47 +103,148 @@ class _Buffer:
         return len(self.accessors) - 1
 
 
-def glb_document(stream: FapStream, *, rig: HeadRig | None = None) -> tuple[dict, bytes]:
-    """The glTF JSON and binary chunk of the head animated by ``stream`` (see the module doc)."""
+def srgb_to_linear(colors: np.ndarray) -> np.ndarray:
+    """Display (sRGB) colours 0..1 -> linear ones, as glTF's ``COLOR_0`` and base colours are defined.
+
+    Examples
+    --------
+    >>> srgb_to_linear(np.array([0.0, 0.04045, 0.5, 1.0])).round(4).tolist()
+    [0.0, 0.0031, 0.214, 1.0]
+    """
+    c = np.clip(np.asarray(colors, float), 0.0, 1.0)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def morph_targets(rig: HeadRig, stream: FapStream) -> list[tuple[int, int, str, float]]:
+    """The morph targets: (FAP, sign, name, FAP units at weight 1) for each FAP the head shows (but the
+    head's turns), one per direction it moves, so that every weight is in 0..1 (Blender's importer cuts
+    weights below 0): ``NAME+`` its positive direction, ``NAME-`` the negative one, for the two-way FAPs
+    and any FAP the stream moves below 0. Weight 1 is :func:`target_scale` units, or the stream's largest
+    value where that is larger."""
+    values = np.where(stream.mask, np.nan_to_num(stream.values), 0.0)
+    targets = []
+    for fap in rig.supported:
+        if fap in HEAD_FAPS or not np.any(rig.fields[fap - 1]):
+            continue
+        curve = values[:, fap - 1]
+        for sign in (1, -1):
+            if sign < 0 and BY_NUMBER[fap].direction != "B" and not (curve < 0).any():
+                continue
+            reach = float(np.max(sign * curve, initial=0.0))
+            scale = max(target_scale(fap), math.ceil(reach))
+            targets.append((fap, sign, f"{BY_NUMBER[fap].name}{'+' if sign > 0 else '-'}", scale))
+    return targets
+
+
+def _image_bytes(image: np.ndarray) -> bytes:
+    from PIL import Image
+
+    out = io.BytesIO()
+    Image.fromarray(image).save(out, format="JPEG", quality=92)
+    return out.getvalue()
+
+
+def glb_document(stream: FapStream, *, rig: HeadRig | None = None, photo: PhotoHead | None = None
+                 ) -> tuple[dict, bytes]:
+    """The glTF JSON and binary chunk of the head animated by ``stream`` (see the module doc); with
+    ``photo``, that person's head, textured by the photo, with the person and the background behind."""
+    if photo is not None:
+        rig = photo.rig
     rig = rig or head_rig()
     mesh = rig.mesh
     if stream.n_frames < 1:
         raise FapWriteError("a glTF animation needs at least one frame")
-    head_part = mesh.rotates
-    body_part = ~head_part
+    values = np.where(stream.mask, np.nan_to_num(stream.values), 0.0)
+    if not np.isfinite(values).all() or np.abs(values).max(initial=0.0) > FAP_VALUE_LIMIT:
+        raise FapWriteError(f"a glTF head takes FAP values within +-{FAP_VALUE_LIMIT:g} (as a .fap file does); "
+                            f"this stream holds {np.abs(values).max():.4g}")
     buffer = _Buffer()
-    pivot = np.asarray(NECK_PIVOT)
+    if photo is None:
+        turn, shift = np.eye(3), np.zeros(3)
+    else:  # the photo's axes (x right, y up, z towards the camera), at the head's size: the photo's framing
+        turn, shift = photo.rotation, photo.offset / photo.scale
+    pivot = np.asarray(NECK_PIVOT) @ turn.T + shift
+
+    def place(points: np.ndarray) -> np.ndarray:
+        return np.asarray(points, float) @ turn.T + shift
+
     from .render import HeadRenderer
 
-    normals = HeadRenderer(16, 16, rig=rig).normals(mesh.vertices.astype(np.float64))
+    normals = HeadRenderer(16, 16, rig=rig).normals(mesh.vertices.astype(np.float64)) @ turn.T
+    head_part = mesh.rotates.copy()
+    if photo is not None:  # the photo's own hair, neck and shoulders stand for the skull and the body
+        head_part &= ~np.isin(mesh.part, (SKULL, NECK))
+    targets = morph_targets(rig, stream)
+    fields = [sign * rig.fields[fap - 1].astype(np.float64) @ turn.T * scale for fap, sign, _, scale in targets]
+    colors = srgb_to_linear(mesh.colors)
+    textured = np.isin(mesh.part, (FACE, EYE_LEFT, EYE_RIGHT)) if photo is not None else np.zeros(len(colors), bool)
+    colors[textured] = 1.0
+    mouth = np.isin(mesh.part, MOUTH_PARTS)
 
-    def primitive(selected: np.ndarray, offset: np.ndarray, targets: list[np.ndarray] | None) -> dict:
+    def primitive(selected: np.ndarray, offset: np.ndarray, material: int, with_targets: bool) -> dict:
         index = np.full(mesh.n_vertices, -1, np.int64)
         index[selected] = np.arange(int(selected.sum()))
         triangles = mesh.triangles[selected[mesh.triangles].all(axis=1)]
-        positions = ((mesh.vertices[selected] - offset) / CM_PER_M).astype(np.float32)
+        positions = ((place(mesh.vertices[selected]) - offset) / CM_PER_M).astype(np.float32)
         attributes = {"POSITION": buffer.add(positions, "VEC3", target=_ARRAY_BUFFER, bounds=True),
                       "NORMAL": buffer.add(normals[selected].astype(np.float32), "VEC3", target=_ARRAY_BUFFER),
-                      "COLOR_0": buffer.add(mesh.colors[selected].astype(np.float32), "VEC3",
-                                            target=_ARRAY_BUFFER)}
-        out = {"attributes": attributes, "material": 0, "mode": 4,
+                      "COLOR_0": buffer.add(colors[selected].astype(np.float32), "VEC3", target=_ARRAY_BUFFER)}
+        if photo is not None and material == 0:
+            uv = photo.uv[selected] / np.array([photo.width, photo.height])
+            attributes["TEXCOORD_0"] = buffer.add(uv.astype(np.float32), "VEC2", target=_ARRAY_BUFFER)
+        out = {"attributes": attributes, "material": material, "mode": 4,
                "indices": buffer.add(index[triangles].reshape(-1).astype(np.uint32), "SCALAR",
                                      target=_ELEMENT_ARRAY_BUFFER)}
-        if targets:
-            out["targets"] = [{"POSITION": buffer.add((t[selected] / CM_PER_M).astype(np.float32), "VEC3",
-                                                      target=_ARRAY_BUFFER, bounds=True)} for t in targets]
+        if with_targets and fields:
+            out["targets"] = [{"POSITION": buffer.add((f[selected] / CM_PER_M).astype(np.float32), "VEC3",
+                                                      target=_ARRAY_BUFFER, bounds=True)} for f in fields]
         return out
 
-    morph_faps = [f for f in rig.supported if f not in HEAD_FAPS and np.any(rig.fields[f - 1])]
-    targets = [rig.fields[f - 1].astype(np.float64) * target_scale(f) for f in morph_faps]
-    head_mesh = {"name": "head", "primitives": [primitive(head_part, pivot, targets)],
-                 "weights": [0.0] * len(morph_faps),
-                 "extras": {"targetNames": [BY_NUMBER[f].name for f in morph_faps]}}
-    body_mesh = {"name": "body", "primitives": [primitive(body_part, np.zeros(3), None)]}
+    head_mesh = {"name": "head", "primitives": [primitive(head_part & ~mouth, pivot, 0, True),
+                                                 primitive(head_part & mouth, pivot, 1, True)],
+                 "weights": [0.0] * len(targets),
+                 "extras": {"targetNames": [name for _, _, name, _ in targets],
+                            "targetUnits": [scale for _, _, _, scale in targets]}}
+    meshes = [head_mesh]
+    materials = [{"name": "photo" if photo is not None else "skin",
+                  "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0.0,
+                                           "roughnessFactor": 0.7}},
+                 {"name": "mouth", "doubleSided": True,
+                  "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0.0,
+                                           "roughnessFactor": 0.6}}]
+    if photo is None:
+        body = ~mesh.rotates
+        meshes.append({"name": "body", "primitives": [primitive(body, np.zeros(3), 0, False)]})
+        nodes = [{"name": "body", "mesh": 1},
+                 {"name": "neck", "translation": (pivot / CM_PER_M).tolist(), "children": [2]},
+                 {"name": "head", "mesh": 0}]
+        scene_nodes, skins, images = [0, 1], [], []
+    else:
+        meshes += _photo_meshes(photo, buffer, place, pivot)
+        nodes = [{"name": "body", "children": [1]},
+                 {"name": "neck", "translation": (pivot / CM_PER_M).tolist(), "children": [2]},
+                 {"name": "head", "mesh": 0},
+                 {"name": "person", "mesh": 1, "skin": 0},
+                 {"name": "backdrop", "mesh": 2}]
+        binds = np.stack([np.eye(4), np.eye(4)])
+        binds[1, :3, 3] = -pivot / CM_PER_M
+        skins = [{"name": "neck bends", "joints": [0, 1],
+                  "inverseBindMatrices": buffer.add(binds.transpose(0, 2, 1).reshape(2, 16).astype(np.float32),
+                                                    "MAT4")}]
+        scene_nodes = [0, 3, 4]
+        images = [_image_bytes(photo.image), _image_bytes(photo.background)]
+        # the photo is lit as it was taken: its materials are unlit (shown as photographed)
+        materials[0]["pbrMetallicRoughness"]["baseColorTexture"] = {"index": 0}
+        materials[0]["extensions"] = {"KHR_materials_unlit": {}}
+        materials.append({"name": "person", "extensions": {"KHR_materials_unlit": {}}, "pbrMetallicRoughness": {
+            "baseColorTexture": {"index": 0}, "metallicFactor": 0.0, "roughnessFactor": 1.0}})
+        materials.append({"name": "background", "extensions": {"KHR_materials_unlit": {}},
+                          "pbrMetallicRoughness": {"baseColorTexture": {"index": 1}, "metallicFactor": 0.0,
+                                                   "roughnessFactor": 1.0}})
 
-    values = np.where(stream.mask, np.nan_to_num(stream.values), 0.0)
     times = (np.arange(stream.n_frames) / stream.fps).astype(np.float32)
-    weights = np.column_stack([values[:, f - 1] / target_scale(f) for f in morph_faps]).astype(np.float32)
+    weights = np.column_stack([np.clip(sign * values[:, fap - 1] / scale, 0.0, 1.0)
+                               for fap, sign, _, scale in targets]).astype(np.float32)
     angles = values[:, [f - 1 for f in HEAD_FAPS]] * RADIANS_PER_AU
     quaternions = np.array([_quaternion(rotation(*row)) for row in angles], np.float32)
     time_accessor = buffer.add(times, "SCALAR", bounds=True)
@@ -135,27 +257,77 @@ def glb_document(stream: FapStream, *, rig: HeadRig | None = None) -> tuple[dict
         "channels": [{"sampler": 0, "target": {"node": 2, "path": "weights"}},
                      {"sampler": 1, "target": {"node": 1, "path": "rotation"}}],
     }
+    image_entries = []
+    for data in images:
+        while len(buffer.data) % 4:
+            buffer.data.append(0)
+        buffer.views.append({"buffer": 0, "byteOffset": len(buffer.data), "byteLength": len(data)})
+        buffer.data += data
+        image_entries.append({"bufferView": len(buffer.views) - 1, "mimeType": "image/jpeg"})
     document = {
         "asset": {"version": "2.0", "generator": "visual-prosody"},
         "scene": 0,
-        "scenes": [{"name": "talking head", "nodes": [0, 1]}],
-        "nodes": [{"name": "body", "mesh": 1},
-                  {"name": "neck", "translation": (pivot / CM_PER_M).tolist(), "children": [2]},
-                  {"name": "head", "mesh": 0}],
-        "meshes": [head_mesh, body_mesh],
-        "materials": [{"name": "skin", "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1],
-                                                                "metallicFactor": 0.0, "roughnessFactor": 0.7}}],
+        "scenes": [{"name": "talking head", "nodes": scene_nodes}],
+        "nodes": nodes,
+        "meshes": meshes,
+        "materials": materials,
         "animations": [animation],
         "accessors": buffer.accessors,
         "bufferViews": buffer.views,
         "buffers": [{"byteLength": len(buffer.data)}],
     }
+    if image_entries:
+        document.update(images=image_entries, samplers=[{"magFilter": 9729, "minFilter": 9729}],
+                        textures=[{"source": k, "sampler": 0} for k in range(len(image_entries))],
+                        extensionsUsed=["KHR_materials_unlit"])
+    if skins:
+        document["skins"] = skins
     return document, bytes(buffer.data)
 
 
-def write_glb(stream: FapStream, path: str | os.PathLike[str]) -> None:
-    """Write the head animated by ``stream`` as a binary glTF 2.0 file (atomically)."""
-    document, binary = glb_document(stream)
+def _photo_meshes(photo: PhotoHead, buffer: _Buffer, place, pivot: np.ndarray) -> list[dict]:
+    """The person (skinned: the head's share of each vertex follows the neck joint) and the background, a
+    quad behind the person at the photo's framing."""
+    layer = place(photo.layer_vertices)
+    uv = photo.layer_uv / np.array([photo.width, photo.height])
+    weight = np.clip(photo.layer_weight, 0.0, 1.0)
+    # the larger share first; a joint of no weight is written as 0 (glTF's rule)
+    neck_first = weight > 0.5
+    joints = np.zeros((len(layer), 4), np.uint8)
+    weights = np.zeros((len(layer), 4), np.float32)
+    joints[:, 0] = neck_first
+    weights[:, 0] = np.where(neck_first, weight, 1.0 - weight)
+    weights[:, 1] = 1.0 - weights[:, 0]
+    joints[:, 1] = np.where(weights[:, 1] > 0, ~neck_first, 0)
+    triangles = photo.layer_triangles
+    corners = layer[triangles]
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    if np.median(normal[:, 2]) < 0:  # counter-clockwise seen from the camera
+        triangles = triangles[:, ::-1]
+    person = {"attributes": {
+        "POSITION": buffer.add((layer / CM_PER_M).astype(np.float32), "VEC3", target=_ARRAY_BUFFER, bounds=True),
+        "TEXCOORD_0": buffer.add(uv.astype(np.float32), "VEC2", target=_ARRAY_BUFFER),
+        "JOINTS_0": buffer.add(joints, "VEC4", target=_ARRAY_BUFFER),
+        "WEIGHTS_0": buffer.add(weights, "VEC4", target=_ARRAY_BUFFER)},
+        "indices": buffer.add(triangles.reshape(-1).astype(np.uint32), "SCALAR", target=_ELEMENT_ARRAY_BUFFER),
+        "material": 2, "mode": 4}
+    # the background: the photo's rectangle, 25 cm behind the head's origin (in the photo's axes)
+    w, h = photo.width / photo.scale, photo.height / photo.scale
+    depth = -25.0
+    quad = np.array([[0.0, 0.0, depth], [w, 0.0, depth], [w, -h, depth], [0.0, -h, depth]])
+    backdrop = {"attributes": {
+        "POSITION": buffer.add((quad / CM_PER_M).astype(np.float32), "VEC3", target=_ARRAY_BUFFER, bounds=True),
+        "TEXCOORD_0": buffer.add(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32), "VEC2",
+                                 target=_ARRAY_BUFFER)},
+        "indices": buffer.add(np.array([0, 2, 1, 0, 3, 2], np.uint32), "SCALAR", target=_ELEMENT_ARRAY_BUFFER),
+        "material": 3, "mode": 4}
+    return [{"name": "person", "primitives": [person]}, {"name": "backdrop", "primitives": [backdrop]}]
+
+
+def write_glb(stream: FapStream, path: str | os.PathLike[str], *, photo: PhotoHead | None = None) -> None:
+    """Write the head animated by ``stream`` as a binary glTF 2.0 file (atomically); with ``photo``, the
+    head of the person in it (:func:`prosody.head.photo.photo_head`)."""
+    document, binary = glb_document(stream, photo=photo)
     text = json.dumps(document, separators=(",", ":")).encode("utf-8")
     text += b" " * (-len(text) % 4)
     binary += b"\0" * (-len(binary) % 4)

@@ -113,7 +113,8 @@ class HeadMesh:
     Attributes
     ----------
     vertices : float32 (n, 3), cm in head axes.
-    triangles : int32 (m, 3), counter-clockwise seen from outside.
+    triangles : int32 (m, 3), counter-clockwise seen from where the surface is seen: from outside, but for
+        the mouth's inside, seen from within.
     colors : float32 (n, 3), albedo 0..1.
     part : int8 (n,), the part each vertex belongs to (:data:`PART_NAMES`).
     feature_points : FDP name -> vertex index.
@@ -320,7 +321,7 @@ def _eye_pieces(centre: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, tuple]
     for lo, hi, rows, color in ((0.0, PUPIL_ANGLE_RAD, 3, PUPIL), (PUPIL_ANGLE_RAD, IRIS_ANGLE_RAD, 3, IRIS),
                                 (IRIS_ANGLE_RAD, math.pi * 0.8, 8, SCLERA)):
         vertices, triangles = _ellipsoid(centre, (EYEBALL_RADIUS_CM,) * 3, rows=rows, columns=20, polar=(lo, hi))
-        pieces.append((vertices, triangles[:, ::-1], color))
+        pieces.append((vertices, triangles, color))  # counter-clockwise seen from outside
     return pieces
 
 
@@ -360,14 +361,31 @@ def build_head(face: np.ndarray | None = None) -> HeadMesh:
     _add_body(builder)
 
     vertices = np.vstack(builder.vertices).astype(np.float32)
+    parts = np.concatenate(builder.parts)
+    _behind_the_face(vertices, parts, v)
     triangles = np.vstack(builder.triangles).astype(np.int32)
     all_colors = np.vstack(builder.colors).astype(np.float32)
-    parts = np.concatenate(builder.parts)
     units = _measure_units(face_vertices, np.asarray(eye_centres))
     layout = vertices.copy()
     vertices[:N_FACE_VERTICES] = close_lips(face_vertices).astype(np.float32)
     return HeadMesh(vertices, triangles, all_colors, parts, dict(FEATURE_POINTS), units, np.asarray(eye_centres),
                     layout=layout, rotates=parts != NECK)
+
+
+#: How far the mouth's inside, teeth and tongue keep behind the skin in front of them at rest (cm).
+MOUTH_CLEARANCE_CM = 0.2
+
+
+def _behind_the_face(vertices: np.ndarray, parts: np.ndarray, face: np.ndarray) -> None:
+    """Push the mouth's inside, teeth and tongue back where they would come through the skin round the lips
+    (at the corners the face curves back faster than the mouth's parts): they show through the lips' opening
+    only, in every renderer (in place)."""
+    from scipy.interpolate import LinearNDInterpolator
+
+    inside = np.isin(parts, (UPPER_TEETH, LOWER_TEETH, TONGUE, MOUTH_INSIDE))
+    surface = LinearNDInterpolator(face[:, :2], face[:, 2])(vertices[inside, :2].astype(float))
+    limit = np.where(np.isfinite(surface), surface - MOUTH_CLEARANCE_CM, np.inf)
+    vertices[inside, 2] = np.minimum(vertices[inside, 2], limit)
 
 
 def _add_skull(builder: _Builder, v: np.ndarray, open_face: np.ndarray) -> None:
@@ -455,7 +473,7 @@ def _add_mouth(builder: _Builder, v: np.ndarray) -> None:
     # the inside: a bowl open towards the lips (its front would hide the teeth)
     inside_v, inside_t = _ellipsoid((0.0, mouth_y - 0.4, lip_z - 1.9), (corner_x * 1.1, 1.8, 2.2), rows=10,
                                     columns=18, polar=(math.pi * 0.3, math.pi))
-    builder.add(inside_v, inside_t, INSIDE, MOUTH_INSIDE)
+    builder.add(inside_v, inside_t[:, ::-1], INSIDE, MOUTH_INSIDE)  # it is seen from within: wound that way
     arch_x = np.linspace(-corner_x * 0.85, corner_x * 0.85, 13)
     arch_z = lip_z - 0.45 - 0.55 * (arch_x / (corner_x * 0.85)) ** 2
     upper_points = np.column_stack([arch_x, np.full_like(arch_x, mouth_y + 0.55), arch_z])
