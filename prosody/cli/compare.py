@@ -16,6 +16,13 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--transcript is read by the visemes; it is not used by --lips {args.lips}")
     if args.pad_map is not None and args.pad is None:
         raise ConfigError("--pad-map maps the state of --pad to the face; give --pad too")
+    face: object = "head"
+    if args.face is not None:  # the photo is read, and its face found, before the audio
+        if not args.video:
+            raise ConfigError("--face is the face of the video: give --video too")
+        from .preview import photo_face
+
+        face = photo_face(args.face)
     comparison = compare(args.input, ground_truth=args.ground_truth, model=args.model, seed=args.seed,
                          seeds=args.seeds, normalize=args.normalize, eyebrow_rule=opt.eyebrow_rule(args),
                          other_head_models={name: name for name in args.also_model},
@@ -25,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
                          expressivity=opt.expressivity(args), pad=args.pad, pad_map=args.pad_map,
                          **opt.analysis_kwargs(args))
     written = write_comparison(comparison, args.output, plots=args.plots, video=args.video,
-                               exaggerate=args.exaggerate,
+                               exaggerate=args.exaggerate, face=face,
                                progress=msg.frame_progress(f"{args.output}/conditions.mp4") if args.video else None)
     line = f"{args.output}: {len(written)} files"
     head = comparison.metrics["conditions"]["SPEECH_DRIVEN"]["head"]
@@ -79,6 +86,9 @@ def add_parser(commands) -> None:
     opt.add_expressivity_options(compare)
     compare.add_argument("--exaggerate", type=opt.exaggeration, default=1.0, metavar="X",
                          help="with --video: draw head angles and brow raises X times larger (default 1)")
+    compare.add_argument("--face", default=None, metavar="PHOTO",
+                         help="with --video: every panel is the head of the person in PHOTO (a JPEG or PNG of one "
+                              "person, roughly frontal; needs pip install 'visual-prosody[track]')")
     opt.add_analysis_options(compare)
     opt.add_eyebrow_options(compare)
     compare.set_defaults(handler=run)

@@ -16,7 +16,23 @@ def run(args: argparse.Namespace) -> int:
     if args.output_format is None and args.output.lower().endswith((".mp4", ".gif", ".webm", ".mov", ".mkv", ".avi")):
         raise ConfigError(f"-o {args.output!r}: convert writes motion (.fap, .csv, .json, .bvh, .livelink.csv); "
                           f"to draw a video, use 'prosody preview {args.input} -o {args.output}'")
-    if args.output == "-":
+    photo = None
+    if args.face is not None:  # the photo is read, and its face found, before the audio
+        from ..fap.exporters import format_for
+
+        if args.output == "-" or format_for(args.output, args.output_format) != "gltf":
+            raise ConfigError(f"--face makes the head of the .glb output; -o {args.output!r} is not a .glb file "
+                              "(to watch a photo head, use 'prosody preview --face')")
+        from .preview import photo_face
+
+        photo = photo_face(args.face)
+    if photo is not None:
+        from ..head.gltf import write_glb
+
+        stream = convert(args.input, None, base=args.base, progress=msg.frame_progress(args.input, "analysed"),
+                         **opt.motion_kwargs(args))
+        write_glb(stream, args.output, photo=photo)
+    elif args.output == "-":
         if args.output_format is None:
             raise ConfigError("-o - writes to standard output: give --format (fap, csv, csv-physical, json, bvh, "
                               "livelink)")
@@ -72,6 +88,10 @@ def add_parser(commands) -> None:
     opt.add_motion_options(convert)
     convert.add_argument("--base", default=None, metavar="FILE.fap",
                          help="carry this recording's other FAPs (lips, eyes) into the output")
+    convert.add_argument("--face", default=None, metavar="PHOTO",
+                         help="with a .glb output: the head of the person in PHOTO (a JPEG or PNG of one person, "
+                              "roughly frontal), textured by the photo, with their hair, neck and shoulders and "
+                              "the photo's background behind (needs pip install 'visual-prosody[track]')")
     opt.add_analysis_options(convert)
     opt.add_eyebrow_options(convert)
     convert.set_defaults(handler=run)

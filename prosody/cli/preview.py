@@ -41,13 +41,18 @@ def face_choice(text: str) -> str:
 
 def preview_face(face: str):
     """The face a preview shows: a name, or the head made from the photo (its notes said once)."""
-    from ..evaluation.preview import FACES, resolve_face
+    from ..evaluation.preview import FACES
 
-    if face in FACES:
-        return face
-    head = resolve_face(face)
+    return face if face in FACES else photo_face(face)
+
+
+def photo_face(path: str):
+    """The head of the person in the photo at ``path``, its notes said once."""
+    from ..head.photo import photo_head
+
+    head = photo_head(path)
     for note in head.notes:
-        msg.say(f"{face}: {note}")
+        msg.say(f"{path}: {note}")
     return head
 
 

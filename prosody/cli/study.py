@@ -100,6 +100,11 @@ def run_stimuli(args: argparse.Namespace) -> int:
 
     plan = read_plan(args.plan)
     conditions = study_conditions(plan, args.conditions)
+    face = None
+    if args.face is not None:
+        from .preview import photo_face
+
+        face = photo_face(args.face)
     bar = msg.ProgressBar(f"{args.output}: videos", "video")
     drawn = [0]
 
@@ -107,7 +112,7 @@ def run_stimuli(args: argparse.Namespace) -> int:
         drawn[0] += made
 
     manifest = make_stimuli(plan, args.recordings, args.output, conditions, width=args.width, force=args.force,
-                            on_video=on_video, progress=bar)
+                            on_video=on_video, progress=bar, face=face)
     kept = len(manifest["videos"]) - drawn[0]
     msg.say(f"{args.output}: {len(manifest['videos'])} videos of {len(plan.stimuli)} stimulus/stimuli and "
             f"{len(plan.conditions)} conditions ({drawn[0]} drawn, {kept} already complete), listed in stimuli.json")
@@ -305,6 +310,10 @@ def add_parser(commands) -> None:
     stimuli.add_argument("--width", type=opt.whole_number(64, 1920, "64 to 1920"), default=480, metavar="PX",
                          help="video width in pixels (the face is square; default 480)")
     stimuli.add_argument("--force", action="store_true", help="draw every video again")
+    stimuli.add_argument("--face", default=None, metavar="PHOTO",
+                         help="every video shows the head of the person in PHOTO (a JPEG or PNG of one person, "
+                              "roughly frontal; the frame keeps its proportions; needs pip install "
+                              "'visual-prosody[track]'); the ballot then plays the videos")
     stimuli.add_argument("-o", "--output", required=True, metavar="DIR", help="folder of the videos")
     stimuli.set_defaults(handler=run_stimuli)
 

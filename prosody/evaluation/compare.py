@@ -478,7 +478,8 @@ OUTPUT_NAMES = (*(condition_file_name(c) for c in CONDITION_ORDER), "features.pn
 
 def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, plots: bool = True,
                      report: bool = True, extra: Mapping[str, object] | None = None, video: bool = False,
-                     exaggerate: float = 1.0, progress: Callable[[int, int], None] | None = None) -> list[Path]:
+                     exaggerate: float = 1.0, progress: Callable[[int, int], None] | None = None,
+                     face: object = "head") -> list[Path]:
     """Write the condition streams (.fap), the plots (PNG), the report (Markdown) and ``metrics.json``; with
     ``video``, also ``conditions.mp4``: the conditions' faces side by side, labelled, with the recording's
     audio (``exaggerate`` multiplies the drawn motion; ``progress`` as in
@@ -502,6 +503,8 @@ def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, 
         Multiplies the drawn motion of the video.
     progress : callable, optional
         Called as ``progress(frames_done, frames_total)`` while the video is drawn.
+    face : {"head", "drawn"}, PhotoHead or path of a photo
+        The face of the video's panels (see :func:`prosody.evaluation.preview.render_frames`).
 
     Returns
     -------
@@ -537,7 +540,8 @@ def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, 
         panels = {condition.value: stream for condition, stream in comparison.streams.items()}
         panels.update({f"SPEECH_DRIVEN ({other_model_name(label)})": stream
                        for label, stream in comparison.other_models.items()})
-        write_side_by_side(panels, path, audio=comparison.source, exaggerate=exaggerate, progress=progress)
+        write_side_by_side(panels, path, audio=comparison.source, exaggerate=exaggerate, progress=progress,
+                           face=face)
         written.append(path)
     if report:
         from .report import comparison_markdown

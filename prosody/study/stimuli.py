@@ -172,7 +172,7 @@ def video_key(stimulus: str, condition: str) -> str:
 def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: str | os.PathLike[str],
                  conditions: Mapping[str, StudyCondition], *, width: int = 480, force: bool = False,
                  on_video: Callable[[str, str, bool], None] | None = None,
-                 progress: Callable[[int, int], None] | None = None) -> dict:
+                 progress: Callable[[int, int], None] | None = None, face: Any = None) -> dict:
     """Draw every (stimulus, condition) video ``plan`` needs into ``output``; return the manifest written.
 
     Parameters
@@ -194,8 +194,18 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
         Called as ``on_video(stimulus, condition, drawn)`` after each video (``drawn`` False: kept as it was).
     progress : callable, optional
         ``progress(done, total)`` in videos.
+    face : path of a photo, or PhotoHead, optional
+        Every video shows the head of the person in this photo (:mod:`prosody.head.photo`; the frame keeps the
+        photo's proportions), and the ballot plays the videos (its WebGL head is the 3D head's).
     """
     folder, out = Path(recordings), Path(output)
+    photo = None
+    if face is not None:  # read, and its face found, before any video is drawn
+        from ..evaluation.preview import resolve_face
+
+        photo = resolve_face(face)
+        if isinstance(photo, str):
+            raise ConfigError(f"the stimuli's face is a photo (JPEG or PNG), not {face!r}")
     missing = [name for name in plan.conditions if name not in conditions]
     if missing:
         raise ConfigError(f"the plan names condition(s) {', '.join(missing)} that are not defined: give them in a "
@@ -234,6 +244,7 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
         condition = conditions[name]
         audio_sha = _sha256(audio)
         settings = json.dumps({"options": condition.options, "audio": audio_sha, "width": width,
+                               **({"face": _image_sha256(photo.image)} if photo is not None else {}),
                                "truth": _sha256(truth) if truth is not None and condition.needs_truth else None},
                               sort_keys=True)
         key = video_key(stimulus, name)
@@ -241,8 +252,8 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
         previous = old.get(key)
         motion = path.with_name(f"{name}.head.json")
         kept = (not force and isinstance(previous, dict) and previous.get("settings") == settings and path.is_file()
-                and previous.get("sha256") == _sha256(path) and motion.is_file()
-                and previous.get("motion_sha256") == _sha256(motion))
+                and previous.get("sha256") == _sha256(path)
+                and (photo is not None or (motion.is_file() and previous.get("motion_sha256") == _sha256(motion))))
         if kept:
             manifest["videos"][key] = previous
         else:
@@ -255,20 +266,27 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
             for warning in caught:  # said once each, naming the video they are about
                 warnings.warn(f"{key}: {warning.message}", warning.category, stacklevel=2)
             path.parent.mkdir(parents=True, exist_ok=True)
-            write_preview(stream, path, audio=audio, width=width, strip=False, captioned=False)
-            # the same frames for the page's WebGL head: the values the video shows (brows drawn as large)
-            frames = head_frames_document(head_values(stream, brow_scale=BROW_VIEW_SCALE), fps=stream.fps)
-            with atomic_write(motion, newline="\n") as handle:
-                json.dump(frames, handle, separators=(",", ":"))
-            manifest["videos"][key] = {"file": f"{stimulus}/{name}.mp4", "sha256": _sha256(path),
-                                       "motion": f"{stimulus}/{name}.head.json", "motion_sha256": _sha256(motion),
-                                       "seconds": round(stream.n_frames / stream.fps, 3), "settings": settings}
+            write_preview(stream, path, audio=audio, width=width, strip=False, captioned=False,
+                          face=photo if photo is not None else "head")
+            entry = {"file": f"{stimulus}/{name}.mp4", "sha256": _sha256(path),
+                     "seconds": round(stream.n_frames / stream.fps, 3), "settings": settings}
+            if photo is None:
+                # the same frames for the page's WebGL head: the values the video shows (brows drawn as large)
+                frames = head_frames_document(head_values(stream, brow_scale=BROW_VIEW_SCALE), fps=stream.fps)
+                with atomic_write(motion, newline="\n") as handle:
+                    json.dump(frames, handle, separators=(",", ":"))
+                entry.update(motion=f"{stimulus}/{name}.head.json", motion_sha256=_sha256(motion))
+            manifest["videos"][key] = entry
         _write_manifest(out, manifest, old, needed[done:])
         if on_video is not None:
             on_video(stimulus, name, not kept)
         if progress is not None:
             progress(done, len(needed))
     return manifest
+
+
+def _image_sha256(image: Any) -> str:
+    return hashlib.sha256(image.tobytes() + str(image.shape).encode()).hexdigest()
 
 
 def _write_manifest(out: Path, manifest: dict, old: dict, remaining: list[tuple[str, str]]) -> None:

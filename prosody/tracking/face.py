@@ -16,13 +16,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..head.landmarks import INSTALL_HINT, MODEL_PACKAGE, MODEL_RESOURCE, MODEL_SHA256, landmarker, model_path
+from ..head.landmarks import (
+    INSTALL_HINT,
+    MAX_FACES,
+    MODEL_PACKAGE,
+    MODEL_RESOURCE,
+    MODEL_SHA256,
+    landmarker,
+    model_path,
+)
 
-__all__ = ["INSTALL_HINT", "MODEL_PACKAGE", "MODEL_RESOURCE", "MODEL_SHA256", "FaceObservation", "FaceTracker",
+__all__ = ["INSTALL_HINT", "MAX_FACES", "MODEL_PACKAGE", "MODEL_RESOURCE", "MODEL_SHA256", "FaceObservation", "FaceTracker",
            "face_measures", "head_angles", "model_path"]
 
-#: Faces looked for in each frame (the followed one is picked among them).
-MAX_FACES = 3
 #: A followed face that jumps further than this (in face widths) between frames is taken as another face.
 MAX_JUMP_FACE_WIDTHS = 1.0
 
