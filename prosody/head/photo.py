@@ -518,14 +518,17 @@ class PhotoRenderer:
         if (self.width, self.height) != (head.width, head.height):
             background = background.resize((self.width, self.height), Image.Resampling.LANCZOS)
         self.background = np.asarray(background, np.float32) / 255.0
-        self._corners = self.triangles.reshape(-1)
-        self._n = n_rig + len(head.layer_uv)
+        # normals and light for the head's own triangles only: the person's grid is drawn as photographed
+        self._rig_triangles = np.ascontiguousarray(rig_triangles)
+        self._corners = self._rig_triangles.reshape(-1)
+        self._n_rig = n_rig
+        self._normal_buffer = np.zeros((n_rig + len(head.layer_uv), 3))
         self.relight = relight
         self._pivot = head.to_photo(np.asarray([NECK_PIVOT], float))[0]
+        self._layer_rest = head.to_photo(head.layer_vertices)
         self._follows = np.concatenate([mesh.rotates.astype(float), head.layer_weight])
-        self._lit = np.zeros(self._n, bool)
-        self._lit[np.unique(self.triangles[self.textured])] = True
-        self._rest_light = self._light(self._normals(self.vertices(np.zeros(N_FAPS))))
+        self._lit = np.isin(mesh.part, _TEXTURED_PARTS)
+        self._rest_light = self._light(self._normals(self.vertices(np.zeros(N_FAPS)))[:n_rig])
         # the nearest point of the head is about a head's depth in front of its origin: depth stays positive
         self._far = float(head.scale * 60.0 + abs(head.offset[2])) * max(self.zoom, 1.0) * SUPERSAMPLE
 
@@ -539,7 +542,7 @@ class PhotoRenderer:
         angles = [values[f - 1] * RADIANS_PER_AU for f in HEAD_FAPS]
         still = values.copy()
         still[[f - 1 for f in HEAD_FAPS]] = 0.0
-        points = head.to_photo(np.vstack([head.rig.deform(still), head.layer_vertices]))
+        points = np.vstack([head.to_photo(head.rig.deform(still)), self._layer_rest])
         if any(angles):
             turn = rotation(*angles)
             turned = (points - self._pivot) @ turn.T + self._pivot
@@ -552,12 +555,15 @@ class PhotoRenderer:
         return RELIGHT_AMBIENT + (1 - RELIGHT_AMBIENT) * np.clip(normals @ _RELIGHT_DIRECTION, 0.0, None)
 
     def _normals(self, points: np.ndarray) -> np.ndarray:
-        t = self.triangles
+        """Vertex normals of the head's triangles (zero on the person's grid, which is not lit)."""
+        t = self._rig_triangles
         face_normals = np.cross(points[t[:, 1]] - points[t[:, 0]], points[t[:, 2]] - points[t[:, 0]])
         repeated = np.repeat(face_normals, 3, axis=0)
-        summed = np.column_stack([np.bincount(self._corners, weights=repeated[:, k], minlength=self._n)
+        summed = np.column_stack([np.bincount(self._corners, weights=repeated[:, k], minlength=self._n_rig)
                                   for k in range(3)])
-        return summed / np.maximum(np.linalg.norm(summed, axis=1, keepdims=True), 1e-12)
+        out = self._normal_buffer
+        out[:self._n_rig] = summed / np.maximum(np.linalg.norm(summed, axis=1, keepdims=True), 1e-12)
+        return out
 
     def render(self, values: np.ndarray) -> np.ndarray:
         """RGB uint8 (height, width, 3) of one frame's 68 FAP values (NaN and 0 are neutral)."""
@@ -571,9 +577,8 @@ class PhotoRenderer:
             # the light stays where it was when the photo was taken: a turned surface darkens or brightens by
             # its light now over its light then
             colors = colors.copy()
-            now, then = self._light(normals), self._rest_light
-            colors[self._lit] = np.clip(now[self._lit] / np.maximum(then[self._lit], RELIGHT_AMBIENT), 0.6,
-                                        1.4)[:, None]
+            now, then = self._light(normals[:self._n_rig][self._lit]), self._rest_light[self._lit]
+            colors[:self._n_rig][self._lit] = np.clip(now / np.maximum(then, RELIGHT_AMBIENT), 0.6, 1.4)[:, None]
         s = self.supersample * self.zoom
         screen = np.column_stack([points[:, 0] * s, -points[:, 1] * s,
                                   self._far + (self._behind - points[:, 2]) * s])
