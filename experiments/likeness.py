@@ -155,7 +155,8 @@ def through_render(chosen: list[dict], level: dict[str, dict]) -> None:
 
     def share(values, low, high) -> str:
         values = np.asarray(values)
-        return f"median {np.median(values):.2f}, {np.mean((values >= low) & (values <= high)):.0%} in {low:.2f}-{high:.2f}"
+        inside = np.mean((values >= low) & (values <= high))
+        return f"median {np.median(values):.2f}, {inside:.0%} in {low:.2f}-{high:.2f}"
 
     closing = [r["closing ours"] / r["closing person"] for r in rows if r["closing person"] > 0]
     controls = np.array([r["control r"] for r in rows])
@@ -164,6 +165,12 @@ def through_render(chosen: list[dict], level: dict[str, dict]) -> None:
     print(f"brow spread ratio: {share([r['brow spread'] for r in rows], *PASS['brow spread'])}")
     print(f"mouth r: median {np.median([r['mouth r'] for r in rows]):.2f} (control {np.mean(controls):+.2f} ± "
           f"{np.std(controls):.2f}); {np.mean([r['mouth r'] >= PASS['mouth r'] for r in rows]):.0%} of speakers >= 0.3")
+    for key, name in (("mouth spread", "the mouth's opening"), ("brow spread", "the brows")):
+        ratios = {row["clip"]["speaker"]: row[key] for row in rows if row[key] > 0}
+        gains = {s: float(np.median([1 / r for other, r in ratios.items() if other != s])) for s in ratios}
+        print(f"gain on {name} that would match the people's spread, fitted leaving each speaker out: median "
+              f"{np.median(list(gains.values())):.2f} (range {min(gains.values()):.2f}-{max(gains.values()):.2f}); "
+              f"held out, the spread ratio with it: {share([ratios[s] * g for s, g in gains.items()], *PASS[key])}")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -13,8 +13,8 @@ from __future__ import annotations
 from audio_features.errors import MissingExtraError, ParameterError, VisualProsodyError, require_extra
 
 __all__ = ["BallotError", "ConfigError", "FapFormatError", "FapIrregularityWarning", "FapWriteError",
-           "GroundTruthError", "MissingExtraError", "ModelError", "ParameterError", "PhotoError", "PreviewError", "ProsodyError",
-           "TrackingError", "UnknownFapError", "VisualProsodyError", "require_extra"]
+           "GroundTruthError", "MissingExtraError", "ModelError", "ParameterError", "PhotoError", "PreviewError",
+           "ProsodyError", "TrackingError", "UnknownFapError", "VisualProsodyError", "require_extra"]
 
 
 class ProsodyError(VisualProsodyError):

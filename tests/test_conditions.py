@@ -14,6 +14,7 @@ from prosody.errors import ConfigError, GroundTruthError
 from prosody.fap.fapfile import read_fap, write_fap
 from prosody.fap.stream import FapStream
 from prosody.motion.conditions import Condition, condition_stream
+from prosody.motion.eyebrows import BROW_SCALE
 from prosody.motion.ground_truth import fit_to_grid, read_head_csv
 from prosody.motion.perlin import HEAD_STD_AU, PerlinSettings, fractal_noise, perlin_curves
 
@@ -82,8 +83,8 @@ def test_speech_driven_combines_the_rule_and_the_model() -> None:
     assert stream.active_faps == (31, 32, 33, 34, 48, 49, 50)
     brow = stream.curve(31)
     assert np.all(brow[:60] == 0) and np.all(brow[60:75] > 0) and np.all(brow[78:] == 0)
-    # rise over 3 frames to 12 + 3 x (8.84 - 4) ENS, hold, fall over 3 frames
-    height = 12 + 3 * (12 * np.log2(250 / 150) - 4)
+    # rise over 3 frames to 12 + 3 x (8.84 - 4) ENS at people's size (BROW_SCALE times), hold, fall over 3 frames
+    height = (12 + 3 * (12 * np.log2(250 / 150) - 4)) * BROW_SCALE
     np.testing.assert_allclose(brow[60:63], height * np.array([1, 2, 3]) / 3)
     np.testing.assert_allclose(brow[75:78], height * np.array([2, 1, 0]) / 3, atol=1e-12)
     assert np.all(np.isfinite(stream.curves((48, 49, 50))))

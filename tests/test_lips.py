@@ -25,6 +25,7 @@ from prosody.motion.expressions import (
 from prosody.motion.face import lip_curves
 from prosody.motion.lips import (
     LIP_FAPS,
+    OPENING_SCALE,
     VISEME_FAP,
     VISEMES,
     MouthShape,
@@ -77,8 +78,17 @@ def test_dominance_is_flat_inside_a_segment_and_asymmetric_outside():
 def test_a_bilabial_closes_the_lips_between_open_vowels():
     phones = [Phone("AA", 0.0, 0.2), Phone("P", 0.2, 0.23), Phone("AA", 0.23, 0.43)]
     opening = inner_opening(shape_faps(shapes_from_phones(phones, 13, fps=30)))
-    assert opening[6] <= 15  # the /p/ at 0.2-0.23 s: lips together (MNS)
+    # the /p/ at 0.2-0.23 s: lips together (15 MNS at the hand-set sizes, under a third of a millimetre)
+    assert opening[6] <= 15 * OPENING_SCALE
     assert opening[2] > 250 and opening[11] > 250  # the vowels open
+
+
+def test_the_mouth_cues_scale_their_shapes_with_the_visemes():
+    from prosody.fap import mouth_cues
+
+    assert mouth_cues.OPENING_SCALE == OPENING_SCALE
+    a = next(v for v in VISEMES if v.name == "a")
+    assert a.opening == pytest.approx(330.0 * OPENING_SCALE) and mouth_cues.SHAPE_SIZES["D"][0] == a.opening
 
 
 def test_the_opening_is_shared_by_jaw_and_lips_and_the_outer_lips_follow():
@@ -251,7 +261,7 @@ def test_papa_mama_closes_the_lips_at_every_p_and_m(tmp_path):
     opening = inner_opening(shape_faps(shapes_from_phones(phones, n, fps=30)))
     for phone in closures:
         during = opening[int(phone.start_s * 30):int(phone.end_s * 30) + 1]
-        assert during.min() <= 15, phone  # lips together (MNS)
+        assert during.min() <= 15 * OPENING_SCALE, phone  # lips together (MNS)
     assert opening.max() > 250  # and the /a/ between them opens
 
 

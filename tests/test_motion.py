@@ -26,7 +26,7 @@ from prosody.measures import (
 )
 from prosody.motion.conditions import Condition
 from prosody.motion.controls import fitted_features, shift_offsets, shifted_features
-from prosody.motion.eyebrows import AccentRule, EyebrowRule, NoRaiseWarning, accent_raises, brow_raises
+from prosody.motion.eyebrows import BROW_SCALE, AccentRule, EyebrowRule, NoRaiseWarning, accent_raises, brow_raises
 from prosody.motion.ground_truth import ENS_PER_EYE_WIDTH, read_brows_csv, read_motion
 from prosody.motion.head_models import SHIPPED_MODELS, default_head_model, load_head_model, rest_pose
 from prosody.motion.speech_head import ProsodicHeadModel, follow, speech_presence
@@ -372,8 +372,8 @@ def test_accent_rule_raises_on_any_voice_and_any_level() -> None:
         for level in (40.0, 60.0, 85.0):
             raises = accent_raises(_voice(f0, level))
             assert raises.events == ((40, 55),)
-            # 12 ENS at the threshold plus 3 per semitone above it
-            assert raises.displacement_ens[45] == pytest.approx(12 + 3 * 2)
+            # 12 ENS at the threshold plus 3 per semitone above it, at people's size (BROW_SCALE times that)
+            assert raises.displacement_ens[45] == pytest.approx((12 + 3 * 2) * BROW_SCALE)
 
 
 def test_accent_rule_ignores_octave_errors_and_pauses() -> None:

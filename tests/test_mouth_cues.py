@@ -13,7 +13,7 @@ import pytest
 
 from prosody.cli import main
 from prosody.fap.exporters import format_for, write_stream
-from prosody.fap.mouth_cues import PRESTON_BLAIR, mouth_cues
+from prosody.fap.mouth_cues import OPENING_SCALE, PRESTON_BLAIR, mouth_cues
 from prosody.fap.stream import FapStream
 
 FPS = 30.0
@@ -23,7 +23,8 @@ SEGMENTS = [(10, 0.0, 0.0, "X"), (6, 330.0, 0.0, "D"), (2, 0.0, 0.0, "A"), (6, 2
 
 
 def _stream(segments=SEGMENTS) -> FapStream:
-    opening = np.concatenate([np.full(n, value) for n, value, _, _ in segments])
+    """The segments' lips, their openings (the visemes' hand-set sizes) at the visemes' scale."""
+    opening = OPENING_SCALE * np.concatenate([np.full(n, value) for n, value, _, _ in segments])
     rounding = np.concatenate([np.full(n, value) for n, _, value, _ in segments])
     # the opening shared as the visemes share it: jaw 60 %, top lip up 15 %, bottom lip down 25 %
     curves = {3: 0.60 * opening, 4: -0.15 * opening, 5: -0.25 * opening, 16: 300 * rounding, 17: 300 * rounding}
@@ -56,8 +57,9 @@ def test_the_viseme_said_gives_its_shape_whatever_the_lips_opening() -> None:
     # FAP 1 (the viseme said) over lips held half open: the cues follow the visemes, as Rhubarb follows phones
     said = [(10, 0), (6, 10), (3, 1), (6, 10), (4, 2), (6, 13), (5, 11), (6, 12), (6, 14), (12, 0)]
     numbers = np.concatenate([np.full(n, number, float) for n, number in said])
-    stream = FapStream.from_curves({1: numbers, 3: np.full(numbers.size, 0.6 * 200.0),
-                                    4: np.full(numbers.size, -0.15 * 200.0), 5: np.full(numbers.size, -0.25 * 200.0)},
+    stream = FapStream.from_curves({1: numbers, 3: np.full(numbers.size, 0.6 * 200.0 * OPENING_SCALE),
+                                    4: np.full(numbers.size, -0.15 * 200.0 * OPENING_SCALE),
+                                    5: np.full(numbers.size, -0.25 * 200.0 * OPENING_SCALE)},
                                    fps=FPS)
     shapes = [cue.shape for cue in mouth_cues(stream)]
     # silence at the ends idle (X), /a/ D, /p b m/ A, /f v/ G, /o/ F, /e/ C, /i/ B, /u/ F

@@ -263,18 +263,21 @@ def test_previews_to_be_compared_can_share_the_strip_scale(tmp_path: Path) -> No
     assert not (tmp_path / "y.gif").exists()
 
 
-def test_brows_are_drawn_four_times_larger_by_default_and_every_frame_says_so() -> None:
+def test_brows_are_drawn_at_true_size_by_default_and_larger_when_asked() -> None:
     raises = np.array([0.0, 100.0])
     renderer = FaceRenderer(WIDTH)
     true_size = _frames({fap: raises for fap in (31, 32, 33, 34)})
     default = list(render_frames(FapStream.from_curves({fap: raises for fap in (31, 32, 33, 34)}, fps=30),
                                  width=WIDTH, strip=False, face="drawn"))
+    larger = _frames({fap: raises for fap in (31, 32, 33, 34)}, brow_scale=4.0)
     rise = [_centroid(_brows(f[0], renderer)[0])[1] - _centroid(_brows(f[1], renderer)[0])[1]
-            for f in (true_size, default)]
-    assert rise[1] == pytest.approx(4 * rise[0], rel=0.1)
+            for f in (true_size, default, larger)]
+    assert rise[1] == pytest.approx(rise[0], rel=0.05)
+    assert rise[2] == pytest.approx(4 * rise[0], rel=0.1)
     from prosody.evaluation.preview import BROW_VIEW_SCALE, poses
 
-    assert BROW_VIEW_SCALE == 4 and poses(FapStream.from_curves({31: raises}, fps=30))[1].left_brow_ens[0] == 400
+    assert BROW_VIEW_SCALE == 1 and poses(FapStream.from_curves({31: raises}, fps=30))[1].left_brow_ens[0] == 100
+    assert poses(FapStream.from_curves({31: raises}, fps=30), brow_scale=4)[1].left_brow_ens[0] == 400
 
 
 @pytest.mark.parametrize("closing", [0.0, 200.0, 400.0, -150.0, 1024.0])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from . import messages as msg
 from . import options as opt
@@ -16,7 +17,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--transcript is read by the visemes; it is not used by --lips {args.lips}")
     if args.pad_map is not None and args.pad is None:
         raise ConfigError("--pad-map maps the state of --pad to the face; give --pad too")
-    face: object = "head"
+    face: Any = "head"
     if args.face is not None:  # the photo is read, and its face found, before the audio
         if not args.video:
             raise ConfigError("--face is the face of the video: give --video too")

@@ -129,8 +129,8 @@ def add_parser(commands) -> None:
                     ".fap file (Greta's, Xface's, SEMAINE's: the FAPs the head has no part for are named once), "
                     "or from this package's .json or stream .jsonl output: the head turns about the neck (FAP "
                     "48-50), the jaw, lips, lids, eyeballs, brows, cheeks, nose and tongue move by their FAPs "
-                    "(3-46, 51-64) in MPEG-4's units measured on the head, the brows drawn 4 times larger unless "
-                    "--brow-scale 1, all else at true scale unless --exaggerate; a strip below plots the brow and "
+                    "(3-46, 51-64) in MPEG-4's units measured on the head, at true scale unless --exaggerate or "
+                    "--brow-scale; a strip below plots the brow and "
                     "head curves around the current frame. --face drawn shows the older drawn face (head, brows, "
                     "lips, lids), a diagnostic. .mp4 (H.264, with the recording's audio) needs ffmpeg on PATH or "
                     "the imageio-ffmpeg package; .gif (no sound, at most 1 minute at 30 fps) always works.",
@@ -145,9 +145,9 @@ def add_parser(commands) -> None:
                               "photo's own width and proportions)")
     preview.add_argument("--exaggerate", type=opt.exaggeration, default=1.0, metavar="X",
                          help="draw head angles and brow raises X times larger (default 1: true scale)")
-    preview.add_argument("--brow-scale", type=opt.exaggeration, default=4.0, metavar="X",
-                         help="draw the brow raises X times larger again (default 4, said on every frame: a brow "
-                              "raise of speech is under a millimetre, invisible at true scale; 1: true size)")
+    preview.add_argument("--brow-scale", type=opt.exaggeration, default=1.0, metavar="X",
+                         help="draw the brow raises X times larger again (default 1: true size, as every other "
+                              "FAP; another value is said on every frame)")
     preview.add_argument("--face", type=face_choice, default="head", metavar="head|drawn|PHOTO",
                          help="the 3D head (default), the drawn diagnostic face, or PHOTO (a JPEG or PNG of one "
                               "person, roughly frontal, lips closed animates best): that person's head, the face "

@@ -14,6 +14,7 @@ import warnings
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -57,6 +58,9 @@ from ..motion.head_models import HeadModel, is_stochastic, resolve_head_model, r
 from ..motion.settings import AnalysisSettings, FaceSettings, MotionSettings, takes_settings
 from ..validate import valid_seeds
 from .metrics import METRICS_VERSION, Metrics
+
+if TYPE_CHECKING:
+    from .preview import Face
 
 #: Seeds over which the measures of a stochastic condition (RANDOM, the prosodic SPEECH_DRIVEN head) are
 #: averaged: seed, seed + 1, ... (the written streams use the first).
@@ -479,7 +483,7 @@ OUTPUT_NAMES = (*(condition_file_name(c) for c in CONDITION_ORDER), "features.pn
 def write_comparison(comparison: Comparison, outdir: str | os.PathLike[str], *, plots: bool = True,
                      report: bool = True, extra: Mapping[str, object] | None = None, video: bool = False,
                      exaggerate: float = 1.0, progress: Callable[[int, int], None] | None = None,
-                     face: object = "head") -> list[Path]:
+                     face: Face = "head") -> list[Path]:
     """Write the condition streams (.fap), the plots (PNG), the report (Markdown) and ``metrics.json``; with
     ``video``, also ``conditions.mp4``: the conditions' faces side by side, labelled, with the recording's
     audio (``exaggerate`` multiplies the drawn motion; ``progress`` as in

@@ -6,8 +6,8 @@ are applied in FAP units at true scale (SPEC section 1): FAP 48-50 rotate the he
 Rx(pitch), the signs of the .fap conventions: + pitch bows down, + yaw turns to the character's left, + roll
 tilts to its right), and FAP 31-36 raise the inner, middle and outer brow points by ``value / 1024`` of the
 model's eye-nose separation (ENS0). ``exaggerate`` multiplies both for viewing; the caption says so. The brows
-are drawn :data:`BROW_VIEW_SCALE` times larger than true by default (a 20 ENS raise is well under a millimetre
-on a face: invisible at true scale), which every frame's caption says; ``brow_scale=1`` draws them true.
+are drawn at true size by default (:data:`BROW_VIEW_SCALE`); ``brow_scale`` draws them larger, which every
+frame's caption then says.
 The lips (FAP 3-7, 12-13) and the eyelids (FAP 19-22, in IRISD: the neutral lids rest on the iris, so the
 opening between them is the iris diameter IRISD0) are drawn at true size.
 
@@ -140,8 +140,9 @@ EYELID_FAPS = (19, 20, 21, 22)
 DRAWN_FAPS = DRAWN_LIP_FAPS + EYELID_FAPS + (31, 32, 33, 34, 35, 36) + HEAD_FAPS
 
 
-#: How much larger than true the brows are drawn by default (said on every frame).
-BROW_VIEW_SCALE = 4.0
+#: How much larger than true the brows are drawn by default: 1, true size (the brows' raises are people's size in
+#: the stream itself; ``brow_scale`` above 1 is said on every frame).
+BROW_VIEW_SCALE = 1.0
 
 
 def poses(stream: FapStream, *, exaggerate: float = 1.0, brow_scale: float = BROW_VIEW_SCALE) -> list[FacePose]:
@@ -484,8 +485,9 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
         raise ConfigError(f"exaggerate must be a positive number, got {exaggerate!r}")
     if not (math.isfinite(brow_scale) and brow_scale > 0):
         raise ConfigError(f"brow_scale must be a positive number, got {brow_scale!r}")
-    face = resolve_face(face)
-    photo = None if isinstance(face, str) else face
+    resolved = resolve_face(face)
+    photo = None if isinstance(resolved, str) else resolved
+    face = resolved
     if photo is not None:
         from ..head.photo import PhotoRenderer
 
@@ -516,7 +518,7 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
                                caption=caption(frame))
 
 
-def resolve_face(face):
+def resolve_face(face: Face) -> str | PhotoHead:
     """``face`` as :func:`render_frames` takes it: ``"head"`` or ``"drawn"``, or a :class:`PhotoHead` (a path
     of a photo is made into one).
 
@@ -627,7 +629,8 @@ def _reporting(frames: Iterator[np.ndarray], progress: Callable[[int, int], None
 
 def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: str | os.PathLike[str] | None = None,
                   width: int | None = None, exaggerate: float = 1.0, start_s: float = 0.0,
-                  duration_s: float | None = None, ffmpeg: str | None = "auto", progress: Callable[[int, int], None] | None = None,
+                  duration_s: float | None = None, ffmpeg: str | None = "auto",
+                  progress: Callable[[int, int], None] | None = None,
                   scales: tuple[float, float] | None = None, brow_scale: float = BROW_VIEW_SCALE,
                   strip: bool = True, captioned: bool = True, face: Face = "head") -> Path:
     """Write the preview of ``stream`` (the 3D head, a photo's head, or the drawn face) to ``output`` (``.mp4``
@@ -646,7 +649,8 @@ def write_preview(stream: FapStream, output: str | os.PathLike[str], *, audio: s
     exaggerate : float > 0
         Multiplies the drawn motion (1 = true scale).
     brow_scale : float > 0
-        Draws the brow raises this much larger again (default 4, said on every frame; 1: true size).
+        Draws the brow raises this much larger again (default 1: true size; another value is said on every
+        frame).
     start_s, duration_s : float >= 0
         The excerpt to show, in seconds (default: all of it).
     ffmpeg : str or None
@@ -733,6 +737,7 @@ def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.Pa
     if first_frame is None:
         raise PreviewError(f"{path}: nothing to draw (the excerpt has no frames)")
     _write_mp4(itertools.chain([first_frame], frames), path, fps=fps, width=first_frame.shape[1],
-               height=first_frame.shape[0], ffmpeg=executable, audio=Path(audio) if audio is not None else None, start_s=first / fps,
+               height=first_frame.shape[0], ffmpeg=executable, audio=Path(audio) if audio is not None else None,
+               start_s=first / fps,
                duration_s=count / fps)
     return path

@@ -14,11 +14,11 @@ coarticulation, but for /f v/ (G, the lower lip under the teeth, is nearly close
 Otherwise (the acoustic lips, a file of lip FAPs) each frame's shape is read from the lip FAPs: the inner-lip
 opening ``FAP 3 - FAP 4 - FAP 5`` in MNS and the rounding ``(FAP 16 + FAP 17) / 2`` over :data:`PUCKER_MNS`. An
 opening below :data:`CLOSED_MNS` is A; any other frame takes the shape of :data:`SHAPE_SIZES` nearest to it, a
-rounding of :data:`ROUNDING_WEIGHT` counting as much as 100 MNS of opening. The sizes are the project's visemes'
-(``prosody.motion.lips``: /a/ 330 MNS, /e/ 260, /i/ and the consonants 110-190, /p b m/ 0; /u/ rounded 0.2, /o/ and
-/r/ 0.1-0.12), so a player that draws each shape at that size shows the lips as near as six shapes can; from lip
-FAPs alone G is never given (they do not tell the lower lip under the teeth, /f v/, 45 MNS open, from a mouth half
-closed).
+rounding of :data:`ROUNDING_WEIGHT` counting as much as 100 MNS of opening (both times :data:`OPENING_SCALE`).
+The sizes are the project's visemes' (``prosody.motion.lips``: /a/ 330 MNS, /e/ 260, /i/ and the consonants
+110-190, /p b m/ 0, all times :data:`OPENING_SCALE`; /u/ rounded 0.2, /o/ and /r/ 0.1-0.12), so a player that
+draws each shape at that size shows the lips as near as six shapes can; from lip FAPs alone G is never given
+(they do not tell the lower lip under the teeth, /f v/, 45 MNS open, from a mouth half closed).
 
 Either way, a closed mouth (A) becomes X where it stays closed for :data:`IDLE_S` or more, at the start and end, and
 where the stream has no lips; H (the tongue raised for a long L) is never given. A shape held for a single frame
@@ -53,11 +53,16 @@ SHAPES = ("A", "B", "C", "D", "E", "F", "G", "H", "X")
 #: Rhubarb's shape names in the Preston Blair set (its ``--datUsePrestonBlair``).
 PRESTON_BLAIR = {"A": "MBP", "B": "etc", "C": "E", "D": "AI", "E": "O", "F": "U", "G": "FV", "H": "L",
                  "X": "rest"}
+#: The visemes' openings are their hand-set sizes times this (``prosody.motion.lips.OPENING_SCALE``, people's
+#: size): the shapes' sizes below scale with them, so the cues are the same at any scale.
+OPENING_SCALE = 1.4
 #: Below this opening (MNS, half of B's) the lips are closed: A, whatever their rounding.
-CLOSED_MNS = 75.0
+CLOSED_MNS = 75.0 * OPENING_SCALE
 #: The size of each open shape: (opening MNS, rounding as a fraction of full protrusion).
-SHAPE_SIZES = {"B": (150.0, 0.0), "C": (260.0, 0.0), "D": (330.0, 0.0), "E": (240.0, 0.11), "F": (170.0, 0.2)}
-#: The rounding that weighs as much as 100 MNS of opening in choosing the nearest shape.
+SHAPE_SIZES = {name: (opening * OPENING_SCALE, rounding) for name, (opening, rounding) in {
+    "B": (150.0, 0.0), "C": (260.0, 0.0), "D": (330.0, 0.0), "E": (240.0, 0.11), "F": (170.0, 0.2)}.items()}
+#: The rounding that weighs as much as 100 MNS (times :data:`OPENING_SCALE`) of opening in choosing the nearest
+#: shape.
 ROUNDING_WEIGHT = 0.1
 #: The shape of each MPEG-4 viseme (FAP 1: 0 neutral, 1 /p b m/, 2 /f v/, 3 /th dh/, 4 /t d/, 5 /k g/, 6 /ch jh sh/,
 #: 7 /s z/, 8 /n l/, 9 /r/, 10 /a/, 11 /e/, 12 /i/, 13 /o/, 14 /u/), after Rhubarb's descriptions of its shapes. /a/
@@ -91,7 +96,8 @@ def frame_shapes(stream: FapStream) -> list[str]:
     said = np.asarray(stream.mask[:, Fap.VISEME - 1], dtype=bool)
     has_lips = np.asarray(stream.mask[:, [2, 3, 4, 15, 16]].any(axis=1), dtype=bool) | said
     names = list(SHAPE_SIZES)
-    distance = np.stack([((opening - size) / 100.0) ** 2 + ((rounding - rounded) / ROUNDING_WEIGHT) ** 2
+    distance = np.stack([((opening - size) / (100.0 * OPENING_SCALE)) ** 2
+                         + ((rounding - rounded) / ROUNDING_WEIGHT) ** 2
                          for size, rounded in SHAPE_SIZES.values()])
     shapes = np.array(names, dtype="<U1")[distance.argmin(axis=0)] if len(opening) else np.array([], dtype="<U1")
     shapes[(opening < CLOSED_MNS) | ~has_lips] = "A"

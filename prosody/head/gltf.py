@@ -206,12 +206,7 @@ def glb_document(stream: FapStream, *, rig: HeadRig | None = None, photo: PhotoH
                  "extras": {"targetNames": [name for _, _, name, _ in targets],
                             "targetUnits": [scale for _, _, _, scale in targets]}}
     meshes = [head_mesh]
-    materials = [{"name": "photo" if photo is not None else "skin",
-                  "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0.0,
-                                           "roughnessFactor": 0.7}},
-                 {"name": "mouth", "doubleSided": True,
-                  "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0.0,
-                                           "roughnessFactor": 0.6}}]
+    materials = _materials(photo is not None)
     if photo is None:
         body = ~mesh.rotates
         meshes.append({"name": "body", "primitives": [primitive(body, np.zeros(3), 0, False)]})
@@ -233,37 +228,9 @@ def glb_document(stream: FapStream, *, rig: HeadRig | None = None, photo: PhotoH
                                                     "MAT4")}]
         scene_nodes = [0, 3, 4]
         images = [_image_bytes(photo.image), _image_bytes(photo.background)]
-        # the photo is lit as it was taken: its materials are unlit (shown as photographed)
-        materials[0]["pbrMetallicRoughness"]["baseColorTexture"] = {"index": 0}
-        materials[0]["extensions"] = {"KHR_materials_unlit": {}}
-        materials.append({"name": "person", "extensions": {"KHR_materials_unlit": {}}, "pbrMetallicRoughness": {
-            "baseColorTexture": {"index": 0}, "metallicFactor": 0.0, "roughnessFactor": 1.0}})
-        materials.append({"name": "background", "extensions": {"KHR_materials_unlit": {}},
-                          "pbrMetallicRoughness": {"baseColorTexture": {"index": 1}, "metallicFactor": 0.0,
-                                                   "roughnessFactor": 1.0}})
 
-    times = (np.arange(stream.n_frames) / stream.fps).astype(np.float32)
-    weights = np.column_stack([np.clip(sign * values[:, fap - 1] / scale, 0.0, 1.0)
-                               for fap, sign, _, scale in targets]).astype(np.float32)
-    angles = values[:, [f - 1 for f in HEAD_FAPS]] * RADIANS_PER_AU
-    quaternions = np.array([_quaternion(rotation(*row)) for row in angles], np.float32)
-    time_accessor = buffer.add(times, "SCALAR", bounds=True)
-    animation = {
-        "name": stream.name or "speech",
-        "samplers": [{"input": time_accessor, "interpolation": "LINEAR",
-                      "output": buffer.add(weights.reshape(-1), "SCALAR")},
-                     {"input": time_accessor, "interpolation": "LINEAR",
-                      "output": buffer.add(quaternions, "VEC4")}],
-        "channels": [{"sampler": 0, "target": {"node": 2, "path": "weights"}},
-                     {"sampler": 1, "target": {"node": 1, "path": "rotation"}}],
-    }
-    image_entries = []
-    for data in images:
-        while len(buffer.data) % 4:
-            buffer.data.append(0)
-        buffer.views.append({"buffer": 0, "byteOffset": len(buffer.data), "byteLength": len(data)})
-        buffer.data += data
-        image_entries.append({"bufferView": len(buffer.views) - 1, "mimeType": "image/jpeg"})
+    animation = _animation(stream, values, targets, buffer)
+    image_entries = [_embed(buffer, data) for data in images]
     document = {
         "asset": {"version": "2.0", "generator": "visual-prosody"},
         "scene": 0,
@@ -283,6 +250,52 @@ def glb_document(stream: FapStream, *, rig: HeadRig | None = None, photo: PhotoH
     if skins:
         document["skins"] = skins
     return document, bytes(buffer.data)
+
+
+def _materials(photo: bool) -> list[dict]:
+    """The head's skin (or the photo, unlit: it is lit as it was taken) and the mouth (double-sided); with a
+    photo, the person's and the background's materials (unlit, textures 0 and 1)."""
+    def material(name: str, roughness: float, **more) -> dict:
+        return {"name": name, **more, "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0.0,
+                                                               "roughnessFactor": roughness}}
+
+    unlit: dict[str, dict] = {"KHR_materials_unlit": {}}
+    if not photo:
+        return [material("skin", 0.7), material("mouth", 0.6, doubleSided=True)]
+    materials = [material("photo", 1.0, extensions=unlit), material("mouth", 0.6, doubleSided=True),
+                 material("person", 1.0, extensions=unlit), material("background", 1.0, extensions=unlit)]
+    for entry, texture in zip((materials[0], materials[2], materials[3]), (0, 0, 1), strict=True):
+        entry["pbrMetallicRoughness"]["baseColorTexture"] = {"index": texture}
+    return materials
+
+
+def _animation(stream: FapStream, values: np.ndarray, targets: list[tuple[int, int, str, float]],
+               buffer: _Buffer) -> dict:
+    """The one animation: the morph weights (node 2) and the neck's rotation (node 1) at every frame."""
+    times = (np.arange(stream.n_frames) / stream.fps).astype(np.float32)
+    weights = np.column_stack([np.clip(sign * values[:, fap - 1] / scale, 0.0, 1.0)
+                               for fap, sign, _, scale in targets]).astype(np.float32)
+    angles = values[:, [f - 1 for f in HEAD_FAPS]] * RADIANS_PER_AU
+    quaternions = np.array([_quaternion(rotation(*row)) for row in angles], np.float32)
+    time_accessor = buffer.add(times, "SCALAR", bounds=True)
+    return {
+        "name": stream.name or "speech",
+        "samplers": [{"input": time_accessor, "interpolation": "LINEAR",
+                      "output": buffer.add(weights.reshape(-1), "SCALAR")},
+                     {"input": time_accessor, "interpolation": "LINEAR",
+                      "output": buffer.add(quaternions, "VEC4")}],
+        "channels": [{"sampler": 0, "target": {"node": 2, "path": "weights"}},
+                     {"sampler": 1, "target": {"node": 1, "path": "rotation"}}],
+    }
+
+
+def _embed(buffer: _Buffer, data: bytes) -> dict:
+    """An image in the binary chunk (JPEG), as a glTF image entry."""
+    while len(buffer.data) % 4:
+        buffer.data.append(0)
+    buffer.views.append({"buffer": 0, "byteOffset": len(buffer.data), "byteLength": len(data)})
+    buffer.data += data
+    return {"bufferView": len(buffer.views) - 1, "mimeType": "image/jpeg"}
 
 
 def _photo_meshes(photo: PhotoHead, buffer: _Buffer, place, pivot: np.ndarray) -> list[dict]:

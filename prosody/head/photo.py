@@ -403,8 +403,8 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The grid over the person: rest vertices in head axes, their place in the photo, how much of the
     head's turn they follow, and the triangles over the person."""
-    from scipy.ndimage import binary_dilation
     from scipy.interpolate import LinearNDInterpolator
+    from scipy.ndimage import binary_dilation
     from scipy.spatial import cKDTree
 
     height, width = size

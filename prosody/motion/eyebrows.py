@@ -226,6 +226,14 @@ def eyebrow_raises(features: Features, rule: EyebrowRule | None = None) -> Eyebr
     return EyebrowRaises(out, _merge_touching(events, out), threshold_hz, threshold_db)
 
 
+#: The accent rule's raises are scaled by this from their first sizes (12 ENS at the threshold, 3 more per
+#: semitone, at most 30): drawn on the head and read back by the face tracker beside people saying the same
+#: words (30 speakers of talking-head videos), the brows moved 0.32 as far as theirs (median); 3 is the
+#: people's spread over ours fitted leaving each speaker out (``experiments/likeness.py``). A raise is then
+#: 36-90 ENS, 1.3-3.3 mm on an average face. The thesis's rule (:class:`EyebrowRule`) keeps its own sizes.
+BROW_SCALE = 3.0
+
+
 @dataclass(frozen=True)
 class AccentRule:
     """Parameters of the accent rule (the default eyebrows); see the module docstring.
@@ -250,7 +258,8 @@ class AccentRule:
     gain_ens_per_semitone : float >= 0
         ... plus this much per semitone by which the accent's peak exceeds it ...
     max_ens : float > 0, in ENS
-        ... capped here (the thesis's recorded subjects: inner-brow spreads of 5 to 17 ENS).
+        ... capped here. The three were first set to 12, 3 and 30 from the thesis's recorded subjects (inner-brow
+        spreads of 5 to 17 ENS); they are those times :data:`BROW_SCALE`, people's size on video.
     octave_error_semitones : float in [6, 48], in semitones
         Pitch more than this above the speaker's median is taken as a tracking error (Praat's octave jumps on
         a low voice last up to a few frames: 17-20 semitones above the median on recorded speech) and counts
@@ -264,9 +273,9 @@ class AccentRule:
     max_hold_s: float = 1.2
     ramp_s: float = 0.1
     median_s: float = 1 / 6
-    base_ens: float = 12.0
-    gain_ens_per_semitone: float = 3.0
-    max_ens: float = 30.0
+    base_ens: float = 12.0 * BROW_SCALE
+    gain_ens_per_semitone: float = 3.0 * BROW_SCALE
+    max_ens: float = 30.0 * BROW_SCALE
     octave_error_semitones: float = 12.0
 
     def __post_init__(self) -> None:

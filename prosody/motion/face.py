@@ -15,7 +15,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..fap.stream import FapStream
 from .expressions import ExpressionSegment, add_brow_raises, expression_curves, mix_with_lips, parse_expressions
-from .lips import MouthShape, inner_opening, shape_faps, shapes_from_phones
+from .lips import OPENING_SCALE, MouthShape, inner_opening, shape_faps, shapes_from_phones
 from .pad import PadSegment, pad_face_curves, parse_pad, read_face_map
 from .settings import LIP_METHODS, ChannelSettings, FaceSettings
 
@@ -93,7 +93,7 @@ def stream_mouth(stream: FapStream) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 #: ``combined`` keeps the visemes' mouth where they close it (an inner-lip opening under this, MNS).
-COMBINED_CLOSED_MNS = 30.0
+COMBINED_CLOSED_MNS = 30.0 * OPENING_SCALE
 
 
 def lip_curves(audio, n_frames: int, *, fps: float, method: str = "visemes", transcript: str | None = None,

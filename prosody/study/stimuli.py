@@ -199,13 +199,14 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
         photo's proportions), and the ballot plays the videos (its WebGL head is the 3D head's).
     """
     folder, out = Path(recordings), Path(output)
-    photo = None
+    photo: Any = None
     if face is not None:  # read, and its face found, before any video is drawn
         from ..evaluation.preview import resolve_face
 
         photo = resolve_face(face)
         if isinstance(photo, str):
             raise ConfigError(f"the stimuli's face is a photo (JPEG or PNG), not {face!r}")
+    photo_digest = _image_sha256(photo.image) if photo is not None else None
     missing = [name for name in plan.conditions if name not in conditions]
     if missing:
         raise ConfigError(f"the plan names condition(s) {', '.join(missing)} that are not defined: give them in a "
@@ -244,7 +245,7 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
         condition = conditions[name]
         audio_sha = _sha256(audio)
         settings = json.dumps({"options": condition.options, "audio": audio_sha, "width": width,
-                               **({"face": _image_sha256(photo.image)} if photo is not None else {}),
+                               **({"face": photo_digest} if photo_digest is not None else {}),
                                "truth": _sha256(truth) if truth is not None and condition.needs_truth else None},
                               sort_keys=True)
         key = video_key(stimulus, name)

@@ -26,8 +26,8 @@ from ..head.landmarks import (
     model_path,
 )
 
-__all__ = ["INSTALL_HINT", "MAX_FACES", "MODEL_PACKAGE", "MODEL_RESOURCE", "MODEL_SHA256", "FaceObservation", "FaceTracker",
-           "face_measures", "head_angles", "model_path"]
+__all__ = ["INSTALL_HINT", "MAX_FACES", "MODEL_PACKAGE", "MODEL_RESOURCE", "MODEL_SHA256", "FaceObservation",
+           "FaceTracker", "face_measures", "head_angles", "model_path"]
 
 #: A followed face that jumps further than this (in face widths) between frames is taken as another face.
 MAX_JUMP_FACE_WIDTHS = 1.0
