@@ -19,6 +19,7 @@ from prosody.head import mesh as head_mesh
 from prosody.head.mesh import (
     LIDS_LEFT,
     NECK,
+    NECK_PIVOT,
     NOSE_TIP,
     build_head,
     canonical_face,
@@ -131,8 +132,16 @@ def test_head_angles_turn_the_head_with_the_fap_signs(fap, axis, sign) -> None:
     turned = RIG.deform(_values(**{f"f{fap}": angle}))
     probe = MESH.feature_points["9.3"] if fap != 50 else int(np.argmax(MESH.vertices[:, 1]))  # nose / crown
     assert sign * (turned[probe, axis] - MESH.vertices[probe, axis]) > 1.0
-    still = MESH.part == NECK
-    assert np.array_equal(turned[still], MESH.vertices[still].astype(float))  # the neck stays
+    share = MESH.turn_share()
+    still = (MESH.part == NECK) & (share == 0)
+    assert still.sum() > 100 and np.array_equal(turned[still], MESH.vertices[still].astype(float))  # shoulders stay
+    # the neck's top bends with the head, by its share of the turn: no seam under the jaw
+    bending = (MESH.part == NECK) & (share > 0)
+    assert np.all(share[bending] <= 1) and np.any((share[bending] > 0.2) & (share[bending] < 0.8))
+    top = bending & (share > 0.9)
+    full = (MESH.vertices[top] - NECK_PIVOT) @ rotation(*[angle * RADIANS_PER_AU * (f == fap) for f in (48, 49, 50)]).T
+    np.testing.assert_allclose(turned[top], MESH.vertices[top] + share[top, None] * (full + NECK_PIVOT
+                                                                                     - MESH.vertices[top]), atol=1e-4)
 
 
 def test_rotation_is_rz_ry_rx() -> None:

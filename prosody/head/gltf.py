@@ -171,7 +171,7 @@ def glb_document(stream: FapStream, *, rig: HeadRig | None = None, photo: PhotoH
     from .render import HeadRenderer
 
     normals = HeadRenderer(16, 16, rig=rig).normals(mesh.vertices.astype(np.float64)) @ turn.T
-    head_part = mesh.rotates.copy()
+    head_part = mesh.rotates.copy()  # the neck, bending, is in the skinned body
     if photo is not None:  # the photo's own hair, neck and shoulders stand for the skull and the body
         head_part &= ~np.isin(mesh.part, (SKULL, NECK))
     targets = morph_targets(rig, stream)
@@ -207,25 +207,28 @@ def glb_document(stream: FapStream, *, rig: HeadRig | None = None, photo: PhotoH
                             "targetUnits": [scale for _, _, _, scale in targets]}}
     meshes = [head_mesh]
     materials = _materials(photo is not None)
+    # the joints: "body" (still) and "neck" (turned by the animation), the head's mesh under the neck; what
+    # stays, or bends with the neck, is a mesh skinned to the two
+    nodes = [{"name": "body", "children": [1]},
+             {"name": "neck", "translation": (pivot / CM_PER_M).tolist(), "children": [2]},
+             {"name": "head", "mesh": 0}]
+    binds = np.stack([np.eye(4), np.eye(4)])
+    binds[1, :3, 3] = -pivot / CM_PER_M
+    skins = [{"name": "neck bends", "joints": [0, 1],
+              "inverseBindMatrices": buffer.add(binds.transpose(0, 2, 1).reshape(2, 16).astype(np.float32),
+                                                "MAT4")}]
     if photo is None:
-        body = ~mesh.rotates
-        meshes.append({"name": "body", "primitives": [primitive(body, np.zeros(3), 0, False)]})
-        nodes = [{"name": "body", "mesh": 1},
-                 {"name": "neck", "translation": (pivot / CM_PER_M).tolist(), "children": [2]},
-                 {"name": "head", "mesh": 0}]
-        scene_nodes, skins, images = [0, 1], [], []
+        body = ~head_part
+        still = primitive(body, np.zeros(3), 0, False)
+        joints, weights = _skin_weights(mesh.turn_share()[body])
+        still["attributes"].update(JOINTS_0=buffer.add(joints, "VEC4", target=_ARRAY_BUFFER),
+                                   WEIGHTS_0=buffer.add(weights, "VEC4", target=_ARRAY_BUFFER))
+        meshes.append({"name": "body", "primitives": [still]})
+        nodes.append({"name": "neck and shoulders", "mesh": 1, "skin": 0})
+        scene_nodes, images = [0, 3], []
     else:
         meshes += _photo_meshes(photo, buffer, place, pivot)
-        nodes = [{"name": "body", "children": [1]},
-                 {"name": "neck", "translation": (pivot / CM_PER_M).tolist(), "children": [2]},
-                 {"name": "head", "mesh": 0},
-                 {"name": "person", "mesh": 1, "skin": 0},
-                 {"name": "backdrop", "mesh": 2}]
-        binds = np.stack([np.eye(4), np.eye(4)])
-        binds[1, :3, 3] = -pivot / CM_PER_M
-        skins = [{"name": "neck bends", "joints": [0, 1],
-                  "inverseBindMatrices": buffer.add(binds.transpose(0, 2, 1).reshape(2, 16).astype(np.float32),
-                                                    "MAT4")}]
+        nodes += [{"name": "person", "mesh": 1, "skin": 0}, {"name": "backdrop", "mesh": 2}]
         scene_nodes = [0, 3, 4]
         images = [_image_bytes(photo.image), _image_bytes(photo.background)]
 
@@ -289,6 +292,20 @@ def _animation(stream: FapStream, values: np.ndarray, targets: list[tuple[int, i
     }
 
 
+def _skin_weights(share: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``JOINTS_0`` and ``WEIGHTS_0`` of vertices following the neck joint (1) by ``share``, the body joint (0)
+    by the rest: the larger share first, a joint of no weight written as 0 (glTF's rule)."""
+    share = np.clip(np.asarray(share, float), 0.0, 1.0)
+    neck_first = share > 0.5
+    joints = np.zeros((len(share), 4), np.uint8)
+    weights = np.zeros((len(share), 4), np.float32)
+    joints[:, 0] = neck_first
+    weights[:, 0] = np.where(neck_first, share, 1.0 - share)
+    weights[:, 1] = 1.0 - weights[:, 0]
+    joints[:, 1] = np.where(weights[:, 1] > 0, ~neck_first, 0)
+    return joints, weights
+
+
 def _embed(buffer: _Buffer, data: bytes) -> dict:
     """An image in the binary chunk (JPEG), as a glTF image entry."""
     while len(buffer.data) % 4:
@@ -304,14 +321,7 @@ def _photo_meshes(photo: PhotoHead, buffer: _Buffer, place, pivot: np.ndarray) -
     layer = place(photo.layer_vertices)
     uv = photo.layer_uv / np.array([photo.width, photo.height])
     weight = np.clip(photo.layer_weight, 0.0, 1.0)
-    # the larger share first; a joint of no weight is written as 0 (glTF's rule)
-    neck_first = weight > 0.5
-    joints = np.zeros((len(layer), 4), np.uint8)
-    weights = np.zeros((len(layer), 4), np.float32)
-    joints[:, 0] = neck_first
-    weights[:, 0] = np.where(neck_first, weight, 1.0 - weight)
-    weights[:, 1] = 1.0 - weights[:, 0]
-    joints[:, 1] = np.where(weights[:, 1] > 0, ~neck_first, 0)
+    joints, weights = _skin_weights(weight)
     triangles = photo.layer_triangles
     corners = layer[triangles]
     normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])

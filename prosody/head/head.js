@@ -12,7 +12,9 @@
     varying vec3 vNormal; varying vec3 vColor;
     void main() {
       vec3 p = position, n = normal;
-      if (rotates > 0.5) { p = turn * (position - pivot) + pivot; n = turn * normal; }
+      if (rotates > 0.0) {  // the share of the head's turn this vertex follows (the neck bends)
+        p = mix(position, turn * (position - pivot) + pivot, rotates); n = normalize(mix(normal, turn * normal, rotates));
+      }
       float depth = camera.x - p.z;  // camera.x: distance, .y: look-at height, .z: focal (px), .w: far
       float x = camera.z * p.x / halfSize.x, y = camera.z * (p.y - camera.y) / halfSize.y;
       float z = (depth / camera.w) * 2.0 - 1.0;

@@ -80,6 +80,9 @@ EYEBALL_RADIUS_CM = 1.2
 IRIS_ANGLE_RAD, PUPIL_ANGLE_RAD = 0.50, 0.22
 #: The pivot of FAP 48-50 (the top of the spine) and the jaw's hinge, in head axes.
 NECK_PIVOT = (0.0, -5.0, -4.0)
+#: The neck: an elliptic cylinder (x, z radii, cm) between two heights; above NECK_BEND_LOW_Y it bends with the
+#: head, fully at its top.
+NECK_RADII, NECK_CENTRE_Z, NECK_TOP_Y, NECK_BOTTOM_Y, NECK_BEND_LOW_Y = (6.0, 5.6), -3.3, -6.8, -16.0, -12.5
 JAW_PIVOT = (0.0, -5.0, -3.5)
 
 
@@ -136,6 +139,13 @@ class HeadMesh:
     layout: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 3)))
     #: Vertices that turn with the head (FAP 48-50); the neck and the shoulders stay.
     rotates: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0, bool))
+    #: How much of the head's turn each vertex follows: 1 on the head, 0 on the shoulders, in between on the
+    #: neck's upper part, which bends with the head (no seam under the jaw). Empty: ``rotates``.
+    follows: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+
+    def turn_share(self) -> np.ndarray:
+        """float (n,): :attr:`follows`, or :attr:`rotates` as 0 and 1 where a mesh has no shares."""
+        return self.follows if len(self.follows) == len(self.vertices) else self.rotates.astype(float)
 
     @property
     def n_vertices(self) -> int:
@@ -374,8 +384,17 @@ def build_head(face: np.ndarray | None = None) -> HeadMesh:
     units = _measure_units(face_vertices, np.asarray(eye_centres))
     layout = vertices.copy()
     vertices[:N_FACE_VERTICES] = close_lips(face_vertices).astype(np.float32)
+    follows = (parts != NECK).astype(float)
+    neck = builder_neck(parts, vertices)
+    follows[neck] = _smoothstep((vertices[neck, 1] - NECK_BEND_LOW_Y) / (NECK_TOP_Y - NECK_BEND_LOW_Y))
     return HeadMesh(vertices, triangles, all_colors, parts, dict(FEATURE_POINTS), units, np.asarray(eye_centres),
-                    layout=layout, rotates=parts != NECK)
+                    layout=layout, rotates=parts != NECK, follows=follows)
+
+
+def builder_neck(parts: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """bool (n,): the neck's cylinder (of the still part, above the shoulders)."""
+    return (parts == NECK) & (vertices[:, 1] >= NECK_BOTTOM_Y - 1e-6) & (
+        np.hypot(vertices[:, 0] / NECK_RADII[0], (vertices[:, 2] - NECK_CENTRE_Z) / NECK_RADII[1]) < 1.01)
 
 
 #: How far the mouth's inside, teeth and tongue keep behind the skin in front of them at rest (cm).
@@ -495,9 +514,12 @@ def _add_mouth(builder: _Builder, v: np.ndarray) -> None:
 
 def _add_body(builder: _Builder) -> None:
     """The neck and the top of the shoulders (they stay still while the head turns)."""
-    neck_v, neck_t = _cylinder(centre=(0.0, -3.3), radii=(5.4, 5.4), y_top=-6.8, y_bottom=-18.0)
+    # a neck of a person's width (about 12 cm across) and length (4-5 cm showing between the chin and the
+    # shoulders)
+    neck_v, neck_t = _cylinder(centre=(0.0, NECK_CENTRE_Z), radii=NECK_RADII, y_top=NECK_TOP_Y,
+                               y_bottom=NECK_BOTTOM_Y)
     builder.add(neck_v, neck_t, SKIN, NECK)
-    body_v, body_t = _ellipsoid_y((0.0, -22.5, -3.5), (18.0, 6.5, 9.0))
+    body_v, body_t = _ellipsoid_y((0.0, -20.0, -3.5), (19.0, 6.5, 10.0))
     builder.add(body_v, body_t, SHIRT, NECK)
 
 

@@ -526,7 +526,7 @@ class PhotoRenderer:
         self.relight = relight
         self._pivot = head.to_photo(np.asarray([NECK_PIVOT], float))[0]
         self._layer_rest = head.to_photo(head.layer_vertices)
-        self._follows = np.concatenate([mesh.rotates.astype(float), head.layer_weight])
+        self._follows = np.concatenate([mesh.turn_share(), head.layer_weight])
         self._lit = np.isin(mesh.part, _TEXTURED_PARTS)
         self._rest_light = self._light(self._normals(self.vertices(np.zeros(N_FAPS)))[:n_rig])
         # the nearest point of the head is about a head's depth in front of its origin: depth stays positive

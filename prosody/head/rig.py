@@ -96,9 +96,16 @@ class HeadRig:
         pitch, yaw, roll = (values[f - 1] * RADIANS_PER_AU for f in HEAD_FAPS)
         if pitch or yaw or roll:
             pivot = np.asarray(NECK_PIVOT)
-            turning = self.mesh.rotates
-            vertices[turning] = (vertices[turning] - pivot) @ rotation(pitch, yaw, roll).T + pivot
+            share = self.turn_shares
+            turning = share > 0
+            turned = (vertices[turning] - pivot) @ rotation(pitch, yaw, roll).T + pivot
+            vertices[turning] += share[turning, None] * (turned - vertices[turning])
         return vertices
+
+    @functools.cached_property
+    def turn_shares(self) -> np.ndarray:
+        """float (n,): how much of the head's turn each vertex follows (see ``HeadMesh.follows``)."""
+        return self.mesh.turn_share()
 
     @functools.cached_property
     def moving(self) -> np.ndarray:

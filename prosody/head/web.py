@@ -42,7 +42,7 @@ def model_document(rig: HeadRig | None = None) -> dict:
         "vertices": np.round(mesh.vertices.astype(np.float64), _POSITION_DIGITS).reshape(-1).tolist(),
         "triangles": mesh.triangles.reshape(-1).tolist(),
         "colors": np.round(mesh.colors.astype(np.float64), 4).reshape(-1).tolist(),
-        "rotates": mesh.rotates.astype(int).tolist(),
+        "rotates": np.round(mesh.turn_share(), 3).tolist(),
         "fields": fields,
         "supported": list(rig.supported),
         "pivot": list(NECK_PIVOT),
