@@ -55,7 +55,7 @@ PRESTON_BLAIR = {"A": "MBP", "B": "etc", "C": "E", "D": "AI", "E": "O", "F": "U"
                  "X": "rest"}
 #: The visemes' openings are their hand-set sizes times this (``prosody.motion.lips.OPENING_SCALE``, people's
 #: size): the shapes' sizes below scale with them, so the cues are the same at any scale.
-OPENING_SCALE = 1.4
+OPENING_SCALE = 1.75
 #: Below this opening (MNS, half of B's) the lips are closed: A, whatever their rounding.
 CLOSED_MNS = 75.0 * OPENING_SCALE
 #: The size of each open shape: (opening MNS, rounding as a fraction of full protrusion).

@@ -72,11 +72,15 @@ MAX_TURN_DEG = 30.0
 LIPS_APART = 0.08
 #: The share of the landmarker's depth kept in the fitted face (the rest is the canonical face's).
 DEPTH_TRUST = 0.0
+#: The person's grid follows the face's skin within the face and fades out this far outside it (cm).
+SKIN_FOLLOW_CM = 1.5
 #: The mouth's inside is drawn as if this much further back, so the skin round the lips always hides it.
 MOUTH_DEPTH_BIAS_CM = 3.0
 #: The light that stays put while the head turns (towards the light, camera axes) and its ambient share.
 _RELIGHT_DIRECTION = np.array([0.0, 0.35, 1.0]) / np.linalg.norm([0.0, 0.35, 1.0])
 RELIGHT_AMBIENT = 0.35  # > 0: the ratio below is bounded
+#: The shading of a turned face fades out over this distance towards the face's edge (cm).
+RELIGHT_FADE_CM = 2.0
 #: Side of the person layer's grid cells, as a fraction of the photo's longer side.
 GRID_STEP = 1 / 110
 
@@ -469,6 +473,13 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
     return vertices, uv, weight, layer_triangles
 
 
+def _face_outline() -> list[int]:
+    """The face mesh's outer boundary, an ordered loop of landmark numbers."""
+    from .mesh import _outline
+
+    return _outline(canonical_face()[1])
+
+
 def _inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     from matplotlib.path import Path as Polygon
 
@@ -477,6 +488,17 @@ def _inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
 
 # ---------------------------------------------------------------------------------------------------------
 # drawing it
+
+
+def photo_exposure(head: PhotoHead) -> float:
+    """How bright the face is in the photo beside the 3D head's skin colour (0.4-1.2): the mouth's inside,
+    teeth and tongue are drawn that much darker or lighter, to sit in the photo's light."""
+    from .mesh import SKIN
+
+    grey = np.array([0.299, 0.587, 0.114])
+    at = np.clip(np.round(head.uv[:N_FACE_VERTICES]).astype(int), 0, [head.width - 1, head.height - 1])
+    face = head.image[at[:, 1], at[:, 0]].astype(float) / 255.0
+    return float(np.clip(np.median(face @ grey) / (np.asarray(SKIN) @ grey), 0.4, 1.2))
 
 
 class PhotoRenderer:
@@ -513,6 +535,9 @@ class PhotoRenderer:
         self._behind[:n_rig][np.isin(mesh.part, _SHADED_PARTS)] = MOUTH_DEPTH_BIAS_CM * head.scale
         self.uv = np.vstack([head.uv, head.layer_uv])
         self.colors = np.vstack([mesh.colors.astype(np.float64), np.ones((len(head.layer_uv), 3))])
+        # the mouth's inside as bright as the photo's light: its colours times the face's brightness in the
+        # photo over the head's own skin's
+        self.colors[:n_rig][np.isin(mesh.part, _SHADED_PARTS)] *= photo_exposure(head)
         self.texture = head.image.astype(np.float32) / 255.0
         background = Image.fromarray(head.background)
         if (self.width, self.height) != (head.width, head.height):
@@ -526,8 +551,27 @@ class PhotoRenderer:
         self.relight = relight
         self._pivot = head.to_photo(np.asarray([NECK_PIVOT], float))[0]
         self._layer_rest = head.to_photo(head.layer_vertices)
+        # the person's grid near the face follows the face's skin (the jaw, the cheeks, the brows): each vertex
+        # moves as the face vertices nearest it, fully within the face and fading out SKIN_FOLLOW_CM outside
+        from scipy.spatial import cKDTree
+
+        rest_face = mesh.vertices[:N_FACE_VERTICES].astype(float)
+        distance, nearest = cKDTree(rest_face[:, :2]).query(head.layer_vertices[:, :2], k=4)
+        inside = _inside_polygon(head.layer_uv, head.uv[_face_outline()])
+        reach = np.where(inside, 1.0, 0.5 * (1 + np.cos(np.pi * np.clip(distance[:, 0] / SKIN_FOLLOW_CM, 0, 1))))
+        weights = 1.0 / (distance + 0.05)
+        weights *= (reach / weights.sum(axis=1))[:, None]
+        self._skin = np.flatnonzero(reach > 0)
+        self._skin_nearest, self._skin_weights = nearest[self._skin], weights[self._skin]
+        self._rest_face = rest_face
         self._follows = np.concatenate([mesh.turn_share(), head.layer_weight])
         self._lit = np.isin(mesh.part, _TEXTURED_PARTS)
+        # the shading fades out towards the face's edge, where the face meets the unlit grid: no seam
+        rest_xy = mesh.vertices[:N_FACE_VERTICES, :2].astype(float)
+        edge = rest_xy[_face_outline()]
+        from_edge = np.min(np.linalg.norm(rest_xy[:, None, :] - edge[None, :, :], axis=2), axis=1)
+        self._shading = np.ones(n_rig)
+        self._shading[:N_FACE_VERTICES] = np.clip(from_edge / RELIGHT_FADE_CM, 0.0, 1.0)
         self._rest_light = self._light(self._normals(self.vertices(np.zeros(N_FAPS)))[:n_rig])
         # the nearest point of the head is about a head's depth in front of its origin: depth stays positive
         self._far = float(head.scale * 60.0 + abs(head.offset[2])) * max(self.zoom, 1.0) * SUPERSAMPLE
@@ -542,7 +586,15 @@ class PhotoRenderer:
         angles = [values[f - 1] * RADIANS_PER_AU for f in HEAD_FAPS]
         still = values.copy()
         still[[f - 1 for f in HEAD_FAPS]] = 0.0
-        points = np.vstack([head.to_photo(head.rig.deform(still)), self._layer_rest])
+        rig = head.rig.deform(still)
+        layer = self._layer_rest
+        if self._skin.size:
+            moved = rig[:N_FACE_VERTICES] - self._rest_face
+            shift = (moved[self._skin_nearest] * self._skin_weights[..., None]).sum(axis=1)
+            if np.any(shift):
+                layer = layer.copy()
+                layer[self._skin] += head.scale * shift @ head.rotation.T
+        points = np.vstack([head.to_photo(rig), layer])
         if any(angles):
             turn = rotation(*angles)
             turned = (points - self._pivot) @ turn.T + self._pivot
@@ -578,7 +630,9 @@ class PhotoRenderer:
             # its light now over its light then
             colors = colors.copy()
             now, then = self._light(normals[:self._n_rig][self._lit]), self._rest_light[self._lit]
-            colors[:self._n_rig][self._lit] = np.clip(now / np.maximum(then, RELIGHT_AMBIENT), 0.6, 1.4)[:, None]
+            gain = np.clip(now / np.maximum(then, RELIGHT_AMBIENT), 0.6, 1.4)
+            share = self._shading[self._lit]
+            colors[:self._n_rig][self._lit] = (1 + share * (gain - 1))[:, None]
         s = self.supersample * self.zoom
         screen = np.column_stack([points[:, 0] * s, -points[:, 1] * s,
                                   self._far + (self._behind - points[:, 2]) * s])

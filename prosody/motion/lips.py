@@ -124,7 +124,7 @@ VISEMES: tuple[Viseme, ...] = (
 #: speakers of the people's spread over ours (1.41, fitted leaving each speaker out: 1.40-1.43), so that the
 #: mouth opens as far as people's (``experiments/likeness.py``). It is also
 #: :data:`prosody.fap.mouth_cues.OPENING_SCALE`, which sizes the mouth cues' shapes.
-OPENING_SCALE = 1.4
+OPENING_SCALE = 1.75
 VISEMES = tuple(replace(viseme, opening=viseme.opening * OPENING_SCALE) for viseme in VISEMES)
 #: ARPAbet phone (or SIL) -> its viseme.
 VISEME_OF_PHONE: dict[str, Viseme] = {phone: viseme for viseme in VISEMES for phone in viseme.phones}
