@@ -67,6 +67,8 @@ evaluate: $(STAMP)
 	$(BIN)/python -m experiments.live_mouth_loso
 	$(BIN)/python -m experiments.live_mouth_videos_loso
 	$(BIN)/python -m experiments.head_loop
+	$(BIN)/python -m experiments.photo_loop
+	$(BIN)/python -m experiments.likeness
 	$(BIN)/python -m experiments.mouth_videos_loso
 	$(BIN)/python -m experiments.mouth_learners_loso
 	$(BIN)/python -m experiments.phone_warp

@@ -119,10 +119,10 @@ VISEMES: tuple[Viseme, ...] = (
     Viseme(14, "u", ("UH", "UW", "W"), 170.0, 0.20, -0.050, 1.0, 9.0, 12.0),
 )
 #: The openings above were set by hand; drawn on the head and read back by the face tracker beside people
-#: saying the same words (30 speakers of talking-head videos), the mouth opened 0.71 as far as theirs (median)
-#: and never quite closed against its small peaks. Every viseme's opening is scaled by this, the median over
-#: speakers of the people's spread over ours (1.41, fitted leaving each speaker out: 1.40-1.43), so that the
-#: mouth opens as far as people's (``experiments/likeness.py``). It is also
+#: saying the same words (30 speakers of talking-head videos), the mouth opened 0.71 as far as theirs (median).
+#: Every viseme's opening is scaled by this: the people's spread over ours, fitted leaving each speaker out,
+#: was 1.41 at the hand-set sizes and 1.26 more at 1.4 (the tracker reads openings less than linearly); at
+#: 1.75 the mouth opens 0.87 as far as people's (median; ``experiments/likeness.py``). It is also
 #: :data:`prosody.fap.mouth_cues.OPENING_SCALE`, which sizes the mouth cues' shapes.
 OPENING_SCALE = 1.75
 VISEMES = tuple(replace(viseme, opening=viseme.opening * OPENING_SCALE) for viseme in VISEMES)
