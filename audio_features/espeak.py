@@ -198,7 +198,30 @@ class _Engine:
             k += 1
         return dict(sorted(out.items()))
 
+    @functools.cached_property
+    def codes(self) -> frozenset[str]:
+        return frozenset(self.languages())
+
+    @functools.cached_property
+    def variants(self) -> frozenset[str]:
+        """The voice variants (``en+VARIANT``): the files of the data's ``voices/!v`` folder."""
+        folder = Path(_library_paths()[1]) / "voices" / "!v"
+        try:
+            return frozenset(path.name for path in folder.iterdir() if path.is_file())
+        except OSError:
+            return frozenset()
+
+    def check(self, language: str) -> None:
+        """Refuse a language eSpeak NG does not list (a path or a long name reaches its file handling, which
+        crashes on some): a code of :meth:`languages`, or one with ``+VARIANT`` of its variants."""
+        code, plus, variant = language.partition("+")
+        if code not in self.codes or (plus and variant not in self.variants):
+            shown = language if len(language) <= 40 else language[:40] + "..."
+            raise EspeakError(f"eSpeak NG does not speak {shown!r}: 'prosody languages' lists the codes"
+                                 + (" (and a voice variant is one of eSpeak NG's voices/!v files)" if plus else ""))
+
     def say(self, text: str, language: str) -> tuple[np.ndarray, list[tuple[str, int]]]:
+        self.check(language)
         with self.lock:
             if self.lib.espeak_SetVoiceByName(language.encode()) != 0:
                 raise EspeakError(f"eSpeak NG does not speak {language!r}: 'prosody languages' lists the codes")
@@ -213,6 +236,14 @@ class _Engine:
 @functools.lru_cache(maxsize=1)
 def _engine() -> _Engine:
     return _Engine()
+
+
+def check_language(language: str) -> None:
+    """Raise :class:`ParameterError` unless eSpeak NG lists ``language`` (a code ``prosody languages`` shows,
+    optionally ``+VARIANT``, one of its voice variants); nothing else reaches the library."""
+    if not isinstance(language, str) or not language:
+        raise ParameterError(f"a language is an eSpeak NG code such as 'es' or 'de', got {language!r}")
+    _engine().check(language)
 
 
 def languages() -> dict[str, str]:

@@ -10,7 +10,7 @@ import pytest
 from audio_features.audio import Audio
 from audio_features.espeak import EspeakError, align_transcript, languages, phone_classes, speak
 from prosody.cli import main
-from prosody.errors import ConfigError
+from prosody.errors import ConfigError, ParameterError
 from prosody.motion.face import lip_curves
 
 pytest.importorskip("espeakng_loader", reason="eSpeak NG (pip install espeakng-loader)")
@@ -91,6 +91,34 @@ def test_an_unknown_language_is_refused_with_how_to_list_them(capsys) -> None:
     assert "'prosody languages' lists the codes" in capsys.readouterr().err
     with pytest.raises(ConfigError, match="transcript"):
         lip_curves(Audio(np.zeros(1600), 16000), 10, fps=FPS, language="es")
+
+
+@pytest.mark.parametrize("language", [".", "..", "./.", "!v/f1", "en+nonexistent", "en+" + "a" * 300, "/etc",
+                                      "en/../../x", ""])
+def test_languages_eSpeak_does_not_list_never_reach_it(language: str, tmp_path) -> None:
+    """Paths and long variants crashed eSpeak NG (a segmentation fault, a buffer overflow): refused in one line
+    with exit 2 before the audio is read, from the command line, Python and speak()."""
+    import subprocess
+    import sys
+
+    from conftest import REPO
+
+    done = subprocess.run([sys.executable, "-m", "prosody", "convert", str(REPO / "samples" / "arctic_a0009.wav"),
+                           "-o", str(tmp_path / "x.fap"), "--transcript", "hello", "--language", language],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count("\n") == 1 and "language" in done.stderr
+    assert not (tmp_path / "x.fap").exists()
+    from prosody.motion.settings import FaceSettings
+
+    with pytest.raises(ParameterError):
+        FaceSettings(transcript="hello", language=language)
+    with pytest.raises(ParameterError):
+        speak("hello", language)
+
+
+def test_known_codes_and_variants_are_spoken() -> None:
+    assert speak("hello", "en+Alex")[0].samples.size > 0 and speak("hola", "es")[0].samples.size > 0
 
 
 def test_prosody_languages_lists_the_codes(capsys) -> None:

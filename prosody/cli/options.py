@@ -347,6 +347,10 @@ def check_motion_options(args: argparse.Namespace) -> None:
     if getattr(args, "language", None) is not None and getattr(args, "transcript", None) is None:
         raise ConfigError("--language is the transcript's language: give --transcript too (without one, "
                           "--lips acoustic follows any language)")
+    if getattr(args, "language", None) is not None:  # before the audio is read
+        from audio_features.espeak import check_language
+
+        check_language(args.language)
     if getattr(args, "pad_map", None) is not None and args.pad is None:
         raise ConfigError("--pad-map maps the state of --pad to the face; give --pad too")
     if args.condition in ("none", "truth") and expressivity(args) is not None:

@@ -151,6 +151,10 @@ class FaceSettings:
     def __post_init__(self) -> None:
         if self.lips is not None and self.lips not in LIP_METHODS:
             raise ConfigError(f"unknown lip method {self.lips!r}; choose {', '.join(LIP_METHODS)} (or None)")
+        if self.language is not None:  # before any work: nothing eSpeak NG does not list reaches it
+            from audio_features.espeak import check_language
+
+            check_language(self.language)
 
 
 @documented_fields
