@@ -245,6 +245,7 @@ CLI_MESSAGES = [
     ("convert", "f0_floor_hz must be below f0_ceiling_hz, got 500", "--f0-floor must be below --f0-ceiling, got 500"),
     ("compare", "needs recorded motion (ground_truth=FILE)", "needs recorded motion (--ground-truth FILE)"),
     ("convert", "give output_format=NAME or a known ending", "give --format NAME or a known ending"),
+    ("stream", "from its extension (.fap); give output_format=NAME", "from its extension (.fap); give --format NAME"),
     ("preview", "start_s= and duration_s= lie outside the stream", "--start and --duration lie outside the stream"),
     ("convert", "resampled to 30 fps (give fps=25 to keep its rate)",
      "resampled to 30 fps (give --fps 25 to keep its rate)"),

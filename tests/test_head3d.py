@@ -267,6 +267,19 @@ def test_convert_writes_an_animated_gltf_head_that_a_reader_opens(tmp_path: Path
     assert [c.target.path for c in animation.channels] == ["weights", "rotation"]
 
 
+@pytest.mark.parametrize("value", [1e42, -3e7, 1.7e308])
+def test_a_glb_refuses_values_no_face_shows(value: float, tmp_path: Path) -> None:
+    """A base .fap holding 1e42 made a .glb with non-finite floats; refused as the .fap writer refuses values
+    past 2^24 (a stream holds no infinity or NaN: its constructor refuses them)."""
+    from prosody.errors import FapWriteError
+    from prosody.head.gltf import write_glb
+
+    stream = FapStream.from_curves({19: np.array([0.0, value, 0.0]), 3: np.array([0.0, 100.0, 0.0])}, fps=25)
+    with pytest.raises(FapWriteError, match="within"):
+        write_glb(stream, tmp_path / "x.glb")
+    assert not (tmp_path / "x.glb").exists()
+
+
 @pytest.mark.shared_data
 @pytest.mark.parametrize("relative", ["greta/1-Welcome_1.fap", "xface-new/joy.fap", "SEMAINE-3.1/bari21_1.fap",
                                       "vreng/anger.fap"])

@@ -98,6 +98,7 @@ _PHRASES = (
     ("EyebrowRule(threshold_semitones=...)", "--brows thesis --eyebrow-semitones ST"),
     ("eyebrow_rule=AccentRule()", "--brows accent"),
     ("fps=25 or 30, or FapStream.resampled", "fps=25 or 30"),
+    ("give output_format=NAME", "give --format NAME"),  # stream's option keeps the parameter's other name
 )
 
 #: The same for batch, whose one option sets either rule's semitones.
