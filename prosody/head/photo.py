@@ -74,6 +74,9 @@ LIPS_APART = 0.08
 DEPTH_TRUST = 0.0
 #: The person's grid follows the face's skin within the face and fades out this far outside it (cm).
 SKIN_FOLLOW_CM = 1.5
+#: The motion is seen as by a camera this far from the face (a video call's distance), laid over the photo's
+#: framing: the tracker reads turns rendered without perspective at 0.55-0.7 of their size, with it 0.8-0.9.
+CAMERA_DISTANCE_CM = 60.0
 #: The mouth's inside is drawn as if this much further back, so the skin round the lips always hides it.
 MOUTH_DEPTH_BIAS_CM = 3.0
 #: The light that stays put while the head turns (towards the light, camera axes) and its ambient share.
@@ -514,7 +517,8 @@ class PhotoRenderer:
         texture as photographed in every pose.
     """
 
-    def __init__(self, head: PhotoHead, width: int | None = None, *, relight: bool = True) -> None:
+    def __init__(self, head: PhotoHead, width: int | None = None, *, relight: bool = True,
+                 perspective: bool = True) -> None:
         from PIL import Image
 
         self.head = head
@@ -572,7 +576,12 @@ class PhotoRenderer:
         from_edge = np.min(np.linalg.norm(rest_xy[:, None, :] - edge[None, :, :], axis=2), axis=1)
         self._shading = np.ones(n_rig)
         self._shading[:N_FACE_VERTICES] = np.clip(from_edge / RELIGHT_FADE_CM, 0.0, 1.0)
-        self._rest_light = self._light(self._normals(self.vertices(np.zeros(N_FAPS)))[:n_rig])
+        rest = self.vertices(np.zeros(N_FAPS))
+        self._rest_light = self._light(self._normals(rest)[:n_rig])
+        self.perspective = perspective
+        self._camera = np.array([head.width / 2, -head.height / 2, head.scale * CAMERA_DISTANCE_CM])
+        self._rest_perspective = self._perspective(rest)
+        self._rest_points = rest
         # the nearest point of the head is about a head's depth in front of its origin: depth stays positive
         self._far = float(head.scale * 60.0 + abs(head.offset[2])) * max(self.zoom, 1.0) * SUPERSAMPLE
 
@@ -600,6 +609,13 @@ class PhotoRenderer:
             turned = (points - self._pivot) @ turn.T + self._pivot
             points = points + self._follows[:, None] * (turned - points)
         return points
+
+    def _perspective(self, points: np.ndarray) -> np.ndarray:
+        """Photo-axes points as a pinhole camera CAMERA_DISTANCE_CM in front of the picture sees them (x, y)."""
+        centre_x, centre_y, distance = self._camera
+        depth = distance / np.maximum(distance - points[:, 2], 1e-6 * distance)
+        return np.column_stack([centre_x + (points[:, 0] - centre_x) * depth,
+                                centre_y + (points[:, 1] - centre_y) * depth])
 
     @staticmethod
     def _light(normals: np.ndarray) -> np.ndarray:
@@ -634,6 +650,11 @@ class PhotoRenderer:
             share = self._shading[self._lit]
             colors[:self._n_rig][self._lit] = (1 + share * (gain - 1))[:, None]
         s = self.supersample * self.zoom
+        if self.perspective:
+            # as a camera at CAMERA_DISTANCE_CM would see the motion: what the turn changes in the perspective
+            # view, laid over the photo's own (at rest the frame is the photo, pixel for pixel)
+            points = points.copy()
+            points[:, :2] = self._rest_points[:, :2] + self._perspective(points) - self._rest_perspective
         screen = np.column_stack([points[:, 0] * s, -points[:, 1] * s,
                                   self._far + (self._behind - points[:, 2]) * s])
         return rasterise_textured(screen, self.triangles, normals, colors, self.uv,
