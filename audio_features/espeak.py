@@ -41,6 +41,9 @@ INSTALL_HINT = "pip install 'visual-prosody[languages]'"
 PAD_S = 0.25
 #: The longest recording aligned in one piece, s (the warping's cost matrix grows with its square).
 MAX_ALIGN_S = 120.0
+#: A transcript of more characters than this per second of the recording (and the margin) is not its own:
+#: fast speech says about 20 a second, written with spaces and punctuation.
+MAX_CHARACTERS_PER_S, MAX_CHARACTERS_MARGIN = 40.0, 200
 #: Cost-matrix cells kept at most; longer recordings are aligned on coarser frames.
 MAX_CELLS = 16_000_000
 
@@ -317,7 +320,8 @@ def align_transcript(recording: Audio, transcript: str, language: str) -> list[P
     EspeakError
         eSpeak NG is missing or does not speak ``language``.
     ParameterError
-        The recording is longer than :data:`MAX_ALIGN_S` (split it), or the transcript is empty.
+        The recording is longer than :data:`MAX_ALIGN_S` (split it), the transcript is empty or longer than the
+        recording can hold (:data:`MAX_CHARACTERS_PER_S`).
     """
     from .errors import require_extra
 
@@ -326,6 +330,10 @@ def align_transcript(recording: Audio, transcript: str, language: str) -> list[P
     if duration > MAX_ALIGN_S:
         raise ParameterError(f"a transcript is aligned on recordings up to {MAX_ALIGN_S:.0f} s, this one has "
                              f"{duration:.0f} s: split it into lines")
+    most = int(MAX_CHARACTERS_PER_S * duration) + MAX_CHARACTERS_MARGIN
+    if len(transcript) > most:  # eSpeak NG's rendering, and the alignment's memory, grow with the text
+        raise ParameterError(f"the transcript has {len(transcript)} characters, more than {most} that {duration:.1f} "
+                             "s of speech can hold: is it this recording's?")
     spoken, phones = speak(transcript, language)
     pad = np.zeros(int(PAD_S * spoken.sample_rate_hz))
     rendering = Audio(np.concatenate([pad, spoken.samples, pad]), spoken.sample_rate_hz)

@@ -322,7 +322,11 @@ def recognise_phones(source: Audio | str | os.PathLike[str], *, transcript: str 
         aligned = _aligned(samples, known) if known else None
         heard = _phone_loop(samples)
         agreement = _agreement(aligned, heard) if aligned is not None else 0.0
-        if agreement < MIN_AGREEMENT:
+        if aligned is None:
+            warnings.warn("the transcript could not be aligned to the audio (the aligner found no path through "
+                          "its words); phones were recognised without it", TranscriptWarning, stacklevel=2)
+            phones = heard
+        elif agreement < MIN_AGREEMENT:
             warnings.warn(f"the transcript does not fit the audio (only {agreement:.0%} of its phones were heard "
                           "where it puts them); phones were recognised without it", TranscriptWarning,
                           stacklevel=2)

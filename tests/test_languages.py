@@ -117,6 +117,17 @@ def test_languages_eSpeak_does_not_list_never_reach_it(language: str, tmp_path) 
         speak("hello", language)
 
 
+@pytest.mark.parametrize("characters", [100_000, 1_000_000])
+def test_a_transcript_longer_than_the_recording_can_hold_is_refused_at_once(characters: int) -> None:
+    """100 KB of text on 3 s peaked at 3.6 GB; 1 MiB asked for 4.4 GiB in one array."""
+    import time
+
+    start = time.perf_counter()
+    with pytest.raises(ParameterError, match="more than 320 that 3.0 s of speech can hold"):
+        align_transcript(Audio(np.zeros(48000), 16000), "hola " * (characters // 5), "es")
+    assert time.perf_counter() - start < 1.0
+
+
 def test_known_codes_and_variants_are_spoken() -> None:
     assert speak("hello", "en+Alex")[0].samples.size > 0 and speak("hola", "es")[0].samples.size > 0
 

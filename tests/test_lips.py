@@ -172,6 +172,18 @@ def test_a_tone_and_steady_chords_leave_the_mouth_closed_or_nearly():
     assert np.median(opening) <= 60
 
 
+def test_an_aligner_that_gives_up_is_said_truthfully(monkeypatch):
+    """Where the aligner finds no path, the warning says so (it said '0% of its phones were heard', a figure
+    that was never measured)."""
+    from audio_features import phones as phone_module
+
+    monkeypatch.setattr(phone_module, "_aligned", lambda samples, words: None)
+    audio = load_audio(_sample("arctic_a0009.wav"))
+    with pytest.warns(TranscriptWarning, match="could not be aligned") as caught:
+        phones = recognise_phones(audio, transcript="He turned sharply, and faced Gregson across the table.")
+    assert not any("%" in str(w.message) for w in caught) and len(phones) > 10
+
+
 def test_transcript_words_and_a_transcript_that_does_not_fit(tmp_path):
     assert transcript_words("It's 5 o'clock -- isn't it?") == ["it's", "5", "o'clock", "isn't", "it"]
     audio = load_audio(_sample("arctic_a0009.wav"))
