@@ -187,7 +187,8 @@ def test_an_aligner_that_gives_up_is_said_truthfully(monkeypatch):
 def test_transcript_words_and_a_transcript_that_does_not_fit(tmp_path):
     assert transcript_words("It's 5 o'clock -- isn't it?") == ["it's", "5", "o'clock", "isn't", "it"]
     audio = load_audio(_sample("arctic_a0009.wav"))
-    with pytest.warns(TranscriptWarning, match="does not fit"):
+    # unrelated words: the aligner finds no path through them, or one whose phones are not heard
+    with pytest.warns(TranscriptWarning, match="does not fit|could not be aligned"):
         phones = recognise_phones(audio, transcript="completely different words about cheese and bread")
     assert len(phones) > 10
     with pytest.warns(TranscriptWarning, match="not in the pronouncing dictionary.*xyzzy"):
