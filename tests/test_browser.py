@@ -244,3 +244,35 @@ def test_the_input_sound_plays_and_the_face_moves_in_step_with_it(frame_server, 
         # (about 17 ms on an idle machine; a machine busy with other work lets it draw less often)
         assert shown is not None and abs(shown / 30 - heard) < 0.1 + gap, samples
     _wait_for(browser, "return window.prosodyStats.shownFrame === 59", 10)
+
+
+def test_page_draws_a_photo_head_as_the_cpu_renderer_does(browser, tmp_path):
+    """stream --listen --face PHOTO: the page's WebGL head is the photo head, as PhotoRenderer draws it."""
+    pytest.importorskip("mediapipe", reason="the face landmarker (pip install 'visual-prosody[track]')")
+    from prosody.head.photo import PhotoRenderer, photo_head
+    from prosody.head.render import HeadRenderer
+    from prosody.live.converter import LiveConverter
+    from prosody.live.server import FrameServer
+
+    photo = HeadRenderer(480, 480).render(np.zeros(68))
+    head = photo_head(photo, name="canonical.png")
+    server = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lambda line: None,
+                         face=head)
+    server.start()
+    try:
+        browser.get(server.url)
+        _wait_for(browser, "const s = window.prosodyStats; return s.face === 'head' && s.connected")
+        rest = _show(browser, server, {}, 0)
+        pose = {3: 500.0, 49: 9000.0}
+        moved = _show(browser, server, pose, 3)
+        (tmp_path / "photo_page.png").write_bytes(browser.find_element("id", "head").screenshot_as_png)
+    finally:
+        server.close(drain_s=0.1)
+    renderer = PhotoRenderer(head, rest.shape[1])
+    values = np.zeros(68)
+    for fap, value in pose.items():
+        values[fap - 1] = value
+    for web, cpu in ((rest, renderer.render(np.zeros(68))), (moved, renderer.render(values))):
+        difference = np.abs(web.astype(int) - cpu.astype(int)).max(axis=2)
+        assert difference.mean() < 6.0, difference.mean()  # the same photo, mesh, motion and framing
+    assert np.abs(rest.astype(int) - moved.astype(int)).max(axis=2).mean() > 2.0  # and it moved

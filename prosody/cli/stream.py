@@ -51,17 +51,25 @@ def _source(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..errors import ConfigError
     from ..live.session import StreamOptions, StreamSession
 
     source = _source(args)
     opt.check_motion_options(args)
     converter = opt.motion_kwargs(args)
     converter.pop("ground_truth")
+    face = None
+    if args.face is not None:  # the photo is read, and its face found, before the audio
+        if args.listen is None:
+            raise ConfigError("--face is the head of the page --listen serves: give --listen too")
+        from .preview import photo_face
+
+        face = photo_face(args.face)
     options = StreamOptions(output=args.output, format=args.format, listen=args.listen,
                             allow_origin=tuple(args.allow_origin), livelink=tuple(args.livelink),
                             livelink_subject=args.livelink_subject, vmc=tuple(args.vmc),
                             vmc_perfect_sync=args.vmc_perfect_sync, loop=args.loop, lookahead_ms=args.lookahead_ms,
-                            converter=converter)
+                            converter=converter, face=face)
     session = StreamSession(options, report=lambda line: msg.say(f"prosody stream: {line}"),
                             warn=lambda line: msg.MESSAGES.emit("warning", f"prosody stream: warning: {line}"))
     result = session.run(source, flag=_flag_namer(args.parser))
@@ -139,6 +147,9 @@ def add_parser(commands) -> None:
                              "the face moving with them and can send the browser's microphone (127.0.0.1 when "
                              "HOST is left out; another address lets anyone who can reach it watch the stream and "
                              "send audio to this machine); port 0 picks a free one")
+    stream.add_argument("--face", default=None, metavar="PHOTO",
+                        help="with --listen: the page shows the head of the person in PHOTO (a JPEG or PNG of one "
+                             "person, roughly frontal; needs pip install 'visual-prosody[track]')")
     stream.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
                         help="with --listen: also let pages from ORIGIN (http(s)://HOST[:PORT]) open the stream; "
                              "by default only the page served at --listen's own address may (repeatable)")

@@ -51,9 +51,9 @@
   }
 
   class HeadView {
-    constructor(canvas, model) {
+    constructor(canvas, model, shaders) {
       // no multisampling: where WebGL runs in software (SwiftShader) it costs four times the pixels
-      const gl = canvas.getContext("webgl", { antialias: false, preserveDrawingBuffer: true });
+      const gl = shaders ? shaders.gl : canvas.getContext("webgl", { antialias: false, preserveDrawingBuffer: true });
       if (!gl) throw new Error("WebGL is not available in this browser");
       this.gl = gl; this.canvas = canvas; this.model = model;
       this.rest = new Float32Array(model.vertices);
@@ -65,7 +65,8 @@
         this.fields[fap] = { vertices: Int32Array.from(field.vertices), offsets: Float32Array.from(field.offsets) };
       }
       const program = gl.createProgram();
-      for (const [kind, source] of [[gl.VERTEX_SHADER, VERTEX], [gl.FRAGMENT_SHADER, FRAGMENT]]) {
+      const sources = shaders ? [shaders.vertex, shaders.fragment] : [VERTEX, FRAGMENT];
+      for (const [kind, source] of [[gl.VERTEX_SHADER, sources[0]], [gl.FRAGMENT_SHADER, sources[1]]]) {
         const shader = gl.createShader(kind);
         gl.shaderSource(shader, source); gl.compileShader(shader);
         if (!gl.getShaderParameter(shader, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(shader));
@@ -75,13 +76,7 @@
       if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
       this.program = program;
       gl.useProgram(program);
-      const buffer = (name, data, size, usage) => {
-        const b = gl.createBuffer();
-        gl.bindBuffer(gl.ARRAY_BUFFER, b); gl.bufferData(gl.ARRAY_BUFFER, data, usage);
-        const at = gl.getAttribLocation(program, name);
-        gl.enableVertexAttribArray(at); gl.vertexAttribPointer(at, size, gl.FLOAT, false, 0, 0);
-        return b;
-      };
+      const buffer = (name, data, size, usage) => this.attribute(name, data, size, usage);
       this.positionBuffer = buffer("position", this.positions, 3, gl.DYNAMIC_DRAW);
       this.normalBuffer = buffer("normal", this.normals, 3, gl.DYNAMIC_DRAW);
       buffer("color", new Float32Array(model.colors), 3, gl.STATIC_DRAW);
@@ -97,6 +92,26 @@
       gl.uniform1f(u("shininess"), lights.shininess);
       gl.uniform3fv(this.uniforms.pivot, model.pivot);
       gl.enable(gl.DEPTH_TEST);
+    }
+
+    // A vertex attribute from an array (its buffer); an attribute the shaders do not use is left out.
+    attribute(name, data, size, usage) {
+      const gl = this.gl;
+      const b = gl.createBuffer();
+      gl.bindBuffer(gl.ARRAY_BUFFER, b); gl.bufferData(gl.ARRAY_BUFFER, data, usage || gl.STATIC_DRAW);
+      const at = gl.getAttribLocation(this.program, name);
+      if (at >= 0) { gl.enableVertexAttribArray(at); gl.vertexAttribPointer(at, size, gl.FLOAT, false, 0, 0); }
+      return b;
+    }
+
+    // The camera's uniforms and the colour behind the head.
+    project() {
+      const gl = this.gl, w = this.canvas.width, h = this.canvas.height, cam = this.model.camera;
+      const focal = (h / 2) / (cam.half_view_cm / cam.distance_cm);
+      gl.uniform4f(this.uniforms.camera, cam.distance_cm, cam.look_at_y_cm, focal, 2 * cam.distance_cm);
+      gl.uniform2f(this.uniforms.halfSize, w / 2, h / 2);
+      const bg = this.model.background;
+      gl.clearColor(bg[0], bg[1], bg[2], 1);
     }
 
     // Draw one frame: faps maps FAP numbers to values (FAP units); absent is neutral.
@@ -126,16 +141,78 @@
       gl.bindBuffer(gl.ARRAY_BUFFER, this.normalBuffer); gl.bufferSubData(gl.ARRAY_BUFFER, 0, nrm);
       const angle = (n) => ((faps && faps[n]) || 0) * AU;
       gl.uniformMatrix3fv(this.uniforms.turn, false, rotation(angle(48), angle(49), angle(50)));
-      const w = this.canvas.width, h = this.canvas.height, cam = this.model.camera;
-      const focal = (h / 2) / (cam.half_view_cm / cam.distance_cm);
-      gl.uniform4f(this.uniforms.camera, cam.distance_cm, cam.look_at_y_cm, focal, 2 * cam.distance_cm);
-      gl.uniform2f(this.uniforms.halfSize, w / 2, h / 2);
-      gl.viewport(0, 0, w, h);
-      const bg = this.model.background;
-      gl.clearColor(bg[0], bg[1], bg[2], 1);
+      this.project();
+      gl.viewport(0, 0, this.canvas.width, this.canvas.height);
       gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
       gl.drawElements(gl.TRIANGLES, t.length, gl.UNSIGNED_SHORT, 0);
       this.drawMs = performance.now() - started;
+    }
+  }
+
+  // A person's head from a photo (prosody/head/photo.py, model "kind": "photo"): vertices in the photo's pixels
+  // (x right, y up, z towards the camera); the face and the person's grid show the photo as it was taken, the
+  // mouth's inside is lit; the head turns about the pivot by each vertex's share, and the motion is laid over
+  // the photo's framing as a camera photo.camera_px away sees it (PhotoRenderer does the same on the CPU).
+  const PHOTO_VERTEX = `
+    attribute vec3 position; attribute vec3 rest; attribute vec3 normal; attribute vec3 color;
+    attribute float rotates; attribute vec2 uv; attribute float textured; attribute float behind;
+    uniform mat3 turn; uniform vec3 pivot; uniform vec4 photo;  // width, height, camera distance, depth range
+    varying vec3 vNormal; varying vec3 vColor; varying vec2 vUV; varying float vTextured;
+    vec2 seen(vec3 p) {
+      vec2 centre = vec2(0.5 * photo.x, -0.5 * photo.y);
+      return centre + (p.xy - centre) * (photo.z / max(photo.z - p.z, 0.001 * photo.z));
+    }
+    void main() {
+      vec3 p = position, n = normal;
+      if (rotates > 0.0) {
+        p = mix(position, turn * (position - pivot) + pivot, rotates); n = normalize(mix(normal, turn * normal, rotates));
+      }
+      vec2 xy = rest.xy + seen(p) - seen(rest);
+      float z = clamp((behind - (p.z - pivot.z)) / photo.w, -1.0, 1.0);
+      gl_Position = vec4(2.0 * xy.x / photo.x - 1.0, 1.0 + 2.0 * xy.y / photo.y, z, 1.0);
+      vNormal = n; vColor = color; vUV = uv; vTextured = textured;
+    }`;
+  const PHOTO_FRAGMENT = `
+    precision mediump float;
+    uniform sampler2D image;
+    uniform vec3 light0; uniform vec3 light1; uniform vec4 strengths; uniform float shininess;
+    varying vec3 vNormal; varying vec3 vColor; varying vec2 vUV; varying float vTextured;
+    void main() {
+      if (vTextured > 0.5) { gl_FragColor = vec4(texture2D(image, vUV).rgb, 1.0); return; }
+      vec3 n = normalize(vNormal);
+      if (n.z < 0.0) n = -n;
+      float diffuse = strengths.z + strengths.x * max(dot(n, light0), 0.0) + strengths.y * max(dot(n, light1), 0.0);
+      gl_FragColor = vec4(min(vColor * diffuse, vec3(1.0)), 1.0);
+    }`;
+
+  class PhotoView extends HeadView {
+    constructor(canvas, model, image) {
+      canvas.height = Math.round(canvas.width * model.photo.height / model.photo.width);
+      canvas.style.background = `url(${model.photo.background}) center / 100% 100% no-repeat`;
+      const gl = canvas.getContext("webgl", { antialias: false, preserveDrawingBuffer: true });
+      if (!gl) throw new Error("WebGL is not available in this browser");
+      // the base class's set-up, with the photo's shaders and attributes
+      super(canvas, model, { gl, vertex: PHOTO_VERTEX, fragment: PHOTO_FRAGMENT });
+      const program = this.program;
+      this.attribute("rest", this.rest, 3);
+      this.attribute("uv", new Float32Array(model.uv), 2);
+      this.attribute("textured", new Float32Array(model.textured), 1);
+      this.attribute("behind", new Float32Array(model.behind), 1);
+      const texture = gl.createTexture();
+      gl.bindTexture(gl.TEXTURE_2D, texture);
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGB, gl.RGB, gl.UNSIGNED_BYTE, image);
+      for (const [name, value] of [[gl.TEXTURE_MIN_FILTER, gl.LINEAR], [gl.TEXTURE_MAG_FILTER, gl.LINEAR],
+                                   [gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE], [gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE]]) {
+        gl.texParameteri(gl.TEXTURE_2D, name, value);
+      }
+      gl.uniform1i(gl.getUniformLocation(program, "image"), 0);
+      this.uniforms.photo = gl.getUniformLocation(program, "photo");
+    }
+
+    project() {  // the photo's framing (see PHOTO_VERTEX); the background shows where nothing is drawn
+      const gl = this.gl, p = this.model.photo;
+      gl.uniform4f(this.uniforms.photo, p.width, p.height, p.camera_px, p.depth_px);
+      gl.clearColor(0, 0, 0, 0);
     }
   }
 
@@ -143,7 +220,12 @@
   async function load(canvas, url) {
     const response = await fetch(url || "/head.json");
     if (!response.ok) throw new Error(`the head model could not be loaded (${response.status})`);
-    return new HeadView(canvas, await response.json());
+    const model = await response.json();
+    if (model.kind !== "photo") return new HeadView(canvas, model);
+    const image = new Image();
+    image.src = model.photo.texture;
+    await image.decode();
+    return new PhotoView(canvas, model, image);
   }
-  window.ProsodyHead = { HeadView, load };
+  window.ProsodyHead = { HeadView, PhotoView, load };
 })();

@@ -617,6 +617,31 @@ class PhotoRenderer:
         return np.column_stack([centre_x + (points[:, 0] - centre_x) * depth,
                                 centre_y + (points[:, 1] - centre_y) * depth])
 
+    @property
+    def follows(self) -> np.ndarray:
+        """float (n,): each drawn vertex's share of the head's turn."""
+        return self._follows
+
+    @property
+    def pivot(self) -> np.ndarray:
+        """The neck's pivot in the photo's axes (pixels)."""
+        return self._pivot
+
+    @property
+    def behind_px(self) -> np.ndarray:
+        """float (n,): how much further back each vertex is drawn (the mouth's inside), in the photo's pixels."""
+        return self._behind
+
+    def field(self, fap: int) -> np.ndarray:
+        """float (n, 3): how every drawn vertex moves per unit of ``fap`` in the photo's axes (pixels), the person's
+        grid following the face's skin (the head's turns, FAP 48-50, are not fields)."""
+        head = self.head
+        rig = head.scale * (head.rig.fields[fap - 1].astype(float) @ head.rotation.T)
+        layer = np.zeros((len(head.layer_vertices), 3))
+        if self._skin.size:
+            layer[self._skin] = (rig[:N_FACE_VERTICES][self._skin_nearest] * self._skin_weights[..., None]).sum(axis=1)
+        return np.vstack([rig, layer])
+
     @staticmethod
     def _light(normals: np.ndarray) -> np.ndarray:
         """How much light a surface of these normals takes from a light above the camera, with ambient."""

@@ -15,7 +15,7 @@ from importlib import resources
 
 import numpy as np
 
-from ..fap.table import HEAD_FAPS
+from ..fap.table import HEAD_FAPS, N_FAPS
 from . import view
 from .mesh import NECK_PIVOT
 from .rig import HeadRig, head_rig
@@ -75,3 +75,66 @@ def model_json() -> bytes:
 def head_script() -> bytes:
     """The WebGL drawing code (``head.js``) the pages load."""
     return resources.files("prosody.head").joinpath("head.js").read_bytes()
+
+
+PHOTO_TEXTURE_PATH, PHOTO_BACKGROUND_PATH = "/face.jpg", "/background.jpg"
+
+
+def photo_model_document(head) -> dict:
+    """The head of a photo (:class:`~prosody.head.photo.PhotoHead`) for ``head.js``: what
+    :class:`~prosody.head.photo.PhotoRenderer` draws, in the photo's axes (pixels: x right, y up, z towards the
+    camera). Every vertex's rest position; the fields of the face's FAPs in pixels per unit, the person's grid
+    following the face's skin as the renderer's does; each vertex's share of the head's turn about the pivot;
+    which vertices show the photo (``uv``, 0..1 from the top-left corner) and which are lit (the mouth's inside);
+    the photo's size and its camera for the motion's perspective; the images at :data:`PHOTO_TEXTURE_PATH` and
+    :data:`PHOTO_BACKGROUND_PATH` (:func:`photo_images`)."""
+    from .photo import CAMERA_DISTANCE_CM, MOUTH_DEPTH_BIAS_CM, PhotoRenderer
+
+    renderer = PhotoRenderer(head)
+    rest = renderer.vertices(np.zeros(N_FAPS))
+    n_rig = head.rig.mesh.n_vertices
+    fields = {}
+    for fap in head.rig.supported:
+        if fap in HEAD_FAPS:
+            continue
+        field = renderer.field(fap)
+        moved = np.flatnonzero(np.abs(field).max(axis=1) > 1e-6)
+        if moved.size:
+            fields[str(fap)] = {"vertices": moved.tolist(),
+                                "offsets": np.round(field[moved], 6).reshape(-1).tolist()}
+    uv = renderer.uv / np.array([head.width, head.height])
+    textured = np.isin(np.arange(len(rest)), np.unique(renderer.triangles[renderer.textured]))
+    return {
+        "format": "visual-prosody-head", "version": 1, "kind": "photo",
+        "vertices": np.round(rest, 3).reshape(-1).tolist(),
+        "triangles": renderer.triangles.reshape(-1).tolist(),
+        "colors": np.round(renderer.colors, 4).reshape(-1).tolist(),
+        "textured": textured.astype(int).tolist(),
+        "uv": np.round(uv, 5).reshape(-1).tolist(),
+        "behind": np.round(renderer.behind_px, 3).tolist(),
+        "rotates": np.round(renderer.follows, 3).tolist(),
+        "fields": fields,
+        "supported": list(head.rig.supported),
+        "pivot": np.round(renderer.pivot, 3).tolist(),
+        "photo": {"width": head.width, "height": head.height, "texture": PHOTO_TEXTURE_PATH,
+                  "background": PHOTO_BACKGROUND_PATH, "camera_px": head.scale * CAMERA_DISTANCE_CM,
+                  "depth_px": head.scale * 60.0, "mouth_bias_px": head.scale * MOUTH_DEPTH_BIAS_CM},
+        "background": list(view.BACKGROUND),
+        "lights": {"directions": view.light_directions().tolist(), "key": view.KEY, "fill": view.FILL,
+                   "ambient": view.AMBIENT, "specular": view.SPECULAR, "shininess": 2 ** view.SHININESS_DOUBLINGS},
+        "rig_vertices": n_rig,
+    }
+
+
+def photo_images(head) -> dict[str, bytes]:
+    """The photo and its filled background as JPEG, by the paths :func:`photo_model_document` names."""
+    import io
+
+    from PIL import Image
+
+    out = {}
+    for path, image in ((PHOTO_TEXTURE_PATH, head.image), (PHOTO_BACKGROUND_PATH, head.background)):
+        buffer = io.BytesIO()
+        Image.fromarray(image).save(buffer, format="JPEG", quality=92)
+        out[path] = buffer.getvalue()
+    return out

@@ -47,6 +47,7 @@ import time
 import urllib.parse
 from collections.abc import Callable, Iterable
 from importlib import resources
+from typing import Any
 
 import numpy as np
 
@@ -200,13 +201,15 @@ class FrameServer:
     def __init__(self, host: str, port: int, *, make_converter: Callable[[int], LiveConverter],
                  report: Callable[[str], None], allow_origins: Iterable[str] = (),
                  expressivity: Expressivity | None = None,
-                 on_expressivity: Callable[[Expressivity], None] | None = None) -> None:
+                 on_expressivity: Callable[[Expressivity], None] | None = None, face: Any = None) -> None:
         self.host, self.port = host, port
         self.make_converter = make_converter
         self.report = report
         self.allow_origins = frozenset(normalize_origin(origin) for origin in allow_origins)
         self.expressivity = expressivity or Expressivity()  # of the command's input
         self.on_expressivity = on_expressivity
+        self._face = face  # a PhotoHead: the page shows that person's head (its model made on the first request)
+        self._face_files: dict[str, tuple[bytes, str]] | None = None
         self._closed = False
         self._clients: set[_Client] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -374,6 +377,8 @@ class FrameServer:
                   "/index.html": (lambda: self._page, "text/html; charset=utf-8"),
                   "/head.js": (head_script, "text/javascript; charset=utf-8"),
                   "/head.json": (model_json, "application/json")}
+        if self._face is not None:
+            served.update({name: (lambda body=body: body, kind) for name, (body, kind) in self._face_model().items()})
         if path in served:
             make, kind = served[path]
             body = make()
@@ -381,6 +386,16 @@ class FrameServer:
                                ("Content-Length", str(len(body)))])
             return Response(200, "OK", headers, body)
         return connection.respond(404, "not found: the page is at /\n")
+
+    def _face_model(self) -> dict[str, tuple[bytes, str]]:
+        """The photo head's model and images, made once (the first page that asks waits for them)."""
+        if self._face_files is None:
+            from ..head.web import photo_images, photo_model_document
+
+            model = json.dumps(photo_model_document(self._face), separators=(",", ":")).encode("utf-8")
+            self._face_files = {"/head.json": (model, "application/json"),
+                                **{path: (body, "image/jpeg") for path, body in photo_images(self._face).items()}}
+        return self._face_files
 
     def _allowed(self, origin: str, host_header: str) -> bool:
         try:

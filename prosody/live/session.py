@@ -126,6 +126,9 @@ class StreamOptions:
     converter : mapping
         Further keyword arguments of :class:`~prosody.live.converter.LiveConverter` (condition, model, seed,
         eyebrow_rule, gains, disabled, live_lips, expression, expressivity, fps, f0_floor_hz, f0_ceiling_hz).
+    face : PhotoHead, optional
+        The head the page of ``listen`` shows: a person's from a photo (:mod:`prosody.head.photo`) instead of
+        the 3D head.
     """
 
     output: str | None = None
@@ -139,6 +142,7 @@ class StreamOptions:
     loop: bool = False
     lookahead_ms: float = DEFAULT_LOOKAHEAD_MS
     converter: Mapping[str, Any] = field(default_factory=dict)
+    face: Any = None
 
     @property
     def sending(self) -> bool:
@@ -307,7 +311,7 @@ class StreamSession:
         self.server = FrameServer(host, port, make_converter=options.make_converter,
                                   allow_origins=list(options.allow_origin), report=self.report,
                                   expressivity=options.converter.get("expressivity"),
-                                  on_expressivity=self._requested.put if reading else None)
+                                  on_expressivity=self._requested.put if reading else None, face=options.face)
         self.server.start()
         self.report(f"serving the face at {self.server.url} (frames over a WebSocket on the same address)")
 
