@@ -57,12 +57,7 @@ def main() -> int:
           f"{int(stream.mask.any(axis=0).sum())}), one process:")
     failed = False
     for name, (width, height) in SIZES.items():
-        renderer = HeadRenderer(width, height)
-        renderer.render(rows[0])  # compiled (or loaded from Numba's cache) before timing
-        start = time.perf_counter()
-        frames = [renderer.render(row) for row in rows]
-        render_fps = FRAMES / (time.perf_counter() - start)
-        encoding_fps = encode_fps(frames, ffmpeg)
+        render_fps, encoding_fps = side_by_side(HeadRenderer(width, height), rows, ffmpeg)
         ratio = encoding_fps / render_fps
         print(f"  {name:>9}: render {render_fps:6.1f} frames/s   ffmpeg H.264 {encoding_fps:6.1f} frames/s   "
               f"render takes {ratio:4.2f} x the encoding (aim <= {AIM_RATIO:g} x)")
@@ -72,6 +67,15 @@ def main() -> int:
             print(f"             aim >= {AIM_FPS:g} frames/s at 640x480: {met}")
     failed |= photo_head_speed(rows, ffmpeg)
     return 1 if failed else 0
+
+
+def side_by_side(renderer, rows: list[np.ndarray], ffmpeg: str) -> tuple[float, float]:
+    """Frames per second of ``renderer`` over ``rows`` (compiled, or loaded from Numba's cache, before timing)
+    and of FFmpeg encoding the frames it drew."""
+    renderer.render(rows[0])
+    start = time.perf_counter()
+    frames = [renderer.render(row) for row in rows]
+    return len(rows) / (time.perf_counter() - start), encode_fps(frames, ffmpeg)
 
 
 def photo_head_speed(rows: list[np.ndarray], ffmpeg: str) -> bool:
@@ -85,12 +89,7 @@ def photo_head_speed(rows: list[np.ndarray], ffmpeg: str) -> bool:
     except ImportError as error:
         print(f"  photo head: skipped ({error})")
         return False
-    renderer = PhotoRenderer(head)
-    renderer.render(rows[0])
-    start = time.perf_counter()
-    frames = [renderer.render(row) for row in rows]
-    render_fps = FRAMES / (time.perf_counter() - start)
-    encoding_fps = encode_fps(frames, ffmpeg)
+    render_fps, encoding_fps = side_by_side(PhotoRenderer(head), rows, ffmpeg)
     ratio = encoding_fps / render_fps
     print(f"  photo head {PHOTO_SIZE}x{PHOTO_SIZE}: render {render_fps:6.1f} frames/s   ffmpeg H.264 "
           f"{encoding_fps:6.1f} frames/s   render takes {ratio:4.2f} x the encoding (aim <= {AIM_RATIO:g} x, "

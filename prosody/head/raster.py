@@ -1,7 +1,8 @@
 """A z-buffered triangle rasteriser with per-pixel shading, compiled by Numba: the head's CPU renderer.
 
 Two passes: the first keeps, for every pixel, the nearest triangle and the pixel centre's barycentric
-coordinates in it; the second shades each covered pixel once, interpolating the vertex normals and colours
+coordinates in it; the second shades each covered pixel once (or takes its colour from a texture, for the
+photo head), interpolating the vertex normals and colours
 (Phong shading: two directional lights, an ambient term and a weak specular highlight, lit from both sides
 so the inside of the mouth is lit like a surface). Everything runs on the CPU, in one thread, and the result
 is the same on every machine for the same input (no GPU, no driver).
@@ -122,53 +123,9 @@ def _shade_sample(t, w0, w1, triangles, normals, colors, lights, strengths, rgb)
         rgb[channel] += min(albedo * diffuse + strengths[3] * specular, 1.0)
 
 
-@njit(cache=True, nogil=True, parallel=True)
-def _resolve(triangles, normals, colors, nearest, weights, factor, out, lights, strengths,
-             background):  # pragma: no cover - compiled
-    """Shade and box-average each output pixel's factor x factor samples into ``out`` (uint8). A pixel whose
-    samples all lie on one triangle is shaded once, at their mean barycentric coordinates (its centre)."""
-    height, width = out.shape[0], out.shape[1]
-    samples = factor * factor
-    for py in prange(height):
-        rgb = np.zeros(3)
-        for px in range(width):
-            top, left = py * factor, px * factor
-            first = nearest[top, left]
-            uniform = True
-            for dy in range(factor):
-                for dx in range(factor):
-                    if nearest[top + dy, left + dx] != first:
-                        uniform = False
-            rgb[:] = 0.0
-            if uniform and first < 0:
-                for channel in range(3):
-                    rgb[channel] = background[channel]
-            elif uniform:
-                w0 = 0.0
-                w1 = 0.0
-                for dy in range(factor):
-                    for dx in range(factor):
-                        w0 += weights[top + dy, left + dx, 0]
-                        w1 += weights[top + dy, left + dx, 1]
-                _shade_sample(first, w0 / samples, w1 / samples, triangles, normals, colors, lights, strengths,
-                              rgb)
-            else:
-                for dy in range(factor):
-                    for dx in range(factor):
-                        t = nearest[top + dy, left + dx]
-                        if t < 0:
-                            for channel in range(3):
-                                rgb[channel] += background[channel]
-                        else:
-                            _shade_sample(t, weights[top + dy, left + dx, 0], weights[top + dy, left + dx, 1],
-                                          triangles, normals, colors, lights, strengths, rgb)
-                for channel in range(3):
-                    rgb[channel] /= samples
-            for channel in range(3):
-                out[py, px, channel] = np.uint8(min(rgb[channel] * 255.0 + 0.5, 255.0))
-
-
 _LIGHTS = light_directions()
+#: What an untextured mesh passes for its texture coordinates and texture (never read).
+_NO_UV, _NO_TEXTURE = np.zeros((1, 2)), np.zeros((1, 1, 3), np.float32)
 _STRENGTHS = np.array([KEY, FILL, AMBIENT, SPECULAR])
 
 
@@ -203,6 +160,14 @@ class Canvas:
         self.depth = np.empty(samples, np.float32)
         self.nearest = np.empty(samples, np.int32)
         self.weights = np.empty((*samples, 2), np.float32)
+        self._plain: tuple[tuple[float, ...], np.ndarray] | None = None
+
+    def plain(self, color: tuple[float, float, float]) -> np.ndarray:
+        """A background image of one colour at this canvas's size (kept for the next frame)."""
+        key = tuple(float(c) for c in color)
+        if self._plain is None or self._plain[0] != key:
+            self._plain = (key, np.broadcast_to(np.asarray(key, np.float32), (self.height, self.width, 3)).copy())
+        return self._plain[1]
 
 
 def rasterise(screen: np.ndarray, triangles: np.ndarray, normals: np.ndarray, colors: np.ndarray, *,
@@ -232,13 +197,8 @@ def rasterise(screen: np.ndarray, triangles: np.ndarray, normals: np.ndarray, co
     """
     if canvas is None or (canvas.width, canvas.height, canvas.factor) != (width, height, factor):
         canvas = Canvas(width, height, factor)
-    triangles = np.ascontiguousarray(triangles, np.int32)
-    _start_workers()
-    _cover(np.ascontiguousarray(screen, np.float64), triangles, canvas.nearest, canvas.weights, canvas.depth)
-    out = np.empty((height, width, 3), np.uint8)
-    _resolve(triangles, np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(colors, np.float64),
-             canvas.nearest, canvas.weights, factor, out, _LIGHTS, _STRENGTHS, np.asarray(background, np.float64))
-    return out
+    return rasterise_textured(screen, triangles, normals, colors, _NO_UV, np.zeros(len(triangles), np.bool_),
+                              _NO_TEXTURE, canvas.plain(background), factor=factor, canvas=canvas)
 
 
 @njit(cache=True, nogil=True, inline="always")
