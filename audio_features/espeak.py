@@ -242,8 +242,24 @@ def _engine() -> _Engine:
 
 
 def check_language(language: str) -> None:
-    """Raise :class:`ParameterError` unless eSpeak NG lists ``language`` (a code ``prosody languages`` shows,
-    optionally ``+VARIANT``, one of its voice variants); nothing else reaches the library."""
+    """Refuse a language eSpeak NG does not list: nothing else reaches the library (paths and long variants
+    crashed it).
+
+    Parameters
+    ----------
+    language : str
+        A code ``prosody languages`` shows, optionally ``+VARIANT`` with one of eSpeak NG's voice variants
+        (``en+Alex``).
+
+    Returns
+    -------
+    None
+
+    Raises
+    ------
+    EspeakError
+        eSpeak NG is missing, or does not list ``language`` (a :class:`ParameterError`).
+    """
     if not isinstance(language, str) or not language:
         raise ParameterError(f"a language is an eSpeak NG code such as 'es' or 'de', got {language!r}")
     _engine().check(language)

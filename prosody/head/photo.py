@@ -75,7 +75,7 @@ DEPTH_TRUST = 0.0
 #: The person's grid follows the face's skin within the face and fades out this far outside it (cm).
 SKIN_FOLLOW_CM = 1.5
 #: The motion is seen as by a camera this far from the face (a video call's distance), laid over the photo's
-#: framing: the tracker reads turns rendered without perspective at 0.55-0.7 of their size, with it 0.8-0.9.
+#: framing: the tracker reads turns rendered without perspective at 0.55-0.7 of their size, with it 0.7-1.2.
 CAMERA_DISTANCE_CM = 60.0
 #: The mouth's inside is drawn as if this much further back, so the skin round the lips always hides it.
 MOUTH_DEPTH_BIAS_CM = 3.0
