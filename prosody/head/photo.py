@@ -44,8 +44,6 @@ from .mesh import (
     EYE_LEFT,
     EYE_RIGHT,
     FACE,
-    LIDS_LEFT,
-    LIDS_RIGHT,
     LIP_OUTER_LOWER,
     LIP_OUTER_UPPER,
     LOWER_TEETH,
@@ -463,12 +461,12 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
                                    np.clip(columns[dx:n_columns - 1 + dx].astype(int), 0, width - 1))]
             sample |= corner
     cells = binary_dilation(sample, iterations=2)
-    # none over the mouth and the eyes: their insides show there, through the face's openings
+    # none over the mouth: its inside shows there, through the lips' opening (behind the eyes the grid stays,
+    # under the eyeballs, so no background shows through the lids' corners)
     centres = np.column_stack([np.repeat((columns[:-1] + columns[1:])[None, :] / 2, n_rows - 1, axis=0).ravel(),
                                np.repeat((rows[:-1] + rows[1:])[:, None] / 2, n_columns - 1, axis=1).ravel()])
-    for ring in (LIP_OUTER_UPPER + LIP_OUTER_LOWER[::-1][1:-1], LIDS_LEFT[0] + LIDS_LEFT[1][::-1][1:-1],
-                 LIDS_RIGHT[0] + LIDS_RIGHT[1][::-1][1:-1]):
-        cells &= ~_inside_polygon(centres, landmarks[list(ring), :2]).reshape(cells.shape)
+    mouth = LIP_OUTER_UPPER + LIP_OUTER_LOWER[::-1][1:-1]
+    cells &= ~_inside_polygon(centres, landmarks[list(mouth), :2]).reshape(cells.shape)
     index = np.arange(n_rows * n_columns).reshape(n_rows, n_columns)
     a, b = index[:-1, :-1][cells], index[:-1, 1:][cells]
     d, e = index[1:, :-1][cells], index[1:, 1:][cells]
