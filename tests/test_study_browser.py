@@ -199,3 +199,41 @@ def test_two_participants_a_closed_tab_and_a_killed_server_lose_nothing(study, b
     scores = json.loads(results.read_text())["scores"]["hello"]
     # one always chose left, the other always right: each condition is on each side 3 times per participant
     assert scores == {"NO_PROSODY": 6, "RANDOM": 6, "SPEECH_DRIVEN": 6}
+
+
+@pytest.mark.slow
+def test_a_study_of_a_photo_head_draws_it_on_the_ballot(tmp_path, browser):
+    """study stimuli --face PHOTO: the videos show the photo's head, the photo is kept beside them, and the
+    ballot's WebGL head is made from it (the photo's colours, not the 3D head's)."""
+    pytest.importorskip("mediapipe", reason="the face landmarker (pip install 'visual-prosody[track]')")
+    from PIL import Image
+
+    from prosody.head.render import HeadRenderer
+
+    plain = HeadRenderer(320, 320).render(np.zeros(68))
+    photo = plain.copy()
+    photo[:, :, 2] = np.minimum(photo[:, :, 2].astype(int) + 60, 255)  # a blue cast the 3D head has not
+    plain_cast = float((plain[..., 2].astype(int) - plain[..., 0]).mean())
+    Image.fromarray(photo).save(tmp_path / "me.png")
+    samples, rate = soundfile.read(REPO / "samples" / "arctic_a0009.wav")
+    (tmp_path / "recordings").mkdir()
+    soundfile.write(tmp_path / "recordings" / "hello.wav", samples[int(0.8 * rate): int(1.6 * rate)], rate)
+    assert main(["study", "plan", "--stimuli", "hello", "--conditions", "none,speech", "--seed", "3",
+                 "-o", str(tmp_path / "plan.csv")]) == 0
+    assert main(["study", "stimuli", str(tmp_path / "plan.csv"), "--recordings", str(tmp_path / "recordings"),
+                 "--width", "160", "-o", str(tmp_path / "stimuli"), "--face", str(tmp_path / "me.png")]) == 0
+    manifest = json.loads((tmp_path / "stimuli" / "stimuli.json").read_text())
+    assert manifest["face"]["file"] == "face.png" and (tmp_path / "stimuli" / "face.png").is_file()
+    server = Server(tmp_path, _free_port()).start()
+    try:
+        browser.get(f"http://127.0.0.1:{server.port}/")
+        _wait_for(browser, "return window.studyState.screen === 'welcome'")
+        browser.find_element("id", "start").click()
+        _wait_for(browser, "const s = window.studyState; return s.screen === 'trial' && s.heads === 2 && s.drawn >= 2")
+        for canvas in browser.find_elements("css selector", "#videos canvas"):
+            image = np.asarray(Image.open(io.BytesIO(canvas.screenshot_as_png)).convert("RGB")).astype(int)
+            assert image.shape[0] == image.shape[1]  # the photo's proportions (square here)
+            # the photo's blue cast: the head is drawn from its own texture, not the 3D head's colours
+            assert (image[..., 2] - image[..., 0]).mean() > plain_cast + 25
+    finally:
+        server.stop()

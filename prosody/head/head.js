@@ -216,16 +216,20 @@
     }
   }
 
-  // Load the model and make a view on the canvas; rejects when WebGL or the model is unavailable.
-  async function load(canvas, url) {
-    const response = await fetch(url || "/head.json");
-    if (!response.ok) throw new Error(`the head model could not be loaded (${response.status})`);
-    const model = await response.json();
+  // A view of a loaded model on the canvas: the 3D head, or a photo's head once its photo is loaded.
+  async function view(canvas, model) {
     if (model.kind !== "photo") return new HeadView(canvas, model);
     const image = new Image();
     image.src = model.photo.texture;
     await image.decode();
     return new PhotoView(canvas, model, image);
   }
-  window.ProsodyHead = { HeadView, PhotoView, load };
+
+  // Load the model and make a view on the canvas; rejects when WebGL or the model is unavailable.
+  async function load(canvas, url) {
+    const response = await fetch(url || "/head.json");
+    if (!response.ok) throw new Error(`the head model could not be loaded (${response.status})`);
+    return view(canvas, await response.json());
+  }
+  window.ProsodyHead = { HeadView, PhotoView, load, view };
 })();

@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import functools
+import hashlib
 import hmac
 import json
 import os
@@ -77,6 +79,10 @@ def study_page() -> bytes:
     return resources.files("prosody.study").joinpath("study.html").read_bytes()
 
 
+def _jpeg(body: bytes) -> tuple[bytes, str]:
+    return body, "image/jpeg"
+
+
 class StudyServer:
     """Serves ``plan``'s study with the videos of ``stimuli`` and the answers in ``store``.
 
@@ -99,6 +105,31 @@ class StudyServer:
         Gets one line per event worth telling the organiser.
     """
 
+    def _head_files(self, manifest: dict) -> dict[str, Callable[[], tuple[bytes, str]]]:
+        """What the ballot's WebGL head loads: head.js and the 3D head's model, or, where the stimuli show a
+        photo's head (``face`` in the manifest), that head's model and images, made here from the kept photo
+        (as the videos were: the same landmarks, the same head)."""
+        from ..head.web import head_script, model_json
+
+        files: dict[str, Callable[[], tuple[bytes, str]]] = {
+            "/head.js": lambda: (head_script(), "text/javascript; charset=utf-8"),
+            "/head.json": lambda: (model_json(), "application/json")}
+        face = manifest.get("face")
+        if isinstance(face, dict):
+            from ..head.photo import photo_head
+            from ..head.web import photo_images, photo_model_document
+
+            path = self.folder / str(face.get("file", ""))
+            if not path.is_file() or hashlib.sha256(path.read_bytes()).hexdigest() != face.get("sha256"):
+                raise ConfigError(f"{path}: the stimuli's photo is missing or changed; run 'prosody study stimuli' "
+                                  "again")
+            head = photo_head(path)
+            model = json.dumps(photo_model_document(head), separators=(",", ":")).encode("utf-8")
+            files["/head.json"] = lambda: (model, "application/json")
+            for name, image in photo_images(head).items():
+                files[name] = functools.partial(_jpeg, image)
+        return files
+
     def __init__(self, plan: StudyPlan, stimuli: str | Path, store: StudyStore, *, host: str = "127.0.0.1",
                  port: int = 8766, break_every: int = 20, allow_origins: Iterable[str] = (),
                  token: str | None = None, report: Callable[[str], None] | None = None) -> None:
@@ -120,6 +151,7 @@ class StudyServer:
             else:
                 self.motions[key] = None
         self.labels = {name: str(entry.get("label", name)) for name, entry in manifest["conditions"].items()}
+        self.head_files = self._head_files(manifest)
         self.break_every = break_every
         self.allow_origins = frozenset(normalize_origin(origin) for origin in allow_origins)
         self.token = token or secrets.token_urlsafe(18)
@@ -366,12 +398,8 @@ class _Handler(BaseHTTPRequestHandler):
                     "Content-Security-Policy": "default-src 'self'; script-src 'self' 'unsafe-inline'; "
                                                "style-src 'self' 'unsafe-inline'; media-src 'self'; "
                                                "connect-src 'self'; frame-ancestors 'none'"})
-            elif path in ("/head.js", "/head.json"):
-                from ..head.web import head_script, model_json
-
-                body, kind = ((head_script(), "text/javascript; charset=utf-8") if path == "/head.js"
-                              else (model_json(), "application/json"))
-                self._send(200, body, kind)
+            elif path in study.head_files:
+                self._send(200, *study.head_files[path]())
             elif path == "/api/study":
                 self._json(200, study.study_info())
             elif path == "/api/state":

@@ -50,6 +50,8 @@ STIMULI_FORMAT = "visual-prosody-study-stimuli"
 CONDITIONS_FORMAT = "visual-prosody-study-conditions"
 FORMAT_VERSION = 1
 MANIFEST = "stimuli.json"
+#: The photo whose head the stimuli show (``study stimuli --face``), kept beside them for the ballot.
+FACE_FILE = "face.png"
 #: Largest conditions or manifest file read.
 MAX_JSON_BYTES = 16 << 20
 #: The thesis's four conditions: the ``convert`` options that make each.
@@ -196,7 +198,7 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
         ``progress(done, total)`` in videos.
     face : path of a photo, or PhotoHead, optional
         Every video shows the head of the person in this photo (:mod:`prosody.head.photo`; the frame keeps the
-        photo's proportions), and the ballot plays the videos (its WebGL head is the 3D head's).
+        photo's proportions); the photo is kept as ``OUT/face.png`` and the ballot's WebGL head is made from it.
     """
     folder, out = Path(recordings), Path(output)
     photo: Any = None
@@ -233,8 +235,14 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
         old = read_manifest(out)["videos"]
     except ConfigError:
         old = {}
+    if photo is not None:  # kept beside the videos: the ballot's WebGL head is made from it
+        from PIL import Image
+
+        with atomic_write(out / FACE_FILE, mode="wb") as handle:
+            Image.fromarray(photo.image).save(handle, format="PNG")
     manifest: dict[str, Any] = {"format": STIMULI_FORMAT, "version": FORMAT_VERSION, "plan_sha256": plan.sha256,
                 "design": plan.design, "width": width,
+                **({"face": {"file": FACE_FILE, "sha256": _sha256(out / FACE_FILE)}} if photo is not None else {}),
                 "conditions": {name: {"label": conditions[name].label, "options": conditions[name].options}
                                for name in plan.conditions},
                 "videos": {}}
@@ -253,8 +261,8 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
         previous = old.get(key)
         motion = path.with_name(f"{name}.head.json")
         kept = (not force and isinstance(previous, dict) and previous.get("settings") == settings and path.is_file()
-                and previous.get("sha256") == _sha256(path)
-                and (photo is not None or (motion.is_file() and previous.get("motion_sha256") == _sha256(motion))))
+                and previous.get("sha256") == _sha256(path) and motion.is_file()
+                and previous.get("motion_sha256") == _sha256(motion))
         if kept:
             manifest["videos"][key] = previous
         else:
@@ -269,15 +277,13 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
             path.parent.mkdir(parents=True, exist_ok=True)
             write_preview(stream, path, audio=audio, width=width, strip=False, captioned=False,
                           face=photo if photo is not None else "head")
-            entry = {"file": f"{stimulus}/{name}.mp4", "sha256": _sha256(path),
-                     "seconds": round(stream.n_frames / stream.fps, 3), "settings": settings}
-            if photo is None:
-                # the same frames for the page's WebGL head: the values the video shows (brows drawn as large)
-                frames = head_frames_document(head_values(stream, brow_scale=BROW_VIEW_SCALE), fps=stream.fps)
-                with atomic_write(motion, newline="\n") as handle:
-                    json.dump(frames, handle, separators=(",", ":"))
-                entry.update(motion=f"{stimulus}/{name}.head.json", motion_sha256=_sha256(motion))
-            manifest["videos"][key] = entry
+            # the same frames for the page's WebGL head: the values the video shows (brows drawn as large)
+            frames = head_frames_document(head_values(stream, brow_scale=BROW_VIEW_SCALE), fps=stream.fps)
+            with atomic_write(motion, newline="\n") as handle:
+                json.dump(frames, handle, separators=(",", ":"))
+            manifest["videos"][key] = {"file": f"{stimulus}/{name}.mp4", "sha256": _sha256(path),
+                                       "motion": f"{stimulus}/{name}.head.json", "motion_sha256": _sha256(motion),
+                                       "seconds": round(stream.n_frames / stream.fps, 3), "settings": settings}
         _write_manifest(out, manifest, old, needed[done:])
         if on_video is not None:
             on_video(stimulus, name, not kept)
