@@ -342,3 +342,23 @@ def test_a_csv_export_is_refused_with_what_preview_reads(tmp_path: Path, capsys)
     said = capsys.readouterr().err
     assert "a .csv export is not read back" in said and ".json" in said
     assert not (tmp_path / "talk.gif").exists()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "folder", "missing"])
+def test_preview_audio_that_is_no_file_is_refused_before_anything(kind: str, tmp_path) -> None:
+    """--audio FIFO hung the preview and /dev/zero reached ffmpeg: refused in one line, exit 2."""
+    import os
+    import subprocess
+    import sys
+
+    from prosody.fap.fapfile import write_fap
+
+    write_fap(FapStream.from_curves({3: np.linspace(0, 300, 5)}, fps=25), tmp_path / "x.fap")
+    audio = {"fifo": tmp_path / "pipe", "device": Path("/dev/zero"), "folder": tmp_path,
+             "missing": tmp_path / "none.wav"}[kind]
+    if kind == "fifo":
+        os.mkfifo(audio)
+    done = subprocess.run([sys.executable, "-m", "prosody", "preview", str(tmp_path / "x.fap"), "-o",
+                           str(tmp_path / "x.mp4"), "--audio", str(audio)], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1 and "--audio" in done.stderr, done.stderr
+    assert not (tmp_path / "x.mp4").exists()

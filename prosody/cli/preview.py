@@ -28,6 +28,24 @@ def say_unshown(stream, face: str, source: str) -> None:
         msg.say(f"{source}: the {shown} does not show FAP {fap_ranges(missing)} (in the stream; left out)")
 
 
+def check_sound_file(path: str) -> None:
+    """``--audio`` is a regular file: a FIFO would hang ffmpeg, a device (``/dev/zero``) never end."""
+    import os
+    import stat
+    from pathlib import Path
+
+    from ..errors import ConfigError
+
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as error:
+        raise ConfigError(f"--audio {path}: {error.strerror or error}") from None
+    if not stat.S_ISREG(mode):
+        kind = "a directory" if stat.S_ISDIR(mode) else "a pipe or a device"
+        raise ConfigError(f"--audio {Path(path)}: {kind}, not a sound file (the video's sound is read whole; "
+                          "save it to a file first)")
+
+
 def face_choice(text: str) -> str:
     """``--face``: head, drawn, or the path of a JPEG or PNG photo."""
     from pathlib import Path
@@ -73,6 +91,8 @@ def run(args: argparse.Namespace) -> int:
     from ..evaluation.preview import write_preview
 
     opt.check_motion_options(args)
+    if args.audio is not None and not args.no_audio:
+        check_sound_file(args.audio)
     face = preview_face(args.face)  # a photo is read, and its face found, before the audio
     audio = args.audio
     if Path(args.input).suffix.lower() == ".fap":
