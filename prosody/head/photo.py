@@ -286,6 +286,7 @@ def person_mask(image: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
     hull = cv2.convexHull(points.astype(np.float32)).astype(np.int32)
     cv2.fillConvexPoly(mask, hull, int(cv2.GC_FGD))
     bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+    cv2.setRNGSeed(0)  # GrabCut's k-means starts from OpenCV's global generator: the same mask every time
     try:
         cv2.grabCut(cv2.cvtColor(small, cv2.COLOR_RGB2BGR), mask, None, bgd, fgd, 4, cv2.GC_INIT_WITH_MASK)
     except cv2.error:  # a flat image: every likely pixel stays as started
