@@ -179,6 +179,22 @@ def test_a_frame_needs_68_values_and_a_size() -> None:
         HeadRenderer(64, 64).render(np.zeros(67))
 
 
+@pytest.mark.parametrize("make", [
+    lambda face: np.zeros_like(face),                       # all in one point
+    lambda face: np.tile(face[:1], (len(face), 1)),          # one landmark repeated
+    lambda face: face * np.array([-1.0, 1.0, 1.0]),          # mirrored
+    lambda face: face * np.array([1.0, -1.0, 1.0]),          # upside down
+    lambda face: face * 1e300,                               # scaled far past a head
+    lambda face: face * 1e-6,
+])
+def test_landmarks_that_are_no_face_are_refused(make) -> None:
+    """Degenerate faces gave NaN fields and NaN vertices (and invalid JSON in the .glb)."""
+    face, _ = canonical_face()
+    with pytest.raises(PreviewError, match="a face for the head") as caught:
+        build_head(make(face))
+    assert "\n" not in str(caught.value)
+
+
 def test_a_tracked_face_can_replace_the_canonical_one() -> None:
     face, _ = canonical_face()
     wider = face * np.array([1.1, 1.0, 1.0])

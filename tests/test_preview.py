@@ -362,3 +362,18 @@ def test_preview_audio_that_is_no_file_is_refused_before_anything(kind: str, tmp
                            str(tmp_path / "x.mp4"), "--audio", str(audio)], capture_output=True, text=True, timeout=60)
     assert done.returncode == 2 and done.stderr.count("\n") == 1 and "--audio" in done.stderr, done.stderr
     assert not (tmp_path / "x.mp4").exists()
+
+
+def test_a_streams_name_cannot_drive_the_terminal(tmp_path) -> None:
+    """Terminal escapes in a stream's name (a .json name, a .fap header) were printed raw by preview."""
+    import subprocess
+    import sys
+
+    from prosody.fap.exporters import write_stream
+
+    write_stream(FapStream.from_curves({3: np.linspace(0, 300, 5)}, fps=25, name="evil\x1b[2J\x1b]0;title\x07"),
+                 tmp_path / "x.json")
+    done = subprocess.run([sys.executable, "-m", "prosody", "preview", str(tmp_path / "x.json"), "-o",
+                           str(tmp_path / "x.gif"), "--width", "64"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "\x1b" not in done.stderr and "\x07" not in done.stderr and "evil\\x1b[2J" in done.stderr

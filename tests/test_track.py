@@ -346,3 +346,14 @@ def test_a_silent_recording_without_a_length_in_its_header_is_timed_by_its_frame
     head = read_head_csv(tmp_path / "out" / "take.head.csv")
     assert head.n_frames == 90  # 75 pictures at 25 fps: 3 s at 30 fps
     assert json.loads((tmp_path / "out" / "take.track.json").read_text())["video_frames"] == 75
+
+
+def test_an_unreliable_sync_estimate_states_no_lead() -> None:
+    """A perfectly synced render read 'the mouth moves 433 ms ahead of the sound (r 0.10 ... unreliable)'."""
+    from prosody.tracking.curves import SyncEstimate
+
+    weak = SyncEstimate(433.0, 0.10, 120.0).describe()
+    assert "433" not in weak and "ahead" not in weak and "no lead is stated" in weak and "r 0.10" in weak
+    strong = SyncEstimate(-40.0, 0.6, 10.0).describe()
+    assert strong == "the mouth moves 40 ms behind the sound (r 0.60, +-10 ms: reliable)"
+    assert "not estimated" in SyncEstimate(None, None, None, "a still mouth").describe()

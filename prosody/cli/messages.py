@@ -24,10 +24,26 @@ class Messages:
         if self.mode == "json":
             print(json.dumps({"event": event, "message": line, **fields}), file=sys.stderr, flush=True)
         elif self.mode == "text" or event == "error":
-            print(line, file=sys.stderr, flush=True)
+            print(shown(line), file=sys.stderr, flush=True)
 
 
 MESSAGES = Messages()
+
+#: Characters a terminal would act on (C0 but tab and newline, DEL, C1): a name in a file or a path may hold them.
+_CONTROL = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+
+
+def shown(line: str) -> str:
+    """``line`` safe for a terminal: control characters (a stream's name, a path) as their escapes, lone
+    surrogates (undecodable bytes of a file name) as ``\\udcXX``.
+
+    Examples
+    --------
+    >>> shown("name\\x1b[31mred\\x07")
+    'name\\\\x1b[31mred\\\\x07'
+    """
+    line = _CONTROL.sub(lambda match: match.group().encode("unicode_escape").decode("ascii"), line)
+    return line.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
 def say(line: str) -> None:

@@ -74,6 +74,8 @@ TEETH = (0.92, 0.90, 0.83)
 TONGUE_COLOR = (0.70, 0.33, 0.36)
 INSIDE = (0.22, 0.06, 0.07)
 
+#: The widths a face may have in the canonical face's axes, cm (the canonical face is 15.5 cm wide).
+MIN_FACE_WIDTH_CM, MAX_FACE_WIDTH_CM = 5.0, 50.0
 #: The lip colour's share on the outer lip line (the rest skin).
 LIP_LINE_SHARE = 0.25
 EYEBALL_RADIUS_CM = 1.2
@@ -351,6 +353,7 @@ def build_head(face: np.ndarray | None = None) -> HeadMesh:
     face_vertices = canonical if face is None else np.asarray(face, float)[:N_FACE_VERTICES]
     if face_vertices.shape != (N_FACE_VERTICES, 3) or not np.isfinite(face_vertices).all():
         raise PreviewError(f"a face for the head needs {N_FACE_VERTICES} finite 3D landmarks")
+    _check_face(face_vertices)
     mouth_ring = LIP_INNER_UPPER + LIP_INNER_LOWER[1:-1]
     eye_rings = [LIDS_LEFT[0] + LIDS_LEFT[1][1:-1], LIDS_RIGHT[0] + LIDS_RIGHT[1][1:-1]]
     open_face = _cut(face_triangles, [mouth_ring, *eye_rings])
@@ -411,6 +414,20 @@ def _behind_the_face(vertices: np.ndarray, parts: np.ndarray, face: np.ndarray) 
     surface = LinearNDInterpolator(face[:, :2], face[:, 2])(vertices[inside, :2].astype(float))
     limit = np.where(np.isfinite(surface), surface - MOUTH_CLEARANCE_CM, np.inf)
     vertices[inside, 2] = np.minimum(vertices[inside, 2], limit)
+
+
+def _check_face(face: np.ndarray) -> None:
+    """Refuse landmarks that are no face in the canonical face's axes and scale (all in one point, scaled far
+    from a head's size, mirrored or upside down): the fields built on them would be NaN or enormous."""
+    width = float(np.ptp(face[:, 0]))
+    if not MIN_FACE_WIDTH_CM <= width <= MAX_FACE_WIDTH_CM:
+        raise PreviewError(f"a face for the head is {MIN_FACE_WIDTH_CM:g}-{MAX_FACE_WIDTH_CM:g} cm wide in the "
+                           f"canonical face's axes and scale (its is {width:.3g} cm): align it to the canonical face")
+    left_eye, right_eye = face[list(LIDS_LEFT[0])].mean(axis=0), face[list(LIDS_RIGHT[0])].mean(axis=0)
+    mouth = face[[13, 14]].mean(axis=0)
+    if not left_eye[0] > right_eye[0] or not min(left_eye[1], right_eye[1]) > mouth[1]:
+        raise PreviewError("a face for the head has its left eye at +x and its eyes above its mouth (+y); these "
+                           "landmarks are mirrored or turned over: align them to the canonical face")
 
 
 def _add_skull(builder: _Builder, v: np.ndarray, open_face: np.ndarray) -> None:

@@ -186,10 +186,12 @@ class SyncEstimate:
     def describe(self) -> str:
         if self.lead_ms is None:
             return f"audio-video sync not estimated ({self.reason})"
-        reliability = "reliable" if self.reliable else (f"unreliable: {self.reason}" if self.reason else "unreliable")
+        if not self.reliable:  # a lead that cannot be trusted is not stated (a synced render read "433 ms")
+            why = self.reason or f"r {self.r or 0:.2f}" + (f", +-{self.spread_ms:.0f} ms" if self.spread_ms else "")
+            return f"audio-video sync could not be measured reliably ({why}): no lead is stated"
         side = "ahead of" if self.lead_ms >= 0 else "behind"
         return (f"the mouth moves {abs(self.lead_ms):.0f} ms {side} the sound (r {self.r:.2f}, "
-                f"+-{self.spread_ms:.0f} ms: {reliability})")
+                f"+-{self.spread_ms:.0f} ms: reliable)")
 
 
 class EnvelopeAccumulator:
