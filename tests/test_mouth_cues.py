@@ -50,7 +50,7 @@ def test_a_single_frame_does_not_flicker_but_a_short_closure_stays() -> None:
     segments = [(6, 150.0, 0.0, "B"), (1, 330.0, 0.0, "-"), (6, 150.0, 0.0, "B"), (1, 0.0, 0.0, "A"),
                 (6, 150.0, 0.0, "B")]
     shapes = [cue.shape for cue in mouth_cues(_stream(segments))]
-    assert shapes == ["B", "A", "B"]
+    assert shapes == ["B", "A", "B", "X"]  # and the recording's last frame is idle
 
 
 def test_the_viseme_said_gives_its_shape_whatever_the_lips_opening() -> None:
@@ -76,6 +76,35 @@ def test_the_viseme_said_gives_its_shape_whatever_the_lips_opening() -> None:
     values[13:16, 2:5] = 0.0  # the last three frames of the first /a/
     closing = [(cue.start_s, cue.shape) for cue in mouth_cues(FapStream(values, stream.mask, FPS))]
     assert closing[1:3] == [(round(10 / FPS, 2), "D"), (round(13 / FPS, 2), "A")]
+
+
+def test_every_file_ends_idle_as_rhubarbs_do(tmp_path: Path) -> None:
+    """Speech to the last frame: the last cue is still X (on 4 of 9 clips the JSON and XML ended with B)."""
+    stream = _stream([(10, 0.0, 0.0, "X"), (20, 330.0, 0.0, "D")])
+    cues = mouth_cues(stream)
+    assert cues[-1].shape == "X" and cues[-1].end_s == pytest.approx(1.0) and cues[-2].shape == "D"
+    write_stream(stream, tmp_path / "end.rhubarb.json")
+    assert json.loads((tmp_path / "end.rhubarb.json").read_text())["mouthCues"][-1]["value"] == "X"
+
+
+def test_a_dat_file_at_the_projects_frame_rate(tmp_path: Path) -> None:
+    """The .dat was always 24 fps, so a 30 fps Moho project played it 25 % slow: --dat-frame-rate."""
+    from prosody.fap.mouth_cues import write_moho_dat
+
+    stream = _stream()
+    write_moho_dat(stream, tmp_path / "a.dat", dat_fps=30)
+    rows = [line.split() for line in (tmp_path / "a.dat").read_text().splitlines()[1:]]
+    starts = {shape: int(frame) for frame, shape in rows[::-1]}  # each shape's first frame
+    # Rhubarb's frame rule: the frame a cue's start (on its 0.01 s grid) falls in, from 1
+    assert starts["D"] == 1 + int(30 * round(10 / FPS, 2)) and starts["A"] == 1 + int(30 * round(16 / FPS, 2))
+    assert starts["D"] != 1 + int(24 * round(10 / FPS, 2))  # not the 24 fps frames
+    from prosody.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="1-1000"):
+        write_moho_dat(stream, tmp_path / "b.dat", dat_fps=0)
+    assert main(["convert", str(Path(__file__).parents[1] / "samples" / "arctic_a0009.wav"), "-o",
+                 str(tmp_path / "c.fap"), "--dat-frame-rate", "30"]) == 2
+    assert not (tmp_path / "c.fap").exists()
 
 
 def test_a_stream_without_lips_is_idle() -> None:

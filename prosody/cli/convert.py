@@ -26,12 +26,27 @@ def run(args: argparse.Namespace) -> int:
         from .preview import photo_face
 
         photo = photo_face(args.face)
+    dat = None
+    if args.dat_frame_rate is not None:  # checked before the audio
+        from ..fap.exporters import format_for
+
+        dat = format_for(args.output, args.output_format) if args.output != "-" else args.output_format
+        if dat not in ("moho-dat", "prestonblair-dat"):
+            raise ConfigError(f"--dat-frame-rate is the frame rate of a .dat switch file; -o {args.output!r} is not "
+                              "one")
     if photo is not None:
         from ..head.gltf import write_glb
 
         stream = convert(args.input, None, base=args.base, progress=msg.frame_progress(args.input, "analysed"),
                          **opt.motion_kwargs(args))
         write_glb(stream, args.output, photo=photo)
+    elif dat is not None and args.output != "-":
+        from ..fap import mouth_cues
+
+        stream = convert(args.input, None, base=args.base, progress=msg.frame_progress(args.input, "analysed"),
+                         **opt.motion_kwargs(args))
+        writer = mouth_cues.write_moho_dat if dat == "moho-dat" else mouth_cues.write_preston_blair_dat
+        writer(stream, args.output, dat_fps=args.dat_frame_rate)
     elif args.output == "-":
         if args.output_format is None:
             raise ConfigError("-o - writes to standard output: give --format (fap, csv, csv-physical, json, bvh, "
@@ -88,6 +103,9 @@ def add_parser(commands) -> None:
     opt.add_motion_options(convert)
     convert.add_argument("--base", default=None, metavar="FILE.fap",
                          help="carry this recording's other FAPs (lips, eyes) into the output")
+    convert.add_argument("--dat-frame-rate", type=opt.number_in(1, 1000), default=None, metavar="FPS",
+                         help="with a .dat output: the switch file's frame rate, your Moho or OpenToonz project's "
+                              "(default 24, as Rhubarb Lip Sync's --datFrameRate)")
     convert.add_argument("--face", default=None, metavar="PHOTO",
                          help="with a .glb output: the head of the person in PHOTO (a JPEG or PNG of one person, "
                               "roughly frontal), textured by the photo, with their hair, neck and shoulders and "

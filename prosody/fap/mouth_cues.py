@@ -46,6 +46,7 @@ import numpy as np
 
 from audio_features.atomic import atomic_write
 
+from ..errors import ConfigError
 from .stream import FapStream
 from .table import Fap
 
@@ -122,6 +123,8 @@ def frame_shapes(stream: FapStream) -> list[str]:
         if end - k >= idle_frames or k == 0 or end == len(out) or not has_lips[k:end].any():
             out[k:end] = ["X"] * (end - k)
         k = end
+    if out and out[-1] != "X":  # the recording ends idle, as every file of Rhubarb's does
+        out[-1] = "X"
     return out
 
 
@@ -225,11 +228,19 @@ def dat_lines(stream: FapStream, *, dat_fps: float = DAT_FPS, preston_blair: boo
     return lines
 
 
-def write_moho_dat(stream: FapStream, path: str | os.PathLike[str]) -> None:
+def write_moho_dat(stream: FapStream, path: str | os.PathLike[str], *, dat_fps: float = DAT_FPS) -> None:
+    """The cues as a Moho switch file at ``dat_fps`` frames a second (Rhubarb's ``--datFrameRate``)."""
     with atomic_write(Path(path), newline="\n") as handle:
-        handle.write("\n".join(dat_lines(stream)) + "\n")
+        handle.write("\n".join(dat_lines(stream, dat_fps=_dat_rate(dat_fps))) + "\n")
 
 
-def write_preston_blair_dat(stream: FapStream, path: str | os.PathLike[str]) -> None:
+def write_preston_blair_dat(stream: FapStream, path: str | os.PathLike[str], *, dat_fps: float = DAT_FPS) -> None:
+    """As :func:`write_moho_dat`, the shapes named as Preston Blair's (OpenToonz)."""
     with atomic_write(Path(path), newline="\n") as handle:
-        handle.write("\n".join(dat_lines(stream, preston_blair=True)) + "\n")
+        handle.write("\n".join(dat_lines(stream, dat_fps=_dat_rate(dat_fps), preston_blair=True)) + "\n")
+
+
+def _dat_rate(fps: float) -> float:
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 1 <= fps <= 1000:
+        raise ConfigError(f"a switch file's frame rate is 1-1000 frames a second, got {fps!r}")
+    return float(fps)
