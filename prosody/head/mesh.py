@@ -66,6 +66,7 @@ SKIN = (0.86, 0.66, 0.55)
 LIPS = (0.72, 0.40, 0.40)
 BROWS = (0.24, 0.16, 0.11)
 HAIR = (0.20, 0.14, 0.10)
+EAR = (0.82, 0.60, 0.50)
 SHIRT = (0.22, 0.30, 0.42)
 SCLERA = (0.93, 0.92, 0.89)
 IRIS = (0.30, 0.42, 0.55)
@@ -79,6 +80,9 @@ MIN_FACE_WIDTH_CM, MAX_FACE_WIDTH_CM = 5.0, 50.0
 #: The lip colour's share on the outer lip line (the rest skin).
 LIP_LINE_SHARE = 0.25
 EYEBALL_RADIUS_CM = 1.2
+#: How far the hair stands out from the skull (cm); an ear's half-thickness, half-height and half-depth (cm).
+HAIR_VOLUME_CM = 1.0
+EAR_RADII_CM = (0.45, 3.0, 1.7)
 IRIS_ANGLE_RAD, PUPIL_ANGLE_RAD = 0.50, 0.22
 #: The pivot of FAP 48-50 (the top of the spine) and the jaw's hinge, in head axes.
 NECK_PIVOT = (0.0, -5.0, -4.0)
@@ -369,12 +373,17 @@ def build_head(face: np.ndarray | None = None) -> HeadMesh:
     colors[list(LIP_INNER_UPPER + LIP_INNER_LOWER)] = LIPS
     colors[list(LIP_OUTER_UPPER + LIP_OUTER_LOWER)] = LIP_LINE_SHARE * np.asarray(LIPS) + (
         1 - LIP_LINE_SHARE) * np.asarray(SKIN)
+    # the brows: darkest along their lower edge, lighter at their upper edge and at their inner ends (a dark
+    # inner end drew a frown's crease between them)
+    brow, skin = np.asarray(BROWS), np.asarray(SKIN)
     for upper, lower in (BROW_LEFT, BROW_RIGHT):
-        colors[list(lower)] = BROWS
-        colors[list(upper)] = 0.5 * np.asarray(BROWS) + 0.5 * np.asarray(SKIN)
+        colors[list(lower)] = 0.8 * brow + 0.2 * skin
+        colors[list(upper)] = 0.45 * brow + 0.55 * skin
+        colors[[lower[-1], upper[-1]]] = 0.35 * brow + 0.65 * skin
     builder.add(v, open_face, colors, FACE)
 
     _add_skull(builder, v, open_face)
+    _add_ears(builder, v)
     eye_centres = _add_eyes(builder, v)
     _add_mouth(builder, v)
     _add_body(builder)
@@ -485,12 +494,41 @@ def _add_skull(builder: _Builder, v: np.ndarray, open_face: np.ndarray) -> None:
     hair = (sy > 6.5 - 3.5 * _smoothstep((-sz - 1.0) / 4.0)) | ((sz < -4.5) & (sy > -4.0)) | (
         (sz < -2.0) & (sy > 1.5) & (np.abs(sx) < 7.8))
     skull_colors = np.where(hair[:, None], HAIR, SKIN)
+    # the hair has volume: the skull under it pushed out, fading to nothing over 2 cm of its edge
+    outward = skull_vertices - centre
+    outward /= np.linalg.norm(outward, axis=1, keepdims=True)
+    depth = _hair_depth(skull_vertices, hair)
+    skull_vertices = skull_vertices + outward * depth[:, None]
     builder.vertices.append(skull_vertices)
     builder.triangles.append(skull_triangles_arr)
     builder.colors.append(skull_colors)
     builder.parts.append(np.full(len(skull_vertices), SKULL, np.int8))
     builder.count += len(skull_vertices)
 
+
+
+def _hair_depth(vertices: np.ndarray, hair: np.ndarray) -> np.ndarray:
+    """How far the hair stands out from the skull at each skull vertex (cm): :data:`HAIR_VOLUME_CM` well inside
+    the hair, fading to 0 over 2 cm to its edge."""
+    if not hair.any() or hair.all():
+        return np.where(hair, HAIR_VOLUME_CM, 0.0)
+    from scipy.spatial import cKDTree
+
+    to_skin = cKDTree(vertices[~hair]).query(vertices)[0]
+    return np.where(hair, HAIR_VOLUME_CM * _smoothstep(to_skin / 2.0), 0.0)
+
+
+def _add_ears(builder: _Builder, v: np.ndarray) -> None:
+    """An ear on each side: a flattened, slightly tilted ellipsoid beside the face's outline at eye height (it
+    turns with the head; MPEG-4's ear FAPs 65-68 do not move it)."""
+    for side, landmark in ((1.0, 454), (-1.0, 234)):
+        edge = v[landmark]
+        ball, triangles = _ellipsoid((0.0, 0.0, 0.0), EAR_RADII_CM, rows=8, columns=14)
+        # lean the top back a little (about +x), then place it behind the outline at eye height
+        lean = math.radians(15.0)
+        turn = np.array([[1, 0, 0], [0, math.cos(lean), -math.sin(lean)], [0, math.sin(lean), math.cos(lean)]])
+        ear = ball @ turn.T + np.array([side * (abs(edge[0]) + 0.2), edge[1] - 0.3, edge[2] - 1.6])
+        builder.add(ear, triangles, EAR, SKULL)
 
 
 def _add_eyes(builder: _Builder, v: np.ndarray) -> list[np.ndarray]:

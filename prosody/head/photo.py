@@ -259,7 +259,7 @@ def _cv2():
 
 def person_mask(image: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
     """bool (height, width): the person (face, hair, ears, neck, shoulders), by GrabCut started from the
-    face (certain) and the head and shoulder regions round it (likely)."""
+    face and the neck under it (certain) and the head and shoulder regions round them (likely)."""
     cv2 = _cv2()
     height, width = image.shape[:2]
     factor = min(1.0, 400.0 / max(height, width))  # GrabCut on a small copy: its cost grows with the pixels
@@ -285,6 +285,10 @@ def person_mask(image: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
                                                             cv2.GC_BGD)
     hull = cv2.convexHull(points.astype(np.float32)).astype(np.int32)
     cv2.fillConvexPoly(mask, hull, int(cv2.GC_FGD))
+    # the neck and the chest right under the chin are the person too (their colours teach GrabCut the clothes')
+    neck = (rows > chin_y + 0.05 * face_h) & (rows < chin_y + 0.8 * face_h) & (np.abs(columns - centre[0])
+                                                                              < 0.22 * face_w)
+    mask[neck] = cv2.GC_FGD
     bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
     cv2.setRNGSeed(0)  # GrabCut's k-means starts from OpenCV's global generator: the same mask every time
     try:
