@@ -122,7 +122,7 @@ VISEMES: tuple[Viseme, ...] = (
 #: saying the same words (30 speakers of talking-head videos), the mouth opened 0.71 as far as theirs (median).
 #: Every viseme's opening is scaled by this: the people's spread over ours, fitted leaving each speaker out,
 #: was 1.41 at the hand-set sizes and 1.26 more at 1.4 (the tracker reads openings less than linearly); at
-#: 1.75 the mouth opens 0.87 as far as people's (median; ``experiments/likeness.py``). It is also
+#: 1.75 the mouth opens 0.84-0.87 as far as people's (median; ``experiments/likeness.py``). It is also
 #: :data:`prosody.fap.mouth_cues.OPENING_SCALE`, which sizes the mouth cues' shapes.
 OPENING_SCALE = 1.75
 VISEMES = tuple(replace(viseme, opening=viseme.opening * OPENING_SCALE) for viseme in VISEMES)
