@@ -179,6 +179,11 @@ def test_ctrl_c_flushes_the_last_frames_and_writes_the_file_whole(tmp_path, stop
     (["stream", "-", "-o", "-", "--raw-rate", "4000"], "8000 to 768000"),
     (["stream", "-", "-o", "-", "--raw-rate", "16000", "--raw-channels", "0"], "1 to 64"),
     (["train", "--data", ".", "-o", "m.json", "--lookahead-ms", "100"], "add --kind live"),
+    # the output's format is known before the session (it ran the whole --realtime session first)
+    (["stream", "x.wav", "--realtime", "-o", "nowhere.txt"], "give --format NAME"),
+    (["stream", "x.wav", "-o", "x.glb"], "a live stream writes motion"),
+    (["stream", "x.wav", "-o", "x.rhubarb.tsv"], "not rhubarb-tsv"),
+    (["stream", "x.wav", "--face", "me.png", "-o", "-"], "give --listen too"),
 ])
 def test_usage_errors_exit_2_with_one_line(argv, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)

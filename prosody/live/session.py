@@ -198,6 +198,15 @@ def check_session(options: StreamOptions, source: AudioSource | None,
     if options.format is not None and options.output in (None, "-"):
         raise ConfigError(f"{flag('format')} names the format of an output file; {flag('output')} - always writes "
                           "JSON lines")
+    if options.output not in (None, "-") and not (str(options.output).lower().endswith(".jsonl")
+                                                   and options.format is None):
+        # the format of a file written when the stream ends is known now, not after the whole session
+        from ..fap.exporters import MOTION_FORMATS, format_for
+
+        chosen = format_for(options.output, options.format)
+        if chosen not in MOTION_FORMATS:
+            raise ConfigError(f"{flag('output')} {options.output}: a live stream writes motion "
+                              f"({', '.join(MOTION_FORMATS)}, or JSON lines to a .jsonl file), not {chosen}")
     if options.allow_origin and options.listen is None:
         raise ConfigError(f"{flag('allow_origin')} names pages allowed to open the stream of {flag('listen')}; "
                           f"give {flag('listen')} too")
