@@ -181,3 +181,26 @@ def test_holm_correction_by_hand() -> None:
     _add_holm(tests)
     assert [t["p_holm"] for t in tests[:3]] == pytest.approx([0.06, 0.03, 0.06])  # 0.01*3, 0.03*2, max(.04, .06)
     assert tests[3]["p_holm"] is None and tests[4]["p_holm"] == pytest.approx(0.2)  # its own family of one
+
+
+def test_plan_leaves_out_recorded_motion_the_recordings_lack(tmp_path, capsys) -> None:
+    """study plan --stimuli FOLDER offered GROUND_TRUTH though no recording had a head.csv; only study stimuli
+    failed then."""
+    import shutil
+
+    from conftest import REPO
+
+    folder = tmp_path / "recordings"
+    folder.mkdir()
+    for name in ("a", "b"):
+        shutil.copy(REPO / "samples" / "arctic_a0009.wav", folder / f"{name}.wav")
+    assert main(["study", "plan", "--stimuli", str(folder), "-o", str(tmp_path / "plan.csv")]) == 0
+    assert "GROUND_TRUTH" not in (tmp_path / "plan.csv").read_text()
+    assert "a, b lack(s) recorded motion" in capsys.readouterr().err
+    assert main(["study", "plan", "--stimuli", str(folder), "--conditions", "none,truth", "-o",
+                 str(tmp_path / "asked.csv")]) == 2
+    assert "which a, b lack(s)" in capsys.readouterr().err and not (tmp_path / "asked.csv").exists()
+    for name in ("a", "b"):
+        (folder / f"{name}.head.csv").write_text("frame,rx_rad,ry_rad,rz_rad\n0,0,0,0\n")
+    assert main(["study", "plan", "--stimuli", str(folder), "-o", str(tmp_path / "full.csv")]) == 0
+    assert "GROUND_TRUTH" in (tmp_path / "full.csv").read_text()

@@ -39,12 +39,46 @@ def stimulus_names(given: str) -> list[str]:
     return names
 
 
+def _recorded_motion_check(stimuli: list[str], given: str, conditions: list[str] | None) -> list[str] | None:
+    """The conditions of the plan once the recordings of the folder ``given`` are known: the recorded-motion
+    condition left out (said) where a recording has none and the conditions are the default ones, refused
+    (naming the recordings) where it was asked for."""
+    from pathlib import Path
+
+    from ..errors import ConfigError
+    from ..motion.conditions import Condition
+    from ..study.designs import CONDITIONS
+    from ..study.stimuli import find_truth
+
+    if not os.path.isdir(given):
+        return conditions
+
+    def recorded(name: str) -> bool:
+        try:
+            return Condition.parse(name) is Condition.GROUND_TRUTH
+        except ConfigError:
+            return False
+
+    wanted = [name for name in (conditions or CONDITIONS) if recorded(name)]
+    without = [stimulus for stimulus in stimuli if find_truth(Path(given), stimulus) is None]
+    if not wanted or not without:
+        return conditions
+    shown = ", ".join(without[:5]) + (f" and {len(without) - 5} more" if len(without) > 5 else "")
+    if conditions is not None:
+        raise ConfigError(f"--conditions {','.join(wanted)} plays recorded motion, which {shown} lack(s) "
+                          f"(<stimulus>.head.csv or .fap beside the recording in {given})")
+    msg.say(f"{given}: {shown} lack(s) recorded motion (<stimulus>.head.csv or .fap): the plan leaves "
+            f"{','.join(wanted)} out")
+    return [name for name in CONDITIONS if name not in wanted]
+
+
 def run_plan(args: argparse.Namespace) -> int:
     from ..study.ballots import write_plan
     from ..study.designs import make_plan
 
-    rows = make_plan(stimulus_names(args.stimuli), design=args.design,
-                     conditions=condition_names(args.conditions), seed=args.seed, repeats=args.repeats)
+    stimuli = stimulus_names(args.stimuli)
+    conditions = _recorded_motion_check(stimuli, args.stimuli, condition_names(args.conditions))
+    rows = make_plan(stimuli, design=args.design, conditions=conditions, seed=args.seed, repeats=args.repeats)
     write_plan(rows, args.output)
     msg.say(f"{args.output}: {args.design} plan, {len(rows)} presentations")
     return opt.EXIT_OK
