@@ -292,6 +292,11 @@ def _check_ogg_end(handle, file: Path, size: int) -> None:
                              "cut off)")
 
 
+#: Endings of files whose sound libsndfile does not read (AAC, ALAC, Opus in MP4, QuickTime, Matroska, WMA):
+#: the refusal says how to convert them.
+FFMPEG_ONLY_ENDINGS = (".m4a", ".mp4", ".aac", ".mov", ".mkv", ".webm", ".wma", ".3gp", ".m4v")
+
+
 def open_sound_file(path: str | os.PathLike[str]):
     """Open ``path`` with soundfile after the checks of :func:`check_readable`; errors become AudioLoadError.
 
@@ -313,7 +318,11 @@ def open_sound_file(path: str | os.PathLike[str]):
         return soundfile.SoundFile(os.fsencode(file) if os.name != "nt" else str(file))
     except (soundfile.SoundFileError, RuntimeError) as error:
         reason = str(error).split(": ", 1)[-1] if ": " in str(error) else str(error)
-        raise AudioLoadError(f"{file}: not an audio file libsndfile can read ({reason.strip()})") from None
+        hint = ""
+        if Path(file).suffix.lower() in FFMPEG_ONLY_ENDINGS:  # AAC and the like in MP4 containers
+            wav = Path(file).with_suffix(".wav").name
+            hint = f"; its sound can be converted first: ffmpeg -i {Path(file).name} -ac 1 {wav}"
+        raise AudioLoadError(f"{file}: not an audio file libsndfile can read ({reason.strip()}){hint}") from None
 
 
 def read_whole(sound) -> np.ndarray:

@@ -565,3 +565,15 @@ def test_a_handled_interrupt_keeps_the_exit_code(forget, code) -> None:
               "    _forget_interrupt()\n")
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, timeout=120)
     assert done.returncode == code
+
+
+@pytest.mark.parametrize("ending", [".m4a", ".mp4", ".aac"])
+def test_sound_in_an_mp4_says_how_to_convert_it(ending: str, tmp_path) -> None:
+    """.m4a and .mp4 sound was refused as 'not an audio file libsndfile can read' with no hint."""
+    from audio_features.audio import load_audio
+    from audio_features.errors import AudioLoadError
+
+    path = tmp_path / f"talk{ending}"
+    path.write_bytes(b"\x00\x00\x00\x20ftypM4A \x00\x00\x02\x00" + bytes(64))  # an MP4 header, as iTunes writes
+    with pytest.raises(AudioLoadError, match=f"ffmpeg -i talk{ending} -ac 1 talk.wav"):
+        load_audio(path)
