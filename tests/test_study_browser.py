@@ -91,16 +91,22 @@ class Server:
             self.process.stderr.close()
 
 
+def _make_study(folder: Path, conditions: str, *more: str) -> None:
+    """A paired plan of one 0.8 s stimulus, ``hello``, in ``conditions``, and its videos (``more``: options of
+    study stimuli)."""
+    samples, rate = soundfile.read(REPO / "samples" / "arctic_a0009.wav")
+    (folder / "recordings").mkdir()
+    soundfile.write(folder / "recordings" / "hello.wav", samples[int(0.8 * rate): int(1.6 * rate)], rate)
+    assert main(["study", "plan", "--stimuli", "hello", "--conditions", conditions, "--seed", "3",
+                 "-o", str(folder / "plan.csv")]) == 0
+    assert main(["study", "stimuli", str(folder / "plan.csv"), "--recordings", str(folder / "recordings"),
+                 "--width", "160", "-o", str(folder / "stimuli"), *more]) == 0
+
+
 @pytest.fixture
 def study(tmp_path):
     """A paired study of one 0.8 s stimulus in three conditions (9 ordered pairs), its videos made."""
-    samples, rate = soundfile.read(REPO / "samples" / "arctic_a0009.wav")
-    (tmp_path / "recordings").mkdir()
-    soundfile.write(tmp_path / "recordings" / "hello.wav", samples[int(0.8 * rate): int(1.6 * rate)], rate)
-    assert main(["study", "plan", "--stimuli", "hello", "--conditions", "none,random,speech", "--seed", "3",
-                 "-o", str(tmp_path / "plan.csv")]) == 0
-    assert main(["study", "stimuli", str(tmp_path / "plan.csv"), "--recordings", str(tmp_path / "recordings"),
-                 "--width", "160", "-o", str(tmp_path / "stimuli")]) == 0
+    _make_study(tmp_path, "none,random,speech")
     server = Server(tmp_path, _free_port())
     yield server
     server.stop()
@@ -215,13 +221,7 @@ def test_a_study_of_a_photo_head_draws_it_on_the_ballot(tmp_path, browser):
     photo[:, :, 2] = np.minimum(photo[:, :, 2].astype(int) + 60, 255)  # a blue cast the 3D head has not
     plain_cast = float((plain[..., 2].astype(int) - plain[..., 0]).mean())
     Image.fromarray(photo).save(tmp_path / "me.png")
-    samples, rate = soundfile.read(REPO / "samples" / "arctic_a0009.wav")
-    (tmp_path / "recordings").mkdir()
-    soundfile.write(tmp_path / "recordings" / "hello.wav", samples[int(0.8 * rate): int(1.6 * rate)], rate)
-    assert main(["study", "plan", "--stimuli", "hello", "--conditions", "none,speech", "--seed", "3",
-                 "-o", str(tmp_path / "plan.csv")]) == 0
-    assert main(["study", "stimuli", str(tmp_path / "plan.csv"), "--recordings", str(tmp_path / "recordings"),
-                 "--width", "160", "-o", str(tmp_path / "stimuli"), "--face", str(tmp_path / "me.png")]) == 0
+    _make_study(tmp_path, "none,speech", "--face", str(tmp_path / "me.png"))
     manifest = json.loads((tmp_path / "stimuli" / "stimuli.json").read_text())
     assert manifest["face"]["file"] == "face.png" and (tmp_path / "stimuli" / "face.png").is_file()
     server = Server(tmp_path, _free_port()).start()
