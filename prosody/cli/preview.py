@@ -151,7 +151,8 @@ def add_parser(commands) -> None:
                     "48-50), the jaw, lips, lids, eyeballs, brows, cheeks, nose and tongue move by their FAPs "
                     "(3-46, 51-64) in MPEG-4's units measured on the head, at true scale unless --exaggerate or "
                     "--brow-scale; a strip below plots the brow and "
-                    "head curves around the current frame. --face drawn shows the older drawn face (head, brows, "
+                    "head curves around the current frame. --face PHOTO shows the head of the person in a JPEG or "
+                    "PNG, in the photo's framing; --face drawn shows the older drawn face (head, brows, "
                     "lips, lids), a diagnostic. .mp4 (H.264, with the recording's audio) needs ffmpeg on PATH or "
                     "the imageio-ffmpeg package; .gif (no sound, at most 1 minute at 30 fps) always works.",
     )

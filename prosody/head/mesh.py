@@ -286,6 +286,18 @@ def _outline(triangles: np.ndarray) -> list[int]:
     return max(loops, key=len)
 
 
+@functools.lru_cache(maxsize=1)
+def face_outline() -> tuple[int, ...]:
+    """The canonical face mesh's outer boundary, one ordered loop of landmark numbers (the same for every face
+    built on its triangles)."""
+    return tuple(_outline(canonical_face()[1]))
+
+
+def smoothstep(x: np.ndarray) -> np.ndarray:
+    """3x^2 - 2x^3 of ``x`` clipped to 0..1: a smooth ramp from 0 to 1."""
+    return _smoothstep(x)
+
+
 def _smoothstep(x: np.ndarray) -> np.ndarray:
     x = np.clip(x, 0.0, 1.0)
     return x * x * (3 - 2 * x)

@@ -53,6 +53,8 @@ from .mesh import (
     TONGUE,
     UPPER_TEETH,
     canonical_face,
+    face_outline,
+    smoothstep,
 )
 from .raster import Canvas, rasterise_textured
 from .render import SUPERSAMPLE, SUPERSAMPLED_PIXELS
@@ -342,11 +344,6 @@ def fill_background(image: np.ndarray, person: np.ndarray, *, margin_px: int) ->
 # building the photo head
 
 
-def _smoothstep(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3 - 2 * x)
-
-
 def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None = None) -> PhotoHead:
     """The head of the person in ``photo`` (a JPEG or PNG path, or an RGB uint8 array).
 
@@ -426,10 +423,7 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
     n_rows, n_columns = len(rows), len(columns)
 
     # depth: the face's own near its edge, the skull's front further out, the neck's plane lower down
-    from .mesh import _outline
-
-    _, triangles = canonical_face()
-    outline = _outline(triangles)
+    outline = list(face_outline())
     edge = face[outline]
     tree = cKDTree(edge[:, :2])
     inside = _inside_polygon(uv, landmarks[outline, :2])
@@ -445,7 +439,7 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
         skull = np.where(cover > 0, _SKULL_CENTRE[2] + _SKULL_RADII[2] * np.sqrt(np.clip(cover, 0, 1)),
                          _NECK_PLANE_Z)
         skull = np.maximum(skull, _NECK_PLANE_Z)
-        blend = _smoothstep(distance / 3.0)
+        blend = smoothstep(distance / 3.0)
         wanted = (1 - blend) * edge[nearest, 2] + blend * skull
         under = surface(vertices[:, :2])  # behind the face, which is drawn there, and moving as it does
         wanted = np.where(inside & np.isfinite(under), np.nan_to_num(under) - 0.3, wanted)
@@ -454,7 +448,7 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
     vertices = ((points - offset) @ turn) / scale
 
     chin_y = float(face[152, 1])
-    weight = _smoothstep((vertices[:, 1] - (chin_y - 4.5)) / 4.5)
+    weight = smoothstep((vertices[:, 1] - (chin_y - 4.5)) / 4.5)
 
     # triangles where the person is (grown by a cell, so the layer covers the filled background at rest)
     r = np.clip(((rows[:-1] + rows[1:]) / 2).astype(int), 0, height - 1)
@@ -477,13 +471,6 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
     d, e = index[1:, :-1][cells], index[1:, 1:][cells]
     layer_triangles = np.vstack([np.column_stack([a, d, b]), np.column_stack([b, d, e])])
     return vertices, uv, weight, layer_triangles
-
-
-def _face_outline() -> list[int]:
-    """The face mesh's outer boundary, an ordered loop of landmark numbers."""
-    from .mesh import _outline
-
-    return _outline(canonical_face()[1])
 
 
 def _inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
@@ -564,7 +551,7 @@ class PhotoRenderer:
 
         rest_face = mesh.vertices[:N_FACE_VERTICES].astype(float)
         distance, nearest = cKDTree(rest_face[:, :2]).query(head.layer_vertices[:, :2], k=4)
-        inside = _inside_polygon(head.layer_uv, head.uv[_face_outline()])
+        inside = _inside_polygon(head.layer_uv, head.uv[list(face_outline())])
         reach = np.where(inside, 1.0, 0.5 * (1 + np.cos(np.pi * np.clip(distance[:, 0] / SKIN_FOLLOW_CM, 0, 1))))
         weights = 1.0 / (distance + 0.05)
         weights *= (reach / weights.sum(axis=1))[:, None]
@@ -575,7 +562,7 @@ class PhotoRenderer:
         self._lit = np.isin(mesh.part, _TEXTURED_PARTS)
         # the shading fades out towards the face's edge, where the face meets the unlit grid: no seam
         rest_xy = mesh.vertices[:N_FACE_VERTICES, :2].astype(float)
-        edge = rest_xy[_face_outline()]
+        edge = rest_xy[list(face_outline())]
         from_edge = np.min(np.linalg.norm(rest_xy[:, None, :] - edge[None, :, :], axis=2), axis=1)
         self._shading = np.ones(n_rig)
         self._shading[:N_FACE_VERTICES] = np.clip(from_edge / RELIGHT_FADE_CM, 0.0, 1.0)
