@@ -11,8 +11,10 @@ voice), by speaker:
 2. **Through render and tracker:** the default preview (``prosody preview``, no strip, true scale) of the
    first :data:`SECONDS` of each clip, tracked back by ``prosody track``, beside the tracked person: the
    mouth's spread ratio (pass 0.67-1.5), its closing against the person's (within 1.5x), the brows' spread
-   ratio (0.5-1.5), and the mouth's r with the person's (>= 0.3; control: the same render against the next
-   speaker's tracked mouth, mean and spread).
+   ratio (0.5-1.5), and the mouth's r with the person's (>= 0.3) by the shared mouth measure
+   (``prosody.measures.mouth_metrics``: the person's opening low-passed at 8 Hz, the best lag within +-0.25 s,
+   which absorbs the clips' own sound-to-picture offsets); control: the same render circularly shifted
+   against the person at that lag (mean and spread over speakers).
 
 ``python -m experiments.likeness [--stream-only] [--speakers N]``.
 """
@@ -30,11 +32,12 @@ import numpy as np
 
 from experiments.common import TRACKED_VIDEOS, data_folder, record, tracked_videos
 from experiments.mouth_videos_loso import speakers
+from prosody.measures import mouth_metrics
 from prosody.motion.ground_truth import read_brows_csv, read_mouth_csv
 from prosody.motion.lips import MNS_PER_EYE_WIDTH, inner_opening
 
 FPS = 30.0
-SECONDS = 10.0
+SECONDS = 20.0
 PASS = {"mouth spread": (0.67, 1.5), "closing ratio": (1 / 1.5, 1.5), "brow spread": (0.5, 1.5), "mouth r": 0.3}
 
 
@@ -48,10 +51,20 @@ def _closing(opening: np.ndarray) -> float:
     return float(low / high) if high > 0 else float("nan")
 
 
-def _r(a: np.ndarray, b: np.ndarray) -> float:
-    n = min(len(a), len(b))
-    keep = np.isfinite(a[:n]) & np.isfinite(b[:n])
-    return float(np.corrcoef(a[:n][keep], b[:n][keep])[0, 1]) if keep.sum() > 10 else float("nan")
+def _mouth_r(ours: np.ndarray, person: np.ndarray) -> tuple[float, float]:
+    """The opening r of our tracked mouth with the person's (the shared measure, best lag within +-0.25 s),
+    and the control: ours circularly shifted by a third and two thirds of the clip, at that lag."""
+    ours = np.nan_to_num(np.asarray(ours, float), nan=float(np.nanmedian(ours)))
+    n = min(ours.size, person.size)
+    ours, person = ours[:n], person[:n]
+    flat = np.zeros(n)
+    result = mouth_metrics(ours, flat, person, flat, fps=FPS)
+    lag = int(round(result["lag_s"] * FPS))
+    controls = [mouth_metrics(np.roll(ours, n * k // 3), flat, person, flat, fps=FPS, lag_frames=lag)["opening_r"]
+                for k in (1, 2)]
+    controls = [c for c in controls if c is not None]
+    return (float("nan") if result["opening_r"] is None else float(result["opening_r"]),
+            float(np.mean(controls)) if controls else float("nan"))
 
 
 def clips(limit: int | None) -> list[dict]:
@@ -140,10 +153,7 @@ def through_render(chosen: list[dict], level: dict[str, dict]) -> None:
                          "mouth spread": _spread(ours_mouth.lip_opening) / _spread(person),
                          "closing ours": _closing(ours_mouth.lip_opening), "closing person": _closing(person),
                          "brow spread": _spread(ours_brows.curve(31)) / max(_spread(clip["brows"].curve(31)[:n]), 1e-9),
-                         "mouth r": _r(ours_mouth.lip_opening, person)})
-    for k, row in enumerate(rows):  # control: our render against the next speaker's tracked mouth
-        other = rows[(k + 1) % len(rows)]["person"]
-        row["control r"] = _r(row["ours"], other)
+                         **dict(zip(("mouth r", "control r"), _mouth_r(ours_mouth.lip_opening, person), strict=True))})
     print(f"\n## Through render and tracker: the default preview of the first {SECONDS:g} s, tracked back\n")
     print("| speaker | mouth spread ratio | closing, ours (person's) | brow spread ratio | mouth r | control r |")
     print("|---|---|---|---|---|---|")

@@ -65,8 +65,22 @@ def test_the_mouth_and_eyes_are_open_holes_and_the_lips_meet_at_rest() -> None:
     eye_ring = set(LIDS_LEFT[0] + LIDS_LEFT[1])
     assert not any(set(t) <= eye_ring for t in face.tolist())
     upper, lower = MESH.vertices[13], MESH.vertices[14]
-    assert upper[1] == pytest.approx(lower[1], abs=1e-5)  # neutral: lips in contact
+    assert upper[1] - lower[1] == pytest.approx(-2 * head_mesh.LIP_PRESS_CM, abs=1e-5)  # neutral: lips in contact
     assert MESH.layout[13, 1] - MESH.layout[14, 1] > 0.4  # where the regions are measured they are apart
+
+
+def test_closed_lips_meet_at_one_depth_and_press() -> None:
+    """The source mesh's upper lip edge is 2 mm behind the lower's; closed, both edges come forward to one
+    depth (the upper lip no longer faces the floor and draws a dark gap) and overlap by LIP_PRESS_CM."""
+    layout, closed = MESH.layout, MESH.vertices
+    assert layout[14, 2] - layout[13, 2] > 0.15
+    assert closed[13, 2] == pytest.approx(closed[14, 2], abs=1e-5)
+    assert closed[13, 2] >= max(layout[13, 2], layout[14, 2]) + 0.05
+    middle = [82, 13, 312], [87, 14, 317]
+    assert closed[middle[0], 1] - closed[middle[1], 1] == pytest.approx([-2 * head_mesh.LIP_PRESS_CM] * 3, abs=0.005)
+    # the lips' outer line and the skin round them do not move
+    for ring in (head_mesh.LIP_OUTER_UPPER, head_mesh.LIP_OUTER_LOWER):
+        assert np.allclose(closed[list(ring)], layout[list(ring)])
 
 
 def test_face_units_are_the_neutral_distances_they_name() -> None:

@@ -103,6 +103,37 @@ def test_motion_moves_the_photo_head_where_the_faps_say(head) -> None:
                                           rest[-len(head.layer_weight):][shoulders])
 
 
+def test_a_frame_drawn_round_what_moved_is_the_whole_frame(head) -> None:
+    """Only the box round what the FAPs can move is drawn again; the rest is the rest frame: the image is the
+    one drawing every pixel gives, to the level, in every kind of motion."""
+    renderer = PhotoRenderer(head)
+    for values in (np.zeros(68), _values(f3=400, f31=150, f32=150), _values(f48=_degrees(9), f49=_degrees(-15)),
+                   _values(f49=_degrees(15), f50=_degrees(7), f3=500, f19=900, f20=900)):
+        assert np.array_equal(renderer.render(values), renderer.render(values, whole=True))
+    top, bottom, left, right = renderer._changed_window(renderer._frame(_values(f3=400))[0])
+    # the head moves, the shoulders and the background round them stay: the box leaves part of the frame out
+    assert (bottom - top + 1) * (right - left + 1) < 0.9 * renderer.width * renderer.height
+
+
+def test_the_persons_grid_is_left_out_deep_under_the_face(head) -> None:
+    """The face covers the grid there in every pose; near the face's edge, round the eyes and off the face the
+    grid stays."""
+    from prosody.head.mesh import face_outline
+    from prosody.head.photo import HIDDEN_UNDER_FACE_CM, _inside_polygon
+
+    used = np.zeros(len(head.layer_uv), bool)
+    used[head.layer_triangles] = True
+    assert used.all()  # no vertex off the person's triangles is kept
+    centres = head.layer_uv[head.layer_triangles].mean(axis=1)
+    outline = head.uv[list(face_outline())]
+    inside = _inside_polygon(centres, outline)
+    distance = np.min(np.linalg.norm(centres[:, None, :] - outline[None, :, :], axis=2), axis=1)
+    deep = inside & (distance > (HIDDEN_UNDER_FACE_CM + 0.5) * head.scale)
+    eyes = np.linalg.norm(centres[:, None, :] - head.uv[[468 - 1, 159, 386]][None, :, :], axis=2).min(axis=1)
+    assert not np.any(deep & (eyes > 3 * head.scale))
+    assert np.sum(inside & ~deep) > 50  # the edge's band is kept
+
+
 def test_turning_uncovers_background_not_a_hole(head, render_photo) -> None:
     """The canonical render stands on one grey: where the head was, the background is filled with that grey (not
     a hole, not a copy of the head: skin differs from the grey by about 100 levels), and a turned head uncovers

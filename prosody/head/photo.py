@@ -44,6 +44,8 @@ from .mesh import (
     EYE_LEFT,
     EYE_RIGHT,
     FACE,
+    LIDS_LEFT,
+    LIDS_RIGHT,
     LIP_OUTER_LOWER,
     LIP_OUTER_UPPER,
     LOWER_TEETH,
@@ -86,6 +88,8 @@ RELIGHT_AMBIENT = 0.35  # > 0: the ratio below is bounded
 RELIGHT_FADE_CM = 2.0
 #: Side of the person layer's grid cells, as a fraction of the photo's longer side.
 GRID_STEP = 1 / 110
+#: The person's grid is left out this far inside the face's outline (the face always covers it there), cm.
+HIDDEN_UNDER_FACE_CM = 1.0
 
 # Head axes (cm): the skull whose front carries the hair round the face, and the plane behind the neck.
 _SKULL_CENTRE, _SKULL_RADII = np.array([0.0, 2.5, -3.0]), np.array([8.2, 11.0, 9.4])
@@ -411,7 +415,7 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
     """The grid over the person: rest vertices in head axes, their place in the photo, how much of the
     head's turn they follow, and the triangles over the person."""
     from scipy.interpolate import LinearNDInterpolator
-    from scipy.ndimage import binary_dilation
+    from scipy.ndimage import binary_dilation, binary_erosion
     from scipy.spatial import cKDTree
 
     height, width = size
@@ -466,11 +470,22 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
                                np.repeat((rows[:-1] + rows[1:])[:, None] / 2, n_columns - 1, axis=1).ravel()])
     mouth = LIP_OUTER_UPPER + LIP_OUTER_LOWER[::-1][1:-1]
     cells &= ~_inside_polygon(centres, landmarks[list(mouth), :2]).reshape(cells.shape)
+    # none deep under the face either (more than HIDDEN_UNDER_FACE_CM inside its outline, away from the eyes):
+    # the face covers them in every pose, and drawing them cost a fifth of a frame
+    margin = max(1, math.ceil(scale * HIDDEN_UNDER_FACE_CM / step))
+    under = binary_erosion(_inside_polygon(centres, landmarks[outline, :2]).reshape(cells.shape), iterations=margin)
+    for upper, lower in (LIDS_LEFT, LIDS_RIGHT):
+        eye = _inside_polygon(centres, landmarks[list(upper + lower[::-1][1:-1]), :2]).reshape(cells.shape)
+        under &= ~binary_dilation(eye, iterations=margin)
+    cells &= ~under
     index = np.arange(n_rows * n_columns).reshape(n_rows, n_columns)
     a, b = index[:-1, :-1][cells], index[:-1, 1:][cells]
     d, e = index[1:, :-1][cells], index[1:, 1:][cells]
     layer_triangles = np.vstack([np.column_stack([a, d, b]), np.column_stack([b, d, e])])
-    return vertices, uv, weight, layer_triangles
+    used = np.unique(layer_triangles)  # the grid's vertices off the person are never drawn: left out
+    renumbered = np.full(len(uv), -1)
+    renumbered[used] = np.arange(used.size)
+    return vertices[used], uv[used], weight[used], renumbered[layer_triangles]
 
 
 def _inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
@@ -559,6 +574,7 @@ class PhotoRenderer:
         self._skin_nearest, self._skin_weights = nearest[self._skin], weights[self._skin]
         self._rest_face = rest_face
         self._follows = np.concatenate([mesh.turn_share(), head.layer_weight])
+        self._turning = np.flatnonzero(self._follows > 0)
         self._lit = np.isin(mesh.part, _TEXTURED_PARTS)
         # the shading fades out towards the face's edge, where the face meets the unlit grid: no seam
         rest_xy = mesh.vertices[:N_FACE_VERTICES, :2].astype(float)
@@ -574,6 +590,17 @@ class PhotoRenderer:
         self._rest_points = rest
         # the nearest point of the head is about a head's depth in front of its origin: depth stays positive
         self._far = float(head.scale * 60.0 + abs(head.offset[2])) * max(self.zoom, 1.0) * SUPERSAMPLE
+        # the rest frame: a frame is drawn only where it can differ from it, round the triangles with a vertex
+        # that a FAP moves (the head's turn, a field, the grid following the skin) or relights
+        fields = np.abs(head.rig.fields).sum(axis=(0, 2))
+        moves = np.concatenate([(fields > 0) | self._lit, np.zeros(len(head.layer_uv), bool)])
+        moves[n_rig + self._skin] = True
+        moves |= self._follows > 0
+        self._movable = np.unique(self.triangles[moves[self.triangles].any(axis=1)])
+        rest_xy = self._frame(np.zeros(N_FAPS))[0][self._movable, :2].copy()
+        self._movable_rest = (rest_xy.min(axis=0), rest_xy.max(axis=0))
+        self._rest_frame: np.ndarray | None = None
+        self._rest_frame = self.render(np.zeros(N_FAPS), whole=True)
 
     def vertices(self, values: np.ndarray) -> np.ndarray:
         """Every drawn vertex (the head's, then the person layer's) in photo axes for one frame's values.
@@ -595,9 +622,9 @@ class PhotoRenderer:
                 layer[self._skin] += head.scale * shift @ head.rotation.T
         points = np.vstack([head.to_photo(rig), layer])
         if any(angles):
-            turn = rotation(*angles)
-            turned = (points - self._pivot) @ turn.T + self._pivot
-            points = points + self._follows[:, None] * (turned - points)
+            turning = self._turning
+            turned = (points[turning] - self._pivot) @ rotation(*angles).T + self._pivot
+            points[turning] += self._follows[turning, None] * (turned - points[turning])
         return points
 
     def _perspective(self, points: np.ndarray) -> np.ndarray:
@@ -648,11 +675,23 @@ class PhotoRenderer:
         out[:self._n_rig] = summed / np.maximum(np.linalg.norm(summed, axis=1, keepdims=True), 1e-12)
         return out
 
-    def render(self, values: np.ndarray) -> np.ndarray:
-        """RGB uint8 (height, width, 3) of one frame's 68 FAP values (NaN and 0 are neutral)."""
+    def render(self, values: np.ndarray, *, whole: bool = False) -> np.ndarray:
+        """RGB uint8 (height, width, 3) of one frame's 68 FAP values (NaN and 0 are neutral).
+
+        Only the part of the frame that differs from the rest frame is drawn (the box round the triangles
+        whose vertices, normals or light changed, where they are and where they were); ``whole`` draws every
+        pixel (the same image)."""
         values = np.asarray(values, float)
         if values.shape != (N_FAPS,):
             raise PhotoError(f"a head frame takes {N_FAPS} FAP values, got shape {values.shape}")
+        screen, normals, colors = self._frame(values)
+        window = None if whole else self._changed_window(screen)
+        return rasterise_textured(screen, self.triangles, normals, colors, self.uv, self.textured, self.texture,
+                                  self.background, factor=self.supersample, canvas=self._canvas, window=window,
+                                  base=self._rest_frame)
+
+    def _frame(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The screen coordinates (samples and depth), normals and colours of every drawn vertex."""
         points = self.vertices(values)
         normals = self._normals(points)
         colors = self.colors
@@ -672,6 +711,12 @@ class PhotoRenderer:
             points[:, :2] = self._rest_points[:, :2] + self._perspective(points) - self._rest_perspective
         screen = np.column_stack([points[:, 0] * s, -points[:, 1] * s,
                                   self._far + (self._behind - points[:, 2]) * s])
-        return rasterise_textured(screen, self.triangles, normals, colors, self.uv,
-                                  self.textured, self.texture, self.background, factor=self.supersample,
-                                  canvas=self._canvas)
+        return screen, normals, colors
+
+    def _changed_window(self, screen: np.ndarray) -> tuple[int, int, int, int]:
+        """The pixel rows and columns (top, bottom, left, right) outside which the frame is the rest frame: the
+        box round the triangles that any FAP can move or relight, where they are and where they were."""
+        xy = screen[self._movable, :2]
+        low = np.minimum(xy.min(axis=0), self._movable_rest[0]) / self.supersample - 1
+        high = np.maximum(xy.max(axis=0), self._movable_rest[1]) / self.supersample + 1
+        return int(np.floor(low[1])), int(np.ceil(high[1])), int(np.floor(low[0])), int(np.ceil(high[0]))

@@ -20,7 +20,9 @@ from .view import AMBIENT, FILL, KEY, SHININESS_DOUBLINGS, SPECULAR, light_direc
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _cover(screen, triangles, nearest, weights, depth):  # pragma: no cover - compiled
+def _cover(screen, triangles, nearest, weights, depth, row0, column0):  # pragma: no cover - compiled
+    """Fill the buffers (a window of the samples whose corner is sample row0, column0; the screen's
+    coordinates are the whole image's, so a window's samples are those of the whole, bit for bit)."""
     height, width = depth.shape
     # horizontal bands, one per task: each draws every triangle clipped to its rows (no two write one pixel)
     n_bands = 16
@@ -31,16 +33,17 @@ def _cover(screen, triangles, nearest, weights, depth):  # pragma: no cover - co
             for px in range(depth.shape[1]):
                 depth[py, px] = np.inf
                 nearest[py, px] = -1
-        _cover_band(screen, triangles, nearest, weights, depth, band_top, band_bottom)
+        _cover_band(screen, triangles, nearest, weights, depth, band_top, band_bottom, row0, column0)
 
 
 @njit(cache=True, nogil=True)
-def _cover_band(screen, triangles, nearest, weights, depth, band_top, band_bottom):  # pragma: no cover
+def _cover_band(screen, triangles, nearest, weights, depth, band_top, band_bottom, row0,
+                column0):  # pragma: no cover
     width = depth.shape[1]
     for t in range(triangles.shape[0]):
         a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
         y0, y1, y2 = screen[a, 1], screen[b, 1], screen[c, 1]
-        if max(y0, y1, y2) < band_top or min(y0, y1, y2) > band_bottom + 1:
+        if max(y0, y1, y2) < band_top + row0 or min(y0, y1, y2) > band_bottom + row0 + 1:
             continue
         x0, z0 = screen[a, 0], screen[a, 2]
         x1, z1 = screen[b, 0], screen[b, 2]
@@ -48,10 +51,10 @@ def _cover_band(screen, triangles, nearest, weights, depth, band_top, band_botto
         area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
         if abs(area) < 1e-9 or z0 <= 0 or z1 <= 0 or z2 <= 0:
             continue
-        left = max(int(np.floor(min(x0, x1, x2))), 0)
-        right = min(int(np.ceil(max(x0, x1, x2))), width - 1)
-        top = max(int(np.floor(min(y0, y1, y2))), band_top)
-        bottom = min(int(np.ceil(max(y0, y1, y2))), band_bottom)
+        left = max(int(np.floor(min(x0, x1, x2))) - column0, 0)
+        right = min(int(np.ceil(max(x0, x1, x2))) - column0, width - 1)
+        top = max(int(np.floor(min(y0, y1, y2))) - row0, band_top)
+        bottom = min(int(np.ceil(max(y0, y1, y2))) - row0, band_bottom)
         if top > bottom:
             continue
         inverse = 1.0 / area
@@ -60,11 +63,11 @@ def _cover_band(screen, triangles, nearest, weights, depth, band_top, band_botto
         slope0, slope1 = (y1 - y2) * inverse, (y2 - y0) * inverse
         slope2 = -(slope0 + slope1)
         for py in range(top, bottom + 1):
-            cy = py + 0.5
+            cy = py + row0 + 0.5
             offset0 = (x1 * (y2 - cy) - x2 * (y1 - cy)) * inverse
             offset1 = (x2 * (y0 - cy) - x0 * (y2 - cy)) * inverse
             offset2 = 1.0 - offset0 - offset1
-            low, high = left + 0.5, right + 0.5
+            low, high = left + column0 + 0.5, right + column0 + 0.5
             empty = False
             for slope, offset in ((slope0, offset0), (slope1, offset1), (slope2, offset2)):
                 if slope > 0:
@@ -75,10 +78,10 @@ def _cover_band(screen, triangles, nearest, weights, depth, band_top, band_botto
                     empty = True
             if empty or low > high:
                 continue
-            first = max(left, int(np.ceil(low - 0.5)))
-            last = min(right, int(np.floor(high - 0.5)))
+            first = max(left, int(np.ceil(low - 0.5)) - column0)
+            last = min(right, int(np.floor(high - 0.5)) - column0)
             for px in range(first, last + 1):
-                cx = px + 0.5
+                cx = px + column0 + 0.5
                 w0 = slope0 * cx + offset0
                 w1 = slope1 * cx + offset1
                 w2 = 1.0 - w0 - w1
@@ -144,7 +147,7 @@ def _start_workers() -> None:
         previous = signal.pthread_sigmask(signal.SIG_BLOCK, masked)
         try:
             _cover(np.zeros((0, 3)), np.zeros((0, 3), np.int32), np.zeros((16, 16), np.int32),
-                   np.zeros((16, 16, 2), np.float32), np.zeros((16, 16), np.float32))
+                   np.zeros((16, 16, 2), np.float32), np.zeros((16, 16), np.float32), 0, 0)
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, previous)
     _workers_started = True
@@ -283,7 +286,8 @@ def _resolve_textured(triangles, normals, colors, uv, textured, texture, nearest
 
 def rasterise_textured(screen: np.ndarray, triangles: np.ndarray, normals: np.ndarray, colors: np.ndarray,
                        uv: np.ndarray, textured: np.ndarray, texture: np.ndarray, background: np.ndarray, *,
-                       factor: int = 1, canvas: Canvas | None = None) -> np.ndarray:
+                       factor: int = 1, canvas: Canvas | None = None,
+                       window: tuple[int, int, int, int] | None = None, base: np.ndarray | None = None) -> np.ndarray:
     """Draw a mesh whose triangles are textured or shaded, over a background image; RGB uint8 (h, w, 3).
 
     Parameters
@@ -299,16 +303,31 @@ def rasterise_textured(screen: np.ndarray, triangles: np.ndarray, normals: np.nd
         The image the textured triangles show.
     background : float32 (height, width, 3), 0..1
         What is seen where no triangle is; its size is the image's.
+    window : (top, bottom, left, right), optional
+        Draw only these pixel rows and columns (inclusive) and take the rest from ``base``, an earlier frame
+        (uint8, height x width x 3) where nothing outside the window has changed.
     """
     height, width = background.shape[:2]
     if canvas is None or (canvas.width, canvas.height, canvas.factor) != (width, height, factor):
         canvas = Canvas(width, height, factor)
+    screen = np.ascontiguousarray(screen, np.float64)
+    if window is None or base is None:
+        top, bottom, left, right = 0, height - 1, 0, width - 1
+        out = np.empty((height, width, 3), np.uint8)
+    else:
+        top, bottom = max(0, int(window[0])), min(height - 1, int(window[1]))
+        left, right = max(0, int(window[2])), min(width - 1, int(window[3]))
+        out = base.copy()
+        if top > bottom or left > right:
+            return out
+    rows, columns = slice(top * factor, (bottom + 1) * factor), slice(left * factor, (right + 1) * factor)
+    nearest, weights = canvas.nearest[rows, columns], canvas.weights[rows, columns]
     triangles = np.ascontiguousarray(triangles, np.int32)
     _start_workers()
-    _cover(np.ascontiguousarray(screen, np.float64), triangles, canvas.nearest, canvas.weights, canvas.depth)
-    out = np.empty((height, width, 3), np.uint8)
+    _cover(screen, triangles, nearest, weights, canvas.depth[rows, columns], top * factor, left * factor)
     _resolve_textured(triangles, np.ascontiguousarray(normals, np.float64), np.ascontiguousarray(colors, np.float64),
                       np.ascontiguousarray(uv[:, :2], np.float64), np.ascontiguousarray(textured, np.bool_),
-                      np.ascontiguousarray(texture, np.float32), canvas.nearest, canvas.weights, factor, out,
-                      _LIGHTS, _STRENGTHS, np.ascontiguousarray(background, np.float32))
+                      np.ascontiguousarray(texture, np.float32), nearest, weights, factor,
+                      out[top:bottom + 1, left:right + 1], _LIGHTS, _STRENGTHS,
+                      np.ascontiguousarray(background, np.float32)[top:bottom + 1, left:right + 1])
     return out
