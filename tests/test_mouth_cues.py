@@ -4,6 +4,7 @@ Moho switch file of its ``dat`` exporter)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import xml.etree.ElementTree as ElementTree
 from pathlib import Path
@@ -160,7 +161,8 @@ def test_convert_writes_rhubarb_cues_of_a_recording(tmp_path: Path) -> None:
     out = tmp_path / "a9.rhubarb.tsv"
     assert main(["convert", str(REPO / "samples" / "arctic_a0009.wav"), "-o", str(out), "-q"]) == 0
     rows = _read_tsv(out)
-    assert rows[0][0] == 0.0 and rows[-1] == (3.1, "X")
+    # the end is the recording's (49,520 samples at 16 kHz: 3.095 s) truncated to 0.01 s, as Rhubarb's is
+    assert rows[0][0] == 0.0 and rows[-1] == (3.09, "X")
     assert all(a[0] < b[0] for a, b in zip(rows, rows[1:], strict=False))
     shapes = {shape for _, shape in rows}
     assert shapes <= set("ABCDEFGX") and len(shapes) >= 4  # speech moves through several shapes
@@ -194,3 +196,46 @@ def test_convert_can_write_cues_to_standard_output(ending, capsys) -> None:
     assert main(["convert", str(REPO / "samples" / "arctic_a0009.wav"), "-o", "-", "--format", name, "-q"]) == 0
     text = capsys.readouterr().out
     assert text.startswith("{") if ending == ".rhubarb.json" else text.startswith("MohoSwitch1")
+
+
+@pytest.mark.parametrize("ending", [".rhubarb.json", ".rhubarb.xml", ".dat"])
+def test_cue_files_name_the_recording_and_end_where_it_ends(tmp_path: Path, ending) -> None:
+    """As Rhubarb's own files: ``soundFile`` is the recording's absolute path (Rhubarb's Vegas importer opens
+    it), and the duration and the last cue end at the recording's length truncated to 0.01 s, not on the
+    frame grid past it (1.234 s of sound at 30 fps is 38 frames, 1.2667 s)."""
+    import soundfile
+
+    from conftest import REPO
+
+    clip = tmp_path / "short clip.wav"
+    samples, rate = soundfile.read(REPO / "samples" / "arctic_a0009.wav")
+    soundfile.write(clip, samples[: int(1.234 * rate)], rate)
+    out = tmp_path / f"cues{ending}"
+    assert main(["convert", str(clip), "-o", str(out), "-q", *(["--dat-frame-rate", "100"] if ending == ".dat"
+                                                               else [])]) == 0
+    if ending == ".rhubarb.json":
+        document = json.loads(out.read_text())
+        assert document["metadata"] == {"soundFile": str(clip.absolute()), "duration": 1.23}
+        assert document["mouthCues"][-1]["end"] == 1.23 and document["mouthCues"][-1]["value"] == "X"
+    elif ending == ".rhubarb.xml":
+        root = ElementTree.parse(out).getroot()
+        assert root.findtext("metadata/soundFile") == str(clip.absolute())
+        assert root.findtext("metadata/duration") == "1.23"
+        assert root.findall("mouthCues/mouthCue")[-1].get("end") == "1.23"
+    else:  # at 100 frames a second the closing X is at frame 1 + 123
+        assert out.read_text().splitlines()[-1] == "124 X"
+
+
+@pytest.mark.parametrize("name", ["bad\x01name", "tab\tand\x7fdel", "undecodable\udcff"])
+def test_cue_files_stay_well_formed_whatever_the_name(tmp_path: Path, name) -> None:
+    """A stream named with control characters or bytes that are not UTF-8 (a file name's) is written as
+    \\xNN in the metadata: the XML parses and the JSON holds no lone surrogate."""
+    from prosody.fap.mouth_cues import write_rhubarb_json, write_rhubarb_xml
+
+    stream = dataclasses.replace(_stream(), name=name)
+    write_rhubarb_xml(stream, tmp_path / "a.rhubarb.xml")
+    sound_file = ElementTree.parse(tmp_path / "a.rhubarb.xml").getroot().findtext("metadata/soundFile")
+    assert sound_file is not None and "\\x" in sound_file
+    write_rhubarb_json(stream, tmp_path / "a.rhubarb.json")
+    text = (tmp_path / "a.rhubarb.json").read_text(encoding="utf-8")
+    assert "\\ud" not in text.lower() and "\\x" in json.loads(text)["metadata"]["soundFile"]

@@ -41,12 +41,16 @@ def run(args: argparse.Namespace) -> int:
                          **opt.motion_kwargs(args))
         write_glb(stream, args.output, photo=photo)
     elif dat is not None and args.output != "-":
-        from ..fap import mouth_cues
+        from audio_features.audio import open_sound_file
+
+        from ..fap.exporters import write_stream
 
         stream = convert(args.input, None, base=args.base, progress=msg.frame_progress(args.input, "analysed"),
                          **opt.motion_kwargs(args))
-        writer = mouth_cues.write_moho_dat if dat == "moho-dat" else mouth_cues.write_preston_blair_dat
-        writer(stream, args.output, dat_fps=args.dat_frame_rate)
+        with open_sound_file(args.input) as sound:
+            duration_s = sound.frames / sound.samplerate if sound.frames > 0 else None
+        write_stream(stream, args.output, dat, sound_file=args.input, duration_s=duration_s,
+                     dat_fps=args.dat_frame_rate)
     elif args.output == "-":
         if args.output_format is None:
             raise ConfigError("-o - writes to standard output: give --format (fap, csv, csv-physical, json, bvh, "

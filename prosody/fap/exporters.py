@@ -280,6 +280,10 @@ WRITERS: dict[str, tuple[Writer, tuple[str, ...]]] = {
 }
 
 
+#: The formats of mouth cues, whose files also name the recording and end where it ends (Rhubarb's).
+CUE_FORMATS = ("rhubarb-tsv", "rhubarb-json", "rhubarb-xml", "moho-dat", "prestonblair-dat")
+
+
 #: The formats of motion over time that a live stream can also write (not the mouth cues, not the 3D head).
 MOTION_FORMATS = ("fap", "csv", "csv-physical", "json", "bvh", "livelink")
 
@@ -316,7 +320,9 @@ def format_for(path: str | os.PathLike[str], format_name: str | None = None) -> 
                       "give output_format=NAME")
 
 
-def write_stream(stream: FapStream, path: str | os.PathLike[str], format_name: str | None = None) -> str:
+def write_stream(stream: FapStream, path: str | os.PathLike[str], format_name: str | None = None, *,
+                 sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None,
+                 dat_fps: float | None = None) -> str:
     """Write ``stream`` to ``path`` in the named (or extension-implied) format, atomically.
 
     Parameters
@@ -328,6 +334,11 @@ def write_stream(stream: FapStream, path: str | os.PathLike[str], format_name: s
         ``.bvh``, ``.livelink.csv``, ``.glb``, ``.rhubarb.tsv``, ...).
     format_name : str, optional
         A name of :data:`WRITERS` or :data:`DEFERRED_WRITERS`, overriding the ending.
+    sound_file, duration_s : optional
+        The recording the stream was made from and its length in seconds: the mouth cues' files
+        (:data:`CUE_FORMATS`) name it and end where it ends, as Rhubarb's do; other formats ignore them.
+    dat_fps : float, optional
+        The frame rate of a ``.dat`` switch file (default 24, Rhubarb's); refused for other formats.
 
     Returns
     -------
@@ -336,5 +347,13 @@ def write_stream(stream: FapStream, path: str | os.PathLike[str], format_name: s
     """
     chosen = format_for(path, format_name)
     writer = WRITERS[chosen][0] if chosen in WRITERS else _deferred(DEFERRED_WRITERS[chosen][0])
-    writer(stream, Path(path))
+    if dat_fps is not None and chosen not in ("moho-dat", "prestonblair-dat"):
+        raise ConfigError(f"dat_fps is the frame rate of a .dat switch file; {os.fsdecode(path)!r} is {chosen}")
+    if chosen in CUE_FORMATS:
+        extra: dict = {"sound_file": sound_file, "duration_s": duration_s}
+        if dat_fps is not None:
+            extra["dat_fps"] = dat_fps
+        writer(stream, Path(path), **extra)
+    else:
+        writer(stream, Path(path))
     return chosen

@@ -30,7 +30,10 @@ mouth), ``.rhubarb.json`` (``metadata`` with ``soundFile`` and ``duration``, ``m
 ``end``, ``value``), ``.rhubarb.xml`` (``rhubarbResult`` with ``metadata`` and ``mouthCue`` elements), and the
 Moho switch file ``.dat`` (``MohoSwitch1``, then ``frame shape`` lines at :data:`DAT_FPS` frames a second,
 frames counted from 1; ``.prestonblair.dat`` names the shapes MBP, etc, E, AI, O, U, FV, L and rest, which
-OpenToonz needs). Times are in seconds, at Rhubarb's resolution of 0.01 s; the duration is truncated to it.
+OpenToonz needs). Times are in seconds, at Rhubarb's resolution of 0.01 s. Given the recording (``sound_file``,
+``duration_s``), the files hold what Rhubarb's hold: the recording's absolute path as ``soundFile`` (its Vegas
+importer opens it) and its length, truncated to 0.01 s, as the duration and the last cue's end; without it, the
+stream's name and its frames' length.
 """
 
 from __future__ import annotations
@@ -140,13 +143,16 @@ def _merge_single_frames(shapes: list[str]) -> None:
         k = end
 
 
-def mouth_cues(stream: FapStream) -> list[MouthCue]:
-    """The stream's mouth cues: runs of one shape, on Rhubarb's 0.01 s grid, covering the whole recording."""
+def mouth_cues(stream: FapStream, *, duration_s: float | None = None) -> list[MouthCue]:
+    """The stream's mouth cues: runs of one shape, on Rhubarb's 0.01 s grid, covering the whole recording
+    (``duration_s`` long, truncated to 0.01 s, where given; else the stream's frames)."""
     shapes = frame_shapes(stream)
-    duration = _truncated(stream.n_frames / stream.fps)
+    duration = _duration(stream, duration_s)
     cues: list[MouthCue] = []
     for k, shape in enumerate(shapes):
         start = round(k / stream.fps, 2)
+        if start >= duration and cues:  # a frame past the recording's end (the last frame's own length)
+            break
         if cues and cues[-1].shape == shape:
             continue
         if cues and start <= cues[-1].start_s:  # two frames within 0.01 s: the later shape wins
@@ -163,34 +169,75 @@ def mouth_cues(stream: FapStream) -> list[MouthCue]:
             merged.append(cue)
     if not merged:
         merged = [MouthCue(0.0, 0.0, "X")]
+    last = merged[-1]
+    if shapes and shapes[-1] == "X" and last.shape != "X":
+        # the closing X began on the frame past the recording's end: it takes the last 0.01 s instead
+        if last.end_s - last.start_s > RESOLUTION_S + 1e-9:
+            merged[-1] = MouthCue(last.start_s, round(last.end_s - RESOLUTION_S, 2), last.shape)
+            merged.append(MouthCue(round(last.end_s - RESOLUTION_S, 2), last.end_s, "X"))
+        else:
+            merged[-1] = MouthCue(last.start_s, last.end_s, "X")
+            if len(merged) > 1 and merged[-2].shape == "X":
+                merged[-2:] = [MouthCue(merged[-2].start_s, last.end_s, "X")]
     return merged
 
 
-def _sound_name(stream: FapStream) -> str:
-    """The recording's name for the metadata: the stream's, without the ``.rhubarb`` of the file's ending."""
+def _sound_name(stream: FapStream, sound_file: str | os.PathLike[str] | None) -> str:
+    """The metadata's ``soundFile``: the recording's absolute path, as Rhubarb writes it; without one, the
+    stream's name (without the ``.rhubarb`` of the file's ending)."""
+    if sound_file is not None:
+        return os.fsdecode(Path(sound_file).absolute())
     return stream.name.removesuffix(".rhubarb")
 
 
+def _text(name: str) -> str:
+    """A name as text any XML or JSON reader takes: the bytes of a file name that is not UTF-8 (held as lone
+    surrogates) and control characters, which XML 1.0 forbids, written as ``\\xNN``."""
+    def shown(char: str) -> str:
+        code = ord(char)
+        if 0xDC80 <= code <= 0xDCFF:  # a byte that did not decode (os.fsdecode's surrogateescape)
+            return f"\\x{code - 0xDC00:02x}"
+        if code < 0x20 or code == 0x7F or 0xD800 <= code <= 0xDFFF or code in (0xFFFE, 0xFFFF):
+            return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}"
+        return char
+
+    return "".join(shown(char) for char in name)
+
+
+def _duration(stream: FapStream, duration_s: float | None) -> float:
+    """The recording's length truncated to 0.01 s (Rhubarb's), or the stream's frames' where it is not given."""
+    if duration_s is None:
+        return _truncated(stream.n_frames / stream.fps)
+    if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) or not (
+            math.isfinite(duration_s) and duration_s >= 0):
+        raise ConfigError(f"duration_s is the recording's length in seconds (>= 0), got {duration_s!r}")
+    return _truncated(float(duration_s))
+
+
 def _truncated(seconds: float) -> float:
-    return math.floor(seconds / RESOLUTION_S + 1e-9) * RESOLUTION_S
+    return round(math.floor(seconds / RESOLUTION_S + 1e-9) * RESOLUTION_S, 2)
 
 
 def _seconds(value: float) -> str:
     return f"{value:.2f}"
 
 
-def write_rhubarb_tsv(stream: FapStream, path: str | os.PathLike[str]) -> None:
-    cues = mouth_cues(stream)
+def write_rhubarb_tsv(stream: FapStream, path: str | os.PathLike[str], *,
+                      sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None) -> None:
+    """The cues as Rhubarb's TSV: ``start<TAB>shape`` per cue, then the recording's end with X (``sound_file``
+    is not written in this format; it is taken for the other writers' sake)."""
+    cues = mouth_cues(stream, duration_s=duration_s)
     lines = [f"{_seconds(cue.start_s)}\t{cue.shape}" for cue in cues]
-    lines.append(f"{_seconds(_truncated(stream.n_frames / stream.fps))}\tX")
+    lines.append(f"{_seconds(_duration(stream, duration_s))}\tX")
     with atomic_write(Path(path), newline="\n") as handle:
         handle.write("\n".join(lines) + "\n")
 
 
-def write_rhubarb_json(stream: FapStream, path: str | os.PathLike[str]) -> None:
-    cues = mouth_cues(stream)
-    duration = round(_truncated(stream.n_frames / stream.fps), 2)
-    document = {"metadata": {"soundFile": _sound_name(stream), "duration": duration},
+def write_rhubarb_json(stream: FapStream, path: str | os.PathLike[str], *,
+                       sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None) -> None:
+    """The cues as Rhubarb's JSON (``metadata``: ``soundFile``, ``duration``; ``mouthCues``)."""
+    cues = mouth_cues(stream, duration_s=duration_s)
+    document = {"metadata": {"soundFile": _text(_sound_name(stream, sound_file)), "duration": _duration(stream, duration_s)},
                 "mouthCues": [{"start": round(cue.start_s, 2), "end": round(cue.end_s, 2), "value": cue.shape}
                               for cue in cues]}
     with atomic_write(Path(path), newline="\n") as handle:
@@ -198,11 +245,13 @@ def write_rhubarb_json(stream: FapStream, path: str | os.PathLike[str]) -> None:
         handle.write("\n")
 
 
-def write_rhubarb_xml(stream: FapStream, path: str | os.PathLike[str]) -> None:
-    cues = mouth_cues(stream)
+def write_rhubarb_xml(stream: FapStream, path: str | os.PathLike[str], *,
+                      sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None) -> None:
+    """The cues as Rhubarb's XML (``rhubarbResult``: ``metadata`` and ``mouthCue`` elements)."""
+    cues = mouth_cues(stream, duration_s=duration_s)
     lines = ['<?xml version="1.0" encoding="utf-8"?>', "<rhubarbResult>", "  <metadata>",
-             f"    <soundFile>{escape(_sound_name(stream))}</soundFile>",
-             f"    <duration>{_seconds(_truncated(stream.n_frames / stream.fps))}</duration>", "  </metadata>",
+             f"    <soundFile>{escape(_text(_sound_name(stream, sound_file)))}</soundFile>",
+             f"    <duration>{_seconds(_duration(stream, duration_s))}</duration>", "  </metadata>",
              "  <mouthCues>"]
     lines += [f'    <mouthCue start="{_seconds(cue.start_s)}" end="{_seconds(cue.end_s)}">{cue.shape}</mouthCue>'
               for cue in cues]
@@ -211,12 +260,13 @@ def write_rhubarb_xml(stream: FapStream, path: str | os.PathLike[str]) -> None:
         handle.write("\n".join(lines) + "\n")
 
 
-def dat_lines(stream: FapStream, *, dat_fps: float = DAT_FPS, preston_blair: bool = False) -> list[str]:
+def dat_lines(stream: FapStream, *, dat_fps: float = DAT_FPS, preston_blair: bool = False,
+              duration_s: float | None = None) -> list[str]:
     """The Moho switch file's lines: each cue from the frame it starts in (1-based), the closed mouth at the
     end; a cue that starts in the frame of the one before is left out."""
     name = PRESTON_BLAIR.get if preston_blair else (lambda shape: shape)
     lines, last = ["MohoSwitch1"], 0
-    cues = mouth_cues(stream)
+    cues = mouth_cues(stream, duration_s=duration_s)
     for cue in cues:
         frame = 1 + int(dat_fps * cue.start_s + 1e-9)
         if frame == last:
@@ -228,16 +278,20 @@ def dat_lines(stream: FapStream, *, dat_fps: float = DAT_FPS, preston_blair: boo
     return lines
 
 
-def write_moho_dat(stream: FapStream, path: str | os.PathLike[str], *, dat_fps: float = DAT_FPS) -> None:
+def write_moho_dat(stream: FapStream, path: str | os.PathLike[str], *, dat_fps: float = DAT_FPS,
+                   sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None) -> None:
     """The cues as a Moho switch file at ``dat_fps`` frames a second (Rhubarb's ``--datFrameRate``)."""
+    lines = dat_lines(stream, dat_fps=_dat_rate(dat_fps), duration_s=duration_s)
     with atomic_write(Path(path), newline="\n") as handle:
-        handle.write("\n".join(dat_lines(stream, dat_fps=_dat_rate(dat_fps))) + "\n")
+        handle.write("\n".join(lines) + "\n")
 
 
-def write_preston_blair_dat(stream: FapStream, path: str | os.PathLike[str], *, dat_fps: float = DAT_FPS) -> None:
+def write_preston_blair_dat(stream: FapStream, path: str | os.PathLike[str], *, dat_fps: float = DAT_FPS,
+                            sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None) -> None:
     """As :func:`write_moho_dat`, the shapes named as Preston Blair's (OpenToonz)."""
+    lines = dat_lines(stream, dat_fps=_dat_rate(dat_fps), preston_blair=True, duration_s=duration_s)
     with atomic_write(Path(path), newline="\n") as handle:
-        handle.write("\n".join(dat_lines(stream, dat_fps=_dat_rate(dat_fps), preston_blair=True)) + "\n")
+        handle.write("\n".join(lines) + "\n")
 
 
 def _dat_rate(fps: float) -> float:

@@ -153,7 +153,7 @@ def convert(
     if output is not None:
         from ..fap.exporters import write_stream
 
-        write_stream(stream, output, output_format)
+        write_stream(stream, output, output_format, sound_file=audio, duration_s=features.duration_s)
     return stream
 
 
