@@ -239,3 +239,31 @@ def test_cue_files_stay_well_formed_whatever_the_name(tmp_path: Path, name) -> N
     write_rhubarb_json(stream, tmp_path / "a.rhubarb.json")
     text = (tmp_path / "a.rhubarb.json").read_text(encoding="utf-8")
     assert "\\ud" not in text.lower() and "\\x" in json.loads(text)["metadata"]["soundFile"]
+
+
+def test_extended_shapes_left_out_become_their_basic_shapes(tmp_path: Path, capsys) -> None:
+    """Rhubarb's --extendedShapes: G, H and X are optional; left out, G becomes A, H C and X A. The cues of the
+    sample recording (it has an /f/: G, and pauses: X) with none of them hold only A-F and end closed (A);
+    with GX they are the default's."""
+    from conftest import REPO
+
+    speech = str(REPO / "samples" / "arctic_a0009.wav")
+    every = tmp_path / "every.rhubarb.tsv"
+    basic = tmp_path / "basic.rhubarb.tsv"
+    assert main(["convert", speech, "-o", str(every), "-q"]) == 0
+    assert main(["convert", speech, "-o", str(basic), "-q", "--extended-shapes", ""]) == 0
+    every_rows, basic_rows = _read_tsv(every), _read_tsv(basic)
+    assert {"G", "X"} <= {shape for _, shape in every_rows}
+    assert {shape for _, shape in basic_rows} <= set("ABCDEF") and basic_rows[-1][1] == "A"
+    # played at any time, the basic cue is the full one with G and X as A
+    def at(rows, t):
+        return next(shape for start, shape in reversed(rows) if start <= t + 1e-9)
+    for t in np.arange(0, every_rows[-1][0], 0.01):
+        assert at(basic_rows, t) == {"G": "A", "X": "A"}.get(at(every_rows, t), at(every_rows, t))
+    gx = tmp_path / "gx.rhubarb.tsv"
+    assert main(["convert", speech, "-o", str(gx), "-q", "--extended-shapes", "xg"]) == 0
+    assert _read_tsv(gx) == every_rows
+    # refused before the audio: letters that are not extended shapes, or an output that is not cues
+    assert main(["convert", speech, "-o", str(tmp_path / "x.rhubarb.tsv"), "--extended-shapes", "GA"]) == 2
+    assert main(["convert", speech, "-o", str(tmp_path / "x.fap"), "--extended-shapes", "GX"]) == 2
+    assert "extended" in capsys.readouterr().err

@@ -26,31 +26,29 @@ def run(args: argparse.Namespace) -> int:
         from .preview import photo_face
 
         photo = photo_face(args.face)
-    dat = None
-    if args.dat_frame_rate is not None:  # checked before the audio
-        from ..fap.exporters import format_for
+    cues = None  # the mouth cues' own options, checked before the audio
+    if args.dat_frame_rate is not None or args.extended_shapes is not None:
+        from ..fap.exporters import CUE_FORMATS, format_for
+        from ..fap.mouth_cues import check_extended_shapes
 
-        dat = format_for(args.output, args.output_format) if args.output != "-" else args.output_format
-        if dat not in ("moho-dat", "prestonblair-dat"):
+        written = format_for(args.output, args.output_format) if args.output != "-" else args.output_format
+        if args.dat_frame_rate is not None and written not in ("moho-dat", "prestonblair-dat"):
             raise ConfigError(f"--dat-frame-rate is the frame rate of a .dat switch file; -o {args.output!r} is not "
                               "one")
+        if args.extended_shapes is not None:
+            if written not in CUE_FORMATS:
+                raise ConfigError(f"--extended-shapes chooses the shapes of mouth cues (.rhubarb.tsv, .rhubarb.json, "
+                                  f".rhubarb.xml, .dat); -o {args.output!r} is not one")
+            check_extended_shapes(args.extended_shapes)
+        cues = written
     if photo is not None:
         from ..head.gltf import write_glb
 
         stream = convert(args.input, None, base=args.base, progress=msg.frame_progress(args.input, "analysed"),
                          **opt.motion_kwargs(args))
         write_glb(stream, args.output, photo=photo)
-    elif dat is not None and args.output != "-":
-        from audio_features.audio import open_sound_file
-
-        from ..fap.exporters import write_stream
-
-        stream = convert(args.input, None, base=args.base, progress=msg.frame_progress(args.input, "analysed"),
-                         **opt.motion_kwargs(args))
-        with open_sound_file(args.input) as sound:
-            duration_s = sound.frames / sound.samplerate if sound.frames > 0 else None
-        write_stream(stream, args.output, dat, sound_file=args.input, duration_s=duration_s,
-                     dat_fps=args.dat_frame_rate)
+    elif cues is not None and args.output != "-":
+        stream = _write_cues(args, args.output, cues, progress=msg.frame_progress(args.input, "analysed"))
     elif args.output == "-":
         if args.output_format is None:
             raise ConfigError("-o - writes to standard output: give --format (fap, csv, csv-physical, json, bvh, "
@@ -58,8 +56,11 @@ def run(args: argparse.Namespace) -> int:
         holder: list = []
 
         def write(path: str) -> None:
-            holder.append(convert(args.input, path, base=args.base, output_format=args.output_format,
-                                  **opt.motion_kwargs(args)))
+            if cues is not None:
+                holder.append(_write_cues(args, path, cues))
+            else:
+                holder.append(convert(args.input, path, base=args.base, output_format=args.output_format,
+                                      **opt.motion_kwargs(args)))
 
         from pathlib import Path
 
@@ -77,6 +78,21 @@ def run(args: argparse.Namespace) -> int:
         faps = "48 49 50 (BVH holds the head only)"
     msg.say(f"{args.output}: {stream.n_frames} frames at {stream.fps:g} fps, FAPs {faps}")
     return opt.EXIT_OK
+
+
+def _write_cues(args: argparse.Namespace, path: str, format_name: str, *, progress=None):
+    """Convert and write mouth cues with their own options (the recording's path and length, as Rhubarb's)."""
+    from audio_features.audio import open_sound_file
+
+    from ..fap.exporters import write_stream
+    from ..jobs.pipeline import convert
+
+    stream = convert(args.input, None, base=args.base, progress=progress, **opt.motion_kwargs(args))
+    with open_sound_file(args.input) as sound:
+        duration_s = sound.frames / sound.samplerate if sound.frames > 0 else None
+    write_stream(stream, path, format_name, sound_file=args.input, duration_s=duration_s,
+                 dat_fps=args.dat_frame_rate, extended_shapes=args.extended_shapes)
+    return stream
 
 
 def add_parser(commands) -> None:
@@ -110,6 +126,10 @@ def add_parser(commands) -> None:
     convert.add_argument("--dat-frame-rate", type=opt.number_in(1, 1000), default=None, metavar="FPS",
                          help="with a .dat output: the switch file's frame rate, your Moho or OpenToonz project's "
                               "(default 24, as Rhubarb Lip Sync's --datFrameRate)")
+    convert.add_argument("--extended-shapes", default=None, metavar="SHAPES",
+                         help="with mouth cues: which of Rhubarb Lip Sync's extended shapes to use, any of G, H "
+                              "and X (default GHX; '' for none: G becomes A, H C and X A, as Rhubarb's "
+                              "--extendedShapes)")
     convert.add_argument("--face", default=None, metavar="PHOTO",
                          help="with a .glb output: the head of the person in PHOTO (a JPEG or PNG of one person, "
                               "roughly frontal), textured by the photo, with their hair, neck and shoulders and "

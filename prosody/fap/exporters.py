@@ -322,7 +322,7 @@ def format_for(path: str | os.PathLike[str], format_name: str | None = None) -> 
 
 def write_stream(stream: FapStream, path: str | os.PathLike[str], format_name: str | None = None, *,
                  sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None,
-                 dat_fps: float | None = None) -> str:
+                 dat_fps: float | None = None, extended_shapes: str | None = None) -> str:
     """Write ``stream`` to ``path`` in the named (or extension-implied) format, atomically.
 
     Parameters
@@ -339,6 +339,9 @@ def write_stream(stream: FapStream, path: str | os.PathLike[str], format_name: s
         (:data:`CUE_FORMATS`) name it and end where it ends, as Rhubarb's do; other formats ignore them.
     dat_fps : float, optional
         The frame rate of a ``.dat`` switch file (default 24, Rhubarb's); refused for other formats.
+    extended_shapes : str, optional
+        Which of Rhubarb's extended shapes G, H and X the mouth cues use (default all; Rhubarb's
+        ``--extendedShapes``); refused for formats that are not cues.
 
     Returns
     -------
@@ -349,10 +352,14 @@ def write_stream(stream: FapStream, path: str | os.PathLike[str], format_name: s
     writer = WRITERS[chosen][0] if chosen in WRITERS else _deferred(DEFERRED_WRITERS[chosen][0])
     if dat_fps is not None and chosen not in ("moho-dat", "prestonblair-dat"):
         raise ConfigError(f"dat_fps is the frame rate of a .dat switch file; {os.fsdecode(path)!r} is {chosen}")
+    if extended_shapes is not None and chosen not in CUE_FORMATS:
+        raise ConfigError(f"extended_shapes chooses the shapes of mouth cues; {os.fsdecode(path)!r} is {chosen}")
     if chosen in CUE_FORMATS:
         extra: dict = {"sound_file": sound_file, "duration_s": duration_s}
         if dat_fps is not None:
             extra["dat_fps"] = dat_fps
+        if extended_shapes is not None:
+            extra["extended_shapes"] = extended_shapes
         writer(stream, Path(path), **extra)
     else:
         writer(stream, Path(path))

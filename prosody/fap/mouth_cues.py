@@ -81,6 +81,10 @@ IDLE_S = 0.3
 #: Frame rate of Moho switch files (Rhubarb's default).
 DAT_FPS = 24.0
 RESOLUTION_S = 0.01
+#: Rhubarb's extended shapes, all given by default (its ``--extendedShapes``, default GHX) ...
+EXTENDED_SHAPES = "GHX"
+#: ... and the basic shape each becomes where it is left out (Rhubarb's own choice).
+BASIC_SHAPES = {"G": "A", "H": "C", "X": "A"}
 
 
 @dataclass(frozen=True)
@@ -143,10 +147,23 @@ def _merge_single_frames(shapes: list[str]) -> None:
         k = end
 
 
-def mouth_cues(stream: FapStream, *, duration_s: float | None = None) -> list[MouthCue]:
+def check_extended_shapes(shapes: str) -> str:
+    """``shapes`` as Rhubarb's ``--extendedShapes`` takes them: any of G, H and X (or none), in any order."""
+    if not isinstance(shapes, str) or not set(shapes.upper()) <= set(EXTENDED_SHAPES) or len(set(
+            shapes.upper())) != len(shapes):
+        raise ConfigError(f"the extended shapes are any of G, H and X, each once (e.g. GX, or '' for none), got "
+                          f"{shapes!r}")
+    return "".join(shape for shape in EXTENDED_SHAPES if shape in shapes.upper())
+
+
+def mouth_cues(stream: FapStream, *, duration_s: float | None = None,
+               extended_shapes: str = EXTENDED_SHAPES) -> list[MouthCue]:
     """The stream's mouth cues: runs of one shape, on Rhubarb's 0.01 s grid, covering the whole recording
-    (``duration_s`` long, truncated to 0.01 s, where given; else the stream's frames)."""
-    shapes = frame_shapes(stream)
+    (``duration_s`` long, truncated to 0.01 s, where given; else the stream's frames). Extended shapes left out
+    of ``extended_shapes`` become their basic ones (:data:`BASIC_SHAPES`), as Rhubarb's do."""
+    kept = check_extended_shapes(extended_shapes)
+    shapes = [shape if shape not in BASIC_SHAPES or shape in kept else BASIC_SHAPES[shape]
+              for shape in frame_shapes(stream)]
     duration = _duration(stream, duration_s)
     cues: list[MouthCue] = []
     for k, shape in enumerate(shapes):
@@ -167,18 +184,19 @@ def mouth_cues(stream: FapStream, *, duration_s: float | None = None) -> list[Mo
             merged[-1] = MouthCue(merged[-1].start_s, cue.end_s, cue.shape)
         elif cue.end_s > cue.start_s or not merged:
             merged.append(cue)
+    closed = "X" if "X" in kept else "A"
     if not merged:
-        merged = [MouthCue(0.0, 0.0, "X")]
+        merged = [MouthCue(0.0, 0.0, closed)]
     last = merged[-1]
-    if shapes and shapes[-1] == "X" and last.shape != "X":
-        # the closing X began on the frame past the recording's end: it takes the last 0.01 s instead
+    if shapes and shapes[-1] == closed and last.shape != closed:
+        # the closing shape began on the frame past the recording's end: it takes the last 0.01 s instead
         if last.end_s - last.start_s > RESOLUTION_S + 1e-9:
             merged[-1] = MouthCue(last.start_s, round(last.end_s - RESOLUTION_S, 2), last.shape)
-            merged.append(MouthCue(round(last.end_s - RESOLUTION_S, 2), last.end_s, "X"))
+            merged.append(MouthCue(round(last.end_s - RESOLUTION_S, 2), last.end_s, closed))
         else:
-            merged[-1] = MouthCue(last.start_s, last.end_s, "X")
-            if len(merged) > 1 and merged[-2].shape == "X":
-                merged[-2:] = [MouthCue(merged[-2].start_s, last.end_s, "X")]
+            merged[-1] = MouthCue(last.start_s, last.end_s, closed)
+            if len(merged) > 1 and merged[-2].shape == closed:
+                merged[-2:] = [MouthCue(merged[-2].start_s, last.end_s, closed)]
     return merged
 
 
@@ -223,20 +241,22 @@ def _seconds(value: float) -> str:
 
 
 def write_rhubarb_tsv(stream: FapStream, path: str | os.PathLike[str], *,
-                      sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None) -> None:
-    """The cues as Rhubarb's TSV: ``start<TAB>shape`` per cue, then the recording's end with X (``sound_file``
+                      sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None,
+                      extended_shapes: str = EXTENDED_SHAPES) -> None:
+    """The cues as Rhubarb's TSV: ``start<TAB>shape`` per cue, then the recording's end closed (``sound_file``
     is not written in this format; it is taken for the other writers' sake)."""
-    cues = mouth_cues(stream, duration_s=duration_s)
+    cues = mouth_cues(stream, duration_s=duration_s, extended_shapes=extended_shapes)
     lines = [f"{_seconds(cue.start_s)}\t{cue.shape}" for cue in cues]
-    lines.append(f"{_seconds(_duration(stream, duration_s))}\tX")
+    lines.append(f"{_seconds(_duration(stream, duration_s))}\t{'X' if 'X' in extended_shapes.upper() else 'A'}")
     with atomic_write(Path(path), newline="\n") as handle:
         handle.write("\n".join(lines) + "\n")
 
 
 def write_rhubarb_json(stream: FapStream, path: str | os.PathLike[str], *,
-                       sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None) -> None:
+                       sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None,
+                      extended_shapes: str = EXTENDED_SHAPES) -> None:
     """The cues as Rhubarb's JSON (``metadata``: ``soundFile``, ``duration``; ``mouthCues``)."""
-    cues = mouth_cues(stream, duration_s=duration_s)
+    cues = mouth_cues(stream, duration_s=duration_s, extended_shapes=extended_shapes)
     document = {"metadata": {"soundFile": _text(_sound_name(stream, sound_file)), "duration": _duration(stream, duration_s)},
                 "mouthCues": [{"start": round(cue.start_s, 2), "end": round(cue.end_s, 2), "value": cue.shape}
                               for cue in cues]}
@@ -246,9 +266,10 @@ def write_rhubarb_json(stream: FapStream, path: str | os.PathLike[str], *,
 
 
 def write_rhubarb_xml(stream: FapStream, path: str | os.PathLike[str], *,
-                      sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None) -> None:
+                      sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None,
+                      extended_shapes: str = EXTENDED_SHAPES) -> None:
     """The cues as Rhubarb's XML (``rhubarbResult``: ``metadata`` and ``mouthCue`` elements)."""
-    cues = mouth_cues(stream, duration_s=duration_s)
+    cues = mouth_cues(stream, duration_s=duration_s, extended_shapes=extended_shapes)
     lines = ['<?xml version="1.0" encoding="utf-8"?>', "<rhubarbResult>", "  <metadata>",
              f"    <soundFile>{escape(_text(_sound_name(stream, sound_file)))}</soundFile>",
              f"    <duration>{_seconds(_duration(stream, duration_s))}</duration>", "  </metadata>",
@@ -261,12 +282,12 @@ def write_rhubarb_xml(stream: FapStream, path: str | os.PathLike[str], *,
 
 
 def dat_lines(stream: FapStream, *, dat_fps: float = DAT_FPS, preston_blair: bool = False,
-              duration_s: float | None = None) -> list[str]:
+              duration_s: float | None = None, extended_shapes: str = EXTENDED_SHAPES) -> list[str]:
     """The Moho switch file's lines: each cue from the frame it starts in (1-based), the closed mouth at the
     end; a cue that starts in the frame of the one before is left out."""
     name = PRESTON_BLAIR.get if preston_blair else (lambda shape: shape)
     lines, last = ["MohoSwitch1"], 0
-    cues = mouth_cues(stream, duration_s=duration_s)
+    cues = mouth_cues(stream, duration_s=duration_s, extended_shapes=extended_shapes)
     for cue in cues:
         frame = 1 + int(dat_fps * cue.start_s + 1e-9)
         if frame == last:
@@ -274,22 +295,26 @@ def dat_lines(stream: FapStream, *, dat_fps: float = DAT_FPS, preston_blair: boo
         lines.append(f"{frame} {name(cue.shape)}")
         last = frame
     end = 1 + int(dat_fps * cues[-1].end_s + 1e-9)
-    lines.append(f"{end if end != last else end + 1} {name('X')}")
+    closed = "X" if "X" in check_extended_shapes(extended_shapes) else "A"
+    lines.append(f"{end if end != last else end + 1} {name(closed)}")
     return lines
 
 
 def write_moho_dat(stream: FapStream, path: str | os.PathLike[str], *, dat_fps: float = DAT_FPS,
-                   sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None) -> None:
+                   sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None,
+                      extended_shapes: str = EXTENDED_SHAPES) -> None:
     """The cues as a Moho switch file at ``dat_fps`` frames a second (Rhubarb's ``--datFrameRate``)."""
-    lines = dat_lines(stream, dat_fps=_dat_rate(dat_fps), duration_s=duration_s)
+    lines = dat_lines(stream, dat_fps=_dat_rate(dat_fps), duration_s=duration_s, extended_shapes=extended_shapes)
     with atomic_write(Path(path), newline="\n") as handle:
         handle.write("\n".join(lines) + "\n")
 
 
 def write_preston_blair_dat(stream: FapStream, path: str | os.PathLike[str], *, dat_fps: float = DAT_FPS,
-                            sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None) -> None:
+                            sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None,
+                      extended_shapes: str = EXTENDED_SHAPES) -> None:
     """As :func:`write_moho_dat`, the shapes named as Preston Blair's (OpenToonz)."""
-    lines = dat_lines(stream, dat_fps=_dat_rate(dat_fps), preston_blair=True, duration_s=duration_s)
+    lines = dat_lines(stream, dat_fps=_dat_rate(dat_fps), preston_blair=True, duration_s=duration_s,
+                      extended_shapes=extended_shapes)
     with atomic_write(Path(path), newline="\n") as handle:
         handle.write("\n".join(lines) + "\n")
 
