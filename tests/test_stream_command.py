@@ -602,3 +602,44 @@ def test_loop_starts_with_the_first_page_and_plays_the_file_again(tmp_path):
     restart = messages.index(0, 1)
     assert messages[:restart] == list(range(93)) and messages[restart:] == list(range(len(messages) - restart))
     assert "pass(es) of the file" in err.decode()
+
+
+def test_the_live_page_answers_its_own_host_only_with_safe_headers():
+    """The page and its files are served to requests naming this server (an address, localhost, or the host
+    of an --allow-origin), with a CSP that forbids framing, nosniff and no referrer; another name pointed at
+    this machine (DNS rebinding) gets 421, a request with two Upgrade or two Host headers 400, not a
+    traceback."""
+    import socket
+
+    from prosody.live.converter import LiveConverter
+    from prosody.live.server import FrameServer
+
+    lines: list[str] = []
+    server = FrameServer("127.0.0.1", 0, make_converter=lambda rate: LiveConverter(rate), report=lines.append,
+                         allow_origins=["https://studio.example:8443/"]).start()
+
+    def ask(*headers: str, path: str = "/") -> tuple[int, str]:
+        with socket.create_connection(("127.0.0.1", server.port), timeout=5) as sock:
+            request = f"GET {path} HTTP/1.1\r\n" + "".join(f"{h}\r\n" for h in headers) + "Connection: close\r\n\r\n"
+            sock.sendall(request.encode())
+            answer = b""
+            while chunk := sock.recv(65536):
+                answer += chunk
+        head = answer.split(b"\r\n\r\n", 1)[0].decode("latin-1")
+        return int(head.split()[1]), head.lower()
+
+    try:
+        for host in (f"127.0.0.1:{server.port}", f"localhost:{server.port}", "studio.example:8443"):
+            status, head = ask(f"Host: {host}")
+            assert status == 200
+            assert "frame-ancestors 'none'" in head and "x-content-type-options: nosniff" in head
+            assert "referrer-policy: no-referrer" in head
+        status, head = ask(f"Host: 127.0.0.1:{server.port}", path="/head.js")
+        assert status == 200 and "nosniff" in head
+        assert ask(f"Host: rebound.example:{server.port}")[0] == 421
+        assert ask(f"Host: rebound.example:{server.port}", path="/head.json")[0] == 421
+        assert ask(f"Host: 127.0.0.1:{server.port}", "Upgrade: websocket", "Upgrade: websocket")[0] == 400
+        assert ask(f"Host: 127.0.0.1:{server.port}", f"Host: 127.0.0.1:{server.port}")[0] == 400
+        assert not any("Traceback" in line for line in lines)
+    finally:
+        server.close(drain_s=0.2)

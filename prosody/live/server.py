@@ -362,14 +362,20 @@ class FrameServer:
         from websockets.datastructures import Headers
         from websockets.http11 import Response
 
-        if request.headers.get("Upgrade", "").lower() == "websocket":
-            origins, hosts = request.headers.get_all("Origin"), request.headers.get_all("Host")
+        upgrades, hosts = request.headers.get_all("Upgrade"), request.headers.get_all("Host")
+        if len(upgrades) > 1 or len(hosts) != 1:
+            return connection.respond(400, "bad request: one Host and at most one Upgrade header\n")
+        if upgrades and upgrades[0].lower() == "websocket":
+            origins = request.headers.get_all("Origin")
             if not origins or (len(origins) == 1 and len(hosts) == 1 and self._allowed(origins[0], hosts[0])):
                 return None  # go on with the WebSocket handshake
             origin = ", ".join(origins)
             self.report(f"refused a WebSocket from the page at {origin[:200]!r}: only this server's own page may "
                         "connect (allow another with --allow-origin ORIGIN)")
             return connection.respond(403, "forbidden: this stream is only for the page served here\n")
+        if not self._served_host(hosts[0]):
+            # DNS rebinding: a page of another site, its name pointed at this machine, reads nothing here
+            return connection.respond(421, "misdirected request: this server answers to its own address\n")
         path = request.path.split("?", 1)[0]
         from ..head.web import head_script, model_json  # the head's model is built on the first request
 
@@ -382,8 +388,16 @@ class FrameServer:
         if path in served:
             make, kind = served[path]
             body = make()
+            # the page and its files: never framed by another site, never sniffed as another type, scripts and
+            # connections only from here (the stream at ws(s)://this host; the microphone's worklet is a blob)
+            own = hosts[0]
             headers = Headers([("Content-Type", kind), ("Cache-Control", "no-store"),
-                               ("Content-Length", str(len(body)))])
+                               ("Content-Length", str(len(body))), ("X-Content-Type-Options", "nosniff"),
+                               ("Referrer-Policy", "no-referrer"),
+                               ("Content-Security-Policy",
+                                "default-src 'self'; script-src 'self' 'unsafe-inline' blob:; style-src 'self' "
+                                f"'unsafe-inline'; img-src 'self' data:; connect-src 'self' ws://{own} wss://{own}; "
+                                "frame-ancestors 'none'")])
             return Response(200, "OK", headers, body)
         return connection.respond(404, "not found: the page is at /\n")
 
@@ -396,6 +410,16 @@ class FrameServer:
             self._face_files = {"/head.json": (model, "application/json"),
                                 **{path: (body, "image/jpeg") for path, body in photo_images(self._face).items()}}
         return self._face_files
+
+    def _served_host(self, host_header: str) -> bool:
+        """Whether a request's Host names this server: an address, localhost, this machine's name, or the host
+        of an origin allowed with --allow-origin."""
+        try:
+            hostname = urllib.parse.urlsplit(normalize_origin(f"http://{host_header}")).hostname or ""
+        except (ConfigError, ValueError):
+            return False
+        allowed = {urllib.parse.urlsplit(origin).hostname for origin in self.allow_origins}
+        return _trusted_host(hostname) or hostname in allowed
 
     def _allowed(self, origin: str, host_header: str) -> bool:
         try:
