@@ -204,7 +204,6 @@ def test_cue_files_name_the_recording_and_end_where_it_ends(tmp_path: Path, endi
     it), and the duration and the last cue end at the recording's length truncated to 0.01 s, not on the
     frame grid past it (1.234 s of sound at 30 fps is 38 frames, 1.2667 s)."""
     import soundfile
-
     from conftest import REPO
 
     clip = tmp_path / "short clip.wav"

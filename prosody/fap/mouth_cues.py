@@ -257,7 +257,8 @@ def write_rhubarb_json(stream: FapStream, path: str | os.PathLike[str], *,
                       extended_shapes: str = EXTENDED_SHAPES) -> None:
     """The cues as Rhubarb's JSON (``metadata``: ``soundFile``, ``duration``; ``mouthCues``)."""
     cues = mouth_cues(stream, duration_s=duration_s, extended_shapes=extended_shapes)
-    document = {"metadata": {"soundFile": _text(_sound_name(stream, sound_file)), "duration": _duration(stream, duration_s)},
+    metadata = {"soundFile": _text(_sound_name(stream, sound_file)), "duration": _duration(stream, duration_s)}
+    document = {"metadata": metadata,
                 "mouthCues": [{"start": round(cue.start_s, 2), "end": round(cue.end_s, 2), "value": cue.shape}
                               for cue in cues]}
     with atomic_write(Path(path), newline="\n") as handle:
