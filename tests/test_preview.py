@@ -22,6 +22,8 @@ from prosody.evaluation.preview import (
     render_frames,
     write_preview,
 )
+from prosody.fap.exporters import write_stream
+from prosody.fap.fapfile import write_fap
 from prosody.fap.stream import FapStream
 
 WIDTH = 320
@@ -369,7 +371,6 @@ def test_a_streams_name_cannot_drive_the_terminal(tmp_path) -> None:
     import subprocess
     import sys
 
-    from prosody.fap.exporters import write_stream
 
     write_stream(FapStream.from_curves({3: np.linspace(0, 300, 5)}, fps=25, name="evil\x1b[2J\x1b]0;title\x07"),
                  tmp_path / "x.json")
@@ -377,3 +378,24 @@ def test_a_streams_name_cannot_drive_the_terminal(tmp_path) -> None:
                            str(tmp_path / "x.gif"), "--width", "64"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert "\x1b" not in done.stderr and "\x07" not in done.stderr and "evil\\x1b[2J" in done.stderr
+
+
+@pytest.mark.parametrize("options", [["--off", "brows"], ["--pitch-gain", "5"], ["--expression", "happy"],
+                                     ["--condition", "none"], ["--seed", "3"], ["--lips", "acoustic"],
+                                     ["--fps", "25"], ["--f0-floor", "60", "--brows", "thesis"]])
+def test_options_that_make_a_stream_are_refused_for_a_stream_shown_as_it_is(tmp_path: Path, capsys,
+                                                                            options) -> None:
+    """preview X.fap (or .json) shows the stream as it is: the options that make a stream from a recording
+    were silently ignored; now they are named, in one line, before anything is drawn."""
+    write_fap(FapStream.from_curves({3: np.linspace(0, 300, 5)}, fps=25), tmp_path / "x.fap")
+    write_stream(FapStream.from_curves({3: np.linspace(0, 300, 5)}, fps=25), tmp_path / "x.json")
+    for stream in ("x.fap", "x.json"):
+        assert main(["preview", str(tmp_path / stream), "-o", str(tmp_path / "x.gif"), *options]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and options[0] in err and "is a stream" in err, err
+        if len(options) > 2:
+            assert options[2] in err
+    assert not (tmp_path / "x.gif").exists()
+    # the drawing options stay
+    assert main(["preview", str(tmp_path / "x.fap"), "-o", str(tmp_path / "x.gif"), "--width", "64",
+                 "--exaggerate", "2", "--no-strip"]) == 0

@@ -323,6 +323,22 @@ def motion_kwargs(args: argparse.Namespace) -> dict:
             **analysis_kwargs(args)}
 
 
+def making_options_given(args: argparse.Namespace) -> list[str]:
+    """The flags of the options that make a stream from a recording (motion, analysis, brows) that ``args``
+    sets to other than their defaults: a command given a stream to show, not a recording, would ignore them."""
+    parser = argparse.ArgumentParser(add_help=False)
+    add_motion_options(parser)
+    add_analysis_options(parser)
+    add_eyebrow_options(parser)
+    given = []
+    for action in parser._actions:  # argparse lists its options only there
+        if action.option_strings and getattr(args, action.dest, action.default) != action.default:
+            flag = max(action.option_strings, key=len)
+            if flag not in given:
+                given.append(flag)
+    return given
+
+
 def check_motion_options(args: argparse.Namespace) -> None:
     """Options that would make the output silently other than asked are refused."""
     from ..errors import ConfigError

@@ -93,6 +93,13 @@ def run(args: argparse.Namespace) -> int:
     opt.check_motion_options(args)
     if args.audio is not None and not args.no_audio:
         check_sound_file(args.audio)
+    if Path(args.input).suffix.lower() in (".fap", ".json", ".jsonl"):
+        given = opt.making_options_given(args)
+        if given:
+            from ..errors import ConfigError
+
+            raise ConfigError(f"{args.input} is a stream, shown as it is: {', '.join(given)} make a stream from a "
+                              f"recording (use them with 'prosody preview RECORDING', or 'prosody convert' first)")
     face = preview_face(args.face)  # a photo is read, and its face found, before the audio
     audio = args.audio
     if Path(args.input).suffix.lower() == ".fap":
