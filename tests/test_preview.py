@@ -399,3 +399,32 @@ def test_options_that_make_a_stream_are_refused_for_a_stream_shown_as_it_is(tmp_
     # the drawing options stay
     assert main(["preview", str(tmp_path / "x.fap"), "-o", str(tmp_path / "x.gif"), "--width", "64",
                  "--exaggerate", "2", "--no-strip"]) == 0
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"fps": 1e-300}, "frame rate"), ({"fps": 1e9}, "frame rate"), ({"fps": float("nan")}, "frame rate"),
+    ({"name": "x" * 1_000_000}, "characters")])
+def test_json_streams_out_of_bounds_are_refused_in_one_line(tmp_path: Path, capsys, change, words) -> None:
+    """A JSON stream's frame rate is bounded to 1-1000 fps as a .fap file's (1e-300 overflowed Pillow, 1e9
+    was accepted) and its name's length; the refusal is one line, exit 1 (a bad input file), no traceback."""
+    import json
+
+    write_stream(FapStream.from_curves({3: np.linspace(0, 300, 5)}, fps=25), tmp_path / "x.json")
+    document = json.loads((tmp_path / "x.json").read_text())
+    document.update(change)
+    (tmp_path / "x.json").write_text(json.dumps(document))
+    assert main(["preview", str(tmp_path / "x.json"), "-o", str(tmp_path / "x.gif"), "--width", "64"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("times", [[0.0, 0.0, 0.0], [0.0, 1e-9, 2e-9], [0.3, 0.2, 0.1]])
+def test_jsonl_streams_whose_times_do_not_step_are_refused(tmp_path: Path, capsys, times) -> None:
+    """Equal time_s divided by zero; steps of 1 ns made 1e9 fps; times that go back are not a stream."""
+    import json
+
+    lines = [json.dumps({"frame": k, "time_s": t, "faps": {"3": 100.0 * k}}) for k, t in enumerate(times)]
+    (tmp_path / "x.jsonl").write_text("\n".join(lines) + "\n")
+    assert main(["preview", str(tmp_path / "x.jsonl"), "-o", str(tmp_path / "x.gif"), "--width", "64"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -135,6 +136,19 @@ def write_json(stream: FapStream, path: str | os.PathLike[str]) -> None:
 MAX_JSON_BYTES = 1 << 30
 
 
+#: The longest stream name read from a JSON file (a .fap header line is bounded as much).
+MAX_NAME_CHARACTERS = 1000
+
+
+def _frame_rate(fps: float) -> float:
+    """A stream file's frame rate, within the rates a face plays (as a .fap file's)."""
+    from .fapfile import FPS_RANGE
+
+    if not (math.isfinite(fps) and FPS_RANGE[0] <= fps <= FPS_RANGE[1]):
+        raise ValueError(f"its frame rate {fps:g} fps is outside {FPS_RANGE[0]:g}-{FPS_RANGE[1]:g} fps")
+    return fps
+
+
 def read_stream_json(path: str | os.PathLike[str]) -> FapStream:
     """Read back a stream this package wrote: the ``json`` export, or the JSON lines of ``prosody stream``
     (``{"frame", "time_s", "faps": {"<n>": value}}`` per line, frame rate from the times).
@@ -160,7 +174,10 @@ def read_stream_json(path: str | os.PathLike[str]) -> FapStream:
             if not rows:
                 raise ValueError("no frames")
             times = np.array([float(row["time_s"]) for row in rows])
-            fps = round(1 / float(np.median(np.diff(times))), 3) if len(rows) > 1 else 30.0
+            step = float(np.median(np.diff(times))) if len(rows) > 1 else 1 / 30
+            if not (math.isfinite(step) and step > 0):
+                raise ValueError("its frames' time_s do not increase")
+            fps = _frame_rate(round(1 / step, 3))
             faps = sorted({int(fap) for row in rows for fap in row["faps"]})
             curves = {fap: np.array([float(row["faps"].get(str(fap), 0.0)) for row in rows]) for fap in faps}
             return FapStream.from_curves(curves, fps=fps, name=Path(name).stem, n_frames=len(rows))
@@ -170,8 +187,10 @@ def read_stream_json(path: str | os.PathLike[str]) -> FapStream:
         n = int(payload["frames"])
         curves = {int(entry["fap"]): np.array([0.0 if v is None else float(v) for v in entry["values"]])
                   for entry in payload["faps"]}
-        return FapStream.from_curves(curves, fps=float(payload["fps"]), name=str(payload.get("name", "")),
-                                     n_frames=n)
+        stream_name = str(payload.get("name", ""))
+        if len(stream_name) > MAX_NAME_CHARACTERS:
+            raise ValueError(f"its name has {len(stream_name)} characters (at most {MAX_NAME_CHARACTERS})")
+        return FapStream.from_curves(curves, fps=_frame_rate(float(payload["fps"])), name=stream_name, n_frames=n)
     except (ValueError, KeyError, TypeError, AttributeError, RecursionError, ConfigError) as error:
         raise FapFormatError(name, None, f"not a stream this package wrote ({error})") from None
 
