@@ -1,7 +1,39 @@
-"""``python -m prosody``: the same as the ``prosody`` command."""
+"""``python -m prosody`` and the ``prosody`` command (``pyproject.toml`` points it here).
+
+The command's modules are imported inside :func:`main`, so that Ctrl-C while they load (the first few tenths
+of a second) ends the command as it does later, with "interrupted" and exit code 130, not a traceback.
+"""
 
 import sys
 
-from .cli import main
 
-sys.exit(main())
+def _interrupted() -> int:
+    print("prosody: interrupted", file=sys.stderr)
+    # CPython remembers an interrupt that stopped an import and would end the process by SIGINT at exit,
+    # whatever the exit code; evaluating an empty statement at top level clears that record
+    if sys.implementation.name == "cpython":
+        try:
+            import ctypes
+
+            ctypes.pythonapi.PyRun_SimpleString(b"")
+        except Exception:  # noqa: BLE001 - the exit code then stays as the interrupt left it
+            pass
+    return 130
+
+
+def main() -> int:
+    """Run the ``prosody`` command on ``sys.argv``; returns its exit code."""
+    try:
+        from .cli.app import main as command
+    except KeyboardInterrupt:
+        return _interrupted()
+    except ImportError as error:
+        # a compiled module whose loading Ctrl-C stopped may report it as an ImportError
+        if "KeyboardInterrupt" not in f"{error!r} {error.__context__!r} {error.__cause__!r}":
+            raise
+        return _interrupted()
+    return command()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

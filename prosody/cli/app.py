@@ -79,9 +79,36 @@ def _run(handler: Callable[[argparse.Namespace], int], args: argparse.Namespace)
         return opt.EXIT_FAILURE
 
 
+def interrupted(error: BaseException) -> bool:
+    """Whether ``error`` is Ctrl-C: a KeyboardInterrupt, or an ImportError that a compiled module whose
+    loading it stopped raised instead (``ImportError: KeyboardInterrupt``)."""
+    seen: BaseException | None = error
+    while seen is not None:
+        if isinstance(seen, KeyboardInterrupt) or str(seen).strip().startswith("KeyboardInterrupt"):
+            return True
+        seen = seen.__cause__ or seen.__context__
+    return False
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """The ``prosody`` command. Called from Python (a test, a notebook), it leaves the process as it found it:
-    the message mode, the SIGTERM handler and a closed standard error are restored when it returns."""
+    the message mode, the SIGTERM handler and a closed standard error are restored when it returns. Ctrl-C at
+    any point, an import's included, ends it with "interrupted" and exit code 130, never a traceback."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        msg.MESSAGES.emit("error", "prosody: interrupted", exit=130)
+        msg.forget_interrupt()
+        return 130
+    except ImportError as error:
+        if not interrupted(error):
+            raise
+        msg.MESSAGES.emit("error", "prosody: interrupted", exit=130)
+        msg.forget_interrupt()
+        return 130
+
+
+def _main(argv: Sequence[str] | None) -> int:
     import signal
     import warnings
 
@@ -115,6 +142,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                 warnings.showwarning = show
                 return _run(args.handler, args)
         except KeyboardInterrupt:
+            msg.MESSAGES.emit("error", f"prosody {args.command}: interrupted", exit=130)
+            msg.forget_interrupt()
+            return 130
+        except ImportError as error:
+            if not interrupted(error):
+                raise
             msg.MESSAGES.emit("error", f"prosody {args.command}: interrupted", exit=130)
             msg.forget_interrupt()
             return 130
