@@ -185,21 +185,29 @@ class _Engine:
         return 0
 
     def languages(self) -> dict[str, str]:
+        return {code: name for code, (name, _) in self.voices.items()}
+
+    @functools.cached_property
+    def voices(self) -> dict[str, tuple[str, str]]:
+        """Language code -> (name, identifier) of the voice that speaks it first (the lowest priority number
+        eSpeak NG gives the code among its voices: "en" is British English's, not the Caribbean voice's)."""
         voices = self.lib.espeak_ListVoices(None)
-        out: dict[str, str] = {}
+        best: dict[str, tuple[int, str, str]] = {}
         k = 0
         while voices[k]:
             voice = voices[k].contents
             raw = ctypes.string_at(voice.languages, 256) if voice.languages else b""
+            name = (voice.name or b"").decode("utf-8", "replace")
+            identifier = (voice.identifier or b"").decode("utf-8", "replace")
             at = 0
             while at < len(raw) and raw[at] != 0:  # (priority byte, name, NUL) pairs up to an empty name
                 end = raw.index(b"\0", at + 1)
                 code = raw[at + 1:end].decode("utf-8", "replace")
-                if code:
-                    out.setdefault(code, (voice.name or b"").decode("utf-8", "replace"))
+                if code and (code not in best or raw[at] < best[code][0]):
+                    best[code] = (raw[at], name, identifier)
                 at = end + 1
             k += 1
-        return dict(sorted(out.items()))
+        return {code: (name, identifier) for code, (_, name, identifier) in sorted(best.items())}
 
     @functools.cached_property
     def codes(self) -> frozenset[str]:
@@ -225,8 +233,11 @@ class _Engine:
 
     def say(self, text: str, language: str) -> tuple[np.ndarray, list[tuple[str, int]]]:
         self.check(language)
+        code, plus, variant = language.partition("+")
+        # by the voice's file: a code is not always a voice's name (en-gb, zh, pt-pt, no)
+        voice = self.voices[code][1] + plus + variant
         with self.lock:
-            if self.lib.espeak_SetVoiceByName(language.encode()) != 0:
+            if self.lib.espeak_SetVoiceByName(voice.encode()) != 0:
                 raise EspeakError(f"eSpeak NG does not speak {language!r}: 'prosody languages' lists the codes")
             self._samples, self._phones = [], []
             data = text.encode("utf-8")

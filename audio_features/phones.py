@@ -244,9 +244,25 @@ def read_transcript(path: str | os.PathLike[str]) -> str:
     return text
 
 
+#: The decoder's beams for a last try at aligning a transcript (PocketSphinx's defaults are 1e-48, 7e-29, 1e-48).
+WIDE_BEAMS = {"beam": 1e-120, "wbeam": 1e-100, "pbeam": 1e-120}
+
+
 def _aligned(samples: np.ndarray, words: list[str]) -> list[Phone] | None:
-    """Phones of ``words`` aligned to the whole audio, or None where the text does not fit it."""
-    decoder = _decoder()
+    """Phones of ``words`` aligned to the whole audio, or None where the text does not fit it.
+
+    The first pass finds the words' path through the audio; its lattice search (``bestpath``) loses that path
+    over long recordings (a 23 s paragraph of a synthetic voice: no path), so where it finds none, the forward
+    search's own path is taken instead, then the same with wider beams (a British voice read with the American
+    dictionary needed them)."""
+    for settings in ({}, {"bestpath": False}, {"bestpath": False, **WIDE_BEAMS}):
+        aligned = _aligned_with(_decoder(**settings), samples, words)
+        if aligned is not None:
+            return aligned
+    return None
+
+
+def _aligned_with(decoder, samples: np.ndarray, words: list[str]) -> list[Phone] | None:
     try:
         decoder.set_align_text(" ".join(words))
         # in blocks (full_utt=False): the whole-utterance mode loses the path through long pauses

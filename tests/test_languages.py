@@ -137,3 +137,18 @@ def test_prosody_languages_lists_the_codes(capsys) -> None:
     lines = capsys.readouterr().out.splitlines()
     assert "es\tSpanish (Spain)" in lines or any(line.startswith("es\t") for line in lines)
     assert len(lines) > 100
+
+
+@pytest.mark.parametrize("code", ["en-gb", "zh", "es-mx", "fr-fr", "no", "pt-pt", "zh-yue", "hbs"])
+def test_every_code_prosody_languages_lists_is_spoken(code):
+    """12 of the codes listed were refused by the engine ('does not speak en-gb'): a code is not always a voice's
+    name, so the voice is chosen by the file of the voice that lists the code first."""
+    assert code in languages()
+    audio, phones = speak("one two three", code)
+    assert audio.samples.size > 0.3 * audio.sample_rate_hz and len(phones) >= 6
+
+
+def test_a_code_takes_the_voice_that_speaks_it_first():
+    """'en' is listed by several voices (British English first, the Caribbean voice too): it is British's."""
+    assert languages()["en"] == languages()["en-gb"] == "English (Great Britain)"
+    assert languages()["en-us"] == "English (America)"

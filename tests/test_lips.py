@@ -538,3 +538,37 @@ def test_the_viseme_fap_is_resampled_from_the_nearest_frame_and_never_written_to
     mask_line = format_fap(stream).splitlines()[1].split()
     assert mask_line[0] == "0" and mask_line[2] == "1"  # FAP 1 masked off, FAP 3 on
 
+
+
+PARAGRAPH = ("The quick brown fox jumps over the lazy dog. It was the best of times, it was the worst of times. "
+             "Call me Ishmael. Some years ago, never mind how long precisely, having little or no money in my "
+             "purse, and nothing particular to interest me on shore, I thought I would sail about a little and "
+             "see the watery part of the world. It is a way I have of driving off the spleen and regulating the "
+             "circulation.")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("voice, rate", [("en-us", 16000), ("en-gb-x-rp", 22050), ("en", 16000)])
+def test_a_paragraph_spoken_by_an_espeak_voice_aligns_with_its_exact_text(tmp_path, voice, rate):
+    """The exact text an eSpeak NG voice spoke (a 23 s paragraph) was thrown away: the aligner's lattice search
+    lost the path over the long recording. Now the transcript is used (no warning), and the phones it puts
+    follow the words: every word's first phone is found in order."""
+    pytest.importorskip("espeakng_loader", reason="eSpeak NG (pip install espeakng-loader)")
+    from math import gcd
+
+    from scipy.signal import resample_poly
+
+    from audio_features.espeak import speak
+
+    spoken, _ = speak(PARAGRAPH, voice)
+    common = gcd(rate, spoken.sample_rate_hz)
+    samples = resample_poly(spoken.samples, rate // common, spoken.sample_rate_hz // common)
+    wav = tmp_path / "paragraph.wav"
+    soundfile.write(wav, samples, rate)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TranscriptWarning)  # the text must be used
+        phones = recognise_phones(load_audio(wav), transcript=PARAGRAPH)
+    said = [phone.label for phone in phones if phone.label != "SIL"]
+    assert said[:9] == ["DH", "AH", "K", "W", "IH", "K", "B", "R", "AW"]  # the quick brow(n)
+    assert said[-5:] == ["L", "EY", "SH", "AH", "N"]  # (circu)lation
+    assert 0.9 * 23 * 10 < len(said) < 1.1 * 300  # about ten phones a second, all of them aligned
