@@ -428,3 +428,21 @@ def test_jsonl_streams_whose_times_do_not_step_are_refused(tmp_path: Path, capsy
     assert main(["preview", str(tmp_path / "x.jsonl"), "-o", str(tmp_path / "x.gif"), "--width", "64"]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_gifs_whose_frames_would_not_fit_in_memory_or_play_are_refused_before_drawing(tmp_path: Path) -> None:
+    """A GIF at --width 3840 held about 36 MB a frame (66 GB at the 1,800 frames allowed); a 1000 fps GIF had
+    delays of 0 ms, which players slow to 100 ms. Both are refused in one line, with what to do instead, and
+    nothing is written; the default width's longest GIF stays within the bound."""
+    from prosody.evaluation.preview import MAX_GIF_PIXELS, check_gif
+
+    stream = FapStream.from_curves({3: np.zeros(300)}, fps=30)
+    with pytest.raises(PreviewError, match="GB while it is written.*smaller width"):
+        write_preview(stream, tmp_path / "big.gif", width=3840, strip=False)
+    with pytest.raises(PreviewError, match="too fast for a GIF"):
+        write_preview(FapStream.from_curves({3: np.zeros(100)}, fps=1000), tmp_path / "fast.gif", width=64)
+    assert not list(tmp_path.iterdir())
+    check_gif(tmp_path / "x.gif", fps=30, n_frames=MAX_GIF_FRAMES, width=480, height=600)  # the default: allowed
+    assert MAX_GIF_FRAMES * 480 * 600 <= MAX_GIF_PIXELS
+    write_preview(FapStream.from_curves({3: np.zeros(10)}, fps=50), tmp_path / "ok.gif", width=64)
+    assert (tmp_path / "ok.gif").is_file()

@@ -47,6 +47,11 @@ if TYPE_CHECKING:
 MIN_WIDTH, MAX_WIDTH = 64, 3840
 #: Longest GIF written, in frames (Pillow keeps every GIF frame in memory); longer previews need MP4.
 MAX_GIF_FRAMES = 1800
+#: Most pixels a GIF's frames hold together (one byte each in memory while it is written: about 600 MB; the
+#: default width's 1,800 frames are 518 million).
+MAX_GIF_PIXELS = 600_000_000
+#: Fastest GIF frame rate: a GIF's delays are whole hundredths of a second, and players slow shorter ones.
+MAX_GIF_FPS = 50.0
 #: Seconds of curve shown on each side of the current frame in the strip under the face.
 STRIP_WINDOW_S = 3.0
 #: Drawing is done at this multiple of the output size and scaled down, for smooth edges.
@@ -563,13 +568,27 @@ def find_ffmpeg() -> str | None:
         return None
 
 
-def _write_gif(frames: Iterator[np.ndarray], path: Path, *, fps: float, n_frames: int) -> None:
-    from PIL import Image
-
+def check_gif(path: Path, *, fps: float, n_frames: int, width: int, height: int) -> None:
+    """Refuse a GIF too long, too large to hold in memory, or faster than its delays can say."""
     if n_frames > MAX_GIF_FRAMES:
         raise PreviewError(f"{path}: a GIF of {n_frames} frames is too long (at most {MAX_GIF_FRAMES}, "
                            f"{MAX_GIF_FRAMES / fps:.0f} s at {fps:g} fps); write .mp4, or choose an excerpt "
                            "with start_s= and duration_s=")
+    if n_frames * width * height > MAX_GIF_PIXELS:
+        most = max(1, MAX_GIF_PIXELS // (width * height))
+        raise PreviewError(f"{path}: a GIF of {n_frames} frames of {width} x {height} would hold "
+                           f"{n_frames * width * height / 1e9:.1f} GB while it is written (at most "
+                           f"{MAX_GIF_PIXELS / 1e9:.1f}: {most} frames at this size); write .mp4, a smaller width, "
+                           "or an excerpt")
+    if fps > MAX_GIF_FPS:
+        raise PreviewError(f"{path}: a GIF's frame delays are whole hundredths of a second and players slow those "
+                           f"under 0.02 s: {fps:g} fps is too fast for a GIF (at most {MAX_GIF_FPS:g}); write .mp4, "
+                           "or resample the stream")
+
+
+def _write_gif(frames: Iterator[np.ndarray], path: Path, *, fps: float, n_frames: int) -> None:
+    from PIL import Image
+
     images = [Image.fromarray(frame).quantize(colors=64, method=Image.Quantize.MEDIANCUT) for frame in frames]
     if not images:
         raise PreviewError(f"{path}: nothing to draw (the excerpt has no frames)")
@@ -727,6 +746,12 @@ def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.Pa
     if progress is not None:
         frames = _reporting(frames, progress, count)
     if kind == ".gif":
+        if count > MAX_GIF_FRAMES or fps > MAX_GIF_FPS:
+            check_gif(path, fps=fps, n_frames=count, width=1, height=1)  # before a frame is drawn
+        first_gif = next(frames, None)
+        if first_gif is not None:
+            check_gif(path, fps=fps, n_frames=count, width=first_gif.shape[1], height=first_gif.shape[0])
+            frames = itertools.chain([first_gif], frames)
         _write_gif(frames, path, fps=fps, n_frames=count)
         return path
     executable = find_ffmpeg() if ffmpeg == "auto" else ffmpeg
