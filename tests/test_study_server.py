@@ -507,3 +507,49 @@ def test_the_study_listens_on_ipv6(tmp_path, recordings) -> None:
     finally:
         server.close()
         store.close()
+
+
+@pytest.mark.parametrize("damage, said", [
+    (lambda text: text[: len(text) // 2], "SHA-256"),  # cut short after the stimuli were made
+    (None, "not head frames a page can play"),  # changed, and its hash with it: frames not one per FAP
+])
+def test_head_frames_that_fail_their_checks_leave_the_video_shown(tmp_path, recordings, damage, said) -> None:
+    """A malformed <condition>.head.json left a participant a blank face (canvas inserted, video hidden) or a
+    frozen head; the server never checked motion_sha256. Now each video's frames are checked at the start (hash,
+    document, one finite number per FAP per frame, the video's length) and served from memory as checked; frames
+    that fail are said in one line and that trial shows the video."""
+    import hashlib
+
+    if find_ffmpeg() is None:
+        pytest.skip("needs ffmpeg (pip install imageio-ffmpeg)")
+    from prosody.study.server import StudyServer
+
+    plan = _plan("identification", ("none", "speech"))
+    folder = tmp_path / "stimuli"
+    make_stimuli(plan, recordings, folder, _conditions(plan), width=64)
+    manifest_path = folder / "stimuli.json"
+    manifest = json.loads(manifest_path.read_text())
+    key, entry = next(iter(manifest["videos"].items()))
+    motion = folder / entry["motion"]
+    if damage is not None:
+        motion.write_text(damage(motion.read_text()))
+    else:  # well-formed JSON, hash recorded, but a frame missing a value
+        document = json.loads(motion.read_text())
+        document["frames"][3] = document["frames"][3][:-1] if document["faps"] else [1.0]
+        motion.write_text(json.dumps(document))
+        entry["motion_sha256"] = hashlib.sha256(motion.read_bytes()).hexdigest()
+        manifest_path.write_text(json.dumps(manifest))
+    store = StudyStore(tmp_path / "s.sqlite", plan)
+    lines: list[str] = []
+    server = StudyServer(plan, folder, store, port=0, token="t", report=lines.append).start()
+    try:
+        assert server.motions[key] is None
+        assert any(key in line and said in line and "shown as recorded" in line for line in lines), lines
+        others = [url for other, url in server.motions.items() if other != key]
+        assert others and all(url is not None for url in others)
+        status, body, headers = _request(server, others[0])  # the good ones are served as checked
+        assert status == 200 and json.loads(body)["format"] == "visual-prosody-head-frames"
+        assert headers["Content-Type"] == "application/json"
+    finally:
+        server.close()
+        store.close()

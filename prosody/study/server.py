@@ -83,6 +83,55 @@ def _jpeg(body: bytes) -> tuple[bytes, str]:
     return body, "image/jpeg"
 
 
+#: Largest head-frames file a study serves (a 10-minute stimulus at 30 fps and 30 FAPs is about 5 MB).
+MAX_HEAD_FRAMES_BYTES = 64 << 20
+
+
+def checked_head_frames(folder: Path, motion: object, digest: object, *, seconds: object = None) -> bytes | str:
+    """The bytes of a video's head frames (``<condition>.head.json``) if they are what the manifest recorded and
+    a page can play them; else why not (a phrase).
+
+    They must be inside the stimuli folder, hash to ``motion_sha256``, and hold the head-frames document:
+    its format, a frame rate of 1-1000, FAP numbers 1-68, one row of finite numbers per frame with a value for
+    each FAP, and as many frames as the video's ``seconds`` (within two)."""
+    from ..head.web import HEAD_FRAMES_FORMAT
+
+    if not motion or not digest:
+        return "are not in the manifest"
+    try:
+        path = (folder / str(motion)).resolve(strict=True)
+        if not path.is_relative_to(folder) or not path.is_file():
+            return "are not a file inside the stimuli folder"
+        if path.stat().st_size > MAX_HEAD_FRAMES_BYTES:
+            return f"are larger than {MAX_HEAD_FRAMES_BYTES >> 20} MB"
+        body = path.read_bytes()
+    except (OSError, RuntimeError) as error:
+        return f"cannot be read ({getattr(error, 'strerror', None) or error})"
+    if hashlib.sha256(body).hexdigest() != str(digest):
+        return "changed since the stimuli were made (their SHA-256 is not the manifest's)"
+    try:
+        document = json.loads(body)
+        fps, faps, frames = document["fps"], document["faps"], document["frames"]
+        if document.get("format") != HEAD_FRAMES_FORMAT:
+            raise ValueError(f"format {document.get('format')!r}")
+        if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 1 <= fps <= 1000:
+            raise ValueError(f"frame rate {fps!r}")
+        if not isinstance(faps, list) or not all(isinstance(f, int) and not isinstance(f, bool) and 1 <= f <= 68
+                                                 for f in faps):
+            raise ValueError("FAP numbers")
+        if not isinstance(frames, list) or not frames:
+            raise ValueError("no frames")
+        for row in frames:
+            if not isinstance(row, list) or len(row) != len(faps) or not all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) and v == v and abs(v) < 1e9 for v in row):
+                raise ValueError("a frame that is not one number per FAP")
+        if isinstance(seconds, (int, float)) and abs(len(frames) - seconds * fps) > 2:
+            raise ValueError(f"{len(frames)} frames for a video of {seconds:g} s")
+    except (ValueError, KeyError, TypeError, RecursionError) as error:
+        return f"are not head frames a page can play ({error})"
+    return body
+
+
 class StudyServer:
     """Serves ``plan``'s study with the videos of ``stimuli`` and the answers in ``store``.
 
@@ -141,15 +190,22 @@ class StudyServer:
         self.files = {f"{str(entry['sha256'])[:24]}.mp4": self.folder / str(entry["file"])
                       for entry in manifest["videos"].values()}
         self.videos = {key: f"/stimuli/{str(entry['sha256'])[:24]}.mp4" for key, entry in manifest["videos"].items()}
-        # the head's frames of each video (manifests made before they were written have none: videos only)
+        # the head's frames of each video, checked once and served from memory as checked (manifests made before
+        # they were written have none; frames that fail a check leave that video shown as recorded)
         self.motions: dict[str, str | None] = {}
+        self.motion_bodies: dict[str, bytes] = {}
         for key, entry in manifest["videos"].items():
             motion, digest = entry.get("motion"), entry.get("motion_sha256")
-            if motion and digest and (self.folder / str(motion)).is_file():
-                self.files[f"{str(digest)[:24]}.json"] = self.folder / str(motion)
-                self.motions[key] = f"/stimuli/{str(digest)[:24]}.json"
+            checked = checked_head_frames(self.folder, motion, digest, seconds=entry.get("seconds"))
+            if isinstance(checked, bytes):
+                name = f"{str(digest)[:24]}.json"
+                self.motion_bodies[name] = checked
+                self.motions[key] = f"/stimuli/{name}"
             else:
                 self.motions[key] = None
+                if motion:
+                    self.report(f"{key}: its head frames {str(motion)!r} {checked}; that video is shown as "
+                                "recorded, without the WebGL head")
         self.labels = {name: str(entry.get("label", name)) for name, entry in manifest["conditions"].items()}
         self.head_files = self._head_files(manifest)
         self.break_every = break_every
@@ -460,7 +516,11 @@ class _Handler(BaseHTTPRequestHandler):
             self._error(503, f"the answer could not be saved ({error}); it will be sent again")
 
     def _video(self, name: str) -> None:
-        """A video of the manifest, whole or the byte range asked for, read by seeking and sent in blocks."""
+        """A video of the manifest, whole or the byte range asked for, read by seeking and sent in blocks; a
+        video's head frames as they were checked at the start."""
+        if name in self.study.motion_bodies:
+            self._send(200, self.study.motion_bodies[name], "application/json")
+            return
         path = self.study.files.get(name)
         if path is None:
             self._error(404, "no such video")
