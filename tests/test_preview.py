@@ -5,6 +5,7 @@ none)."""
 from __future__ import annotations
 
 import subprocess
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -446,3 +447,31 @@ def test_gifs_whose_frames_would_not_fit_in_memory_or_play_are_refused_before_dr
     assert MAX_GIF_FRAMES * 480 * 600 <= MAX_GIF_PIXELS
     write_preview(FapStream.from_curves({3: np.zeros(10)}, fps=50), tmp_path / "ok.gif", width=64)
     assert (tmp_path / "ok.gif").is_file()
+
+
+def test_excerpts_at_the_edges_and_bounds_of_what_preview_reads(tmp_path: Path, capsys) -> None:
+    """The probe's low items: a zero-frame .fap was 'start 0 s past the end' (exit 2), now 'no frames' (1);
+    --start 0.099 on a 0.10 s stream was refused by rounding; --duration 1e-9 was reported as 0.00 s; a
+    --strip-scale of 1e-320 leaked numpy's overflow warnings; .fap values to 1.7e308 and a frame number of
+    1e300 were read."""
+    (tmp_path / "empty.fap").write_text("2.1 empty 30 0\n")
+    assert main(["preview", str(tmp_path / "empty.fap"), "-o", str(tmp_path / "e.gif")]) == 1
+    assert "no frames" in capsys.readouterr().err
+    write_fap(FapStream.from_curves({3: np.array([0.0, 100.0, 200.0])}, fps=30), tmp_path / "short.fap")
+    assert main(["preview", str(tmp_path / "short.fap"), "-o", str(tmp_path / "s.gif"), "--width", "64",
+                 "--start", "0.099"]) == 0
+    assert "1 frame, 0.03 s from 0.07 s" in capsys.readouterr().err
+    assert main(["preview", str(tmp_path / "short.fap"), "-o", str(tmp_path / "d.gif"), "--width", "64",
+                 "--duration", "1e-9"]) == 0
+    assert "1 frame, 0.03 s from 0.00 s" in capsys.readouterr().err
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["preview", str(tmp_path / "short.fap"), "-o", str(tmp_path / "x.gif"),
+                     "--strip-scale", "1e-320,5"]) == 2
+    assert "0.001 to 1000000" in capsys.readouterr().err
+    mask = " ".join(["0", "0", "1"] + ["0"] * 65)
+    for line, said in (("0 1.7e308", "beyond +-16777216"), ("1e300 5", "frame number")):
+        (tmp_path / "huge.fap").write_text(f"2.1 huge 30 1\n{mask}\n{line}\n")
+        assert main(["preview", str(tmp_path / "huge.fap"), "-o", str(tmp_path / "h.gif")]) == 1
+        assert said in capsys.readouterr().err
+    assert not any(p.name in ("e.gif", "x.gif", "h.gif") for p in tmp_path.iterdir())

@@ -85,6 +85,22 @@ def fap_ranges(faps: list[int]) -> str:
     return ", ".join(f"{run[0]}-{run[-1]}" if len(run) > 2 else ", ".join(map(str, run)) for run in runs)
 
 
+def strip_scales(text: str | None) -> tuple[float, float] | None:
+    """``--strip-scale BROW_ENS,HEAD_DEG`` as (ENS, AU), each a number of 0.001 to a million."""
+    if text is None:
+        return None
+    from ..errors import ConfigError
+    from ..fap.units import AU_PER_DEGREE
+
+    try:
+        brow_ens, head_deg = (float(part) for part in text.split(","))
+    except ValueError:
+        raise ConfigError(f"--strip-scale takes BROW_ENS,HEAD_DEG (e.g. 30,10), got {text!r}") from None
+    if not all(0.001 <= value <= 1e6 for value in (brow_ens, head_deg)):
+        raise ConfigError(f"--strip-scale takes two numbers of 0.001 to 1000000 (ENS, degrees), got {text!r}")
+    return brow_ens, head_deg * AU_PER_DEGREE
+
+
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -100,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
 
             raise ConfigError(f"{args.input} is a stream, shown as it is: {', '.join(given)} make a stream from a "
                               f"recording (use them with 'prosody preview RECORDING', or 'prosody convert' first)")
+    scales = strip_scales(args.strip_scale)
     face = preview_face(args.face)  # a photo is read, and its face found, before the audio
     audio = args.audio
     if Path(args.input).suffix.lower() == ".fap":
@@ -122,28 +139,17 @@ def run(args: argparse.Namespace) -> int:
         audio = audio or args.input
     if args.no_audio:
         audio = None
-    scales = None
-    if args.strip_scale is not None:
-
-        from ..errors import ConfigError
-
-        try:
-            brow_ens, head_deg = (float(part) for part in args.strip_scale.split(","))
-        except ValueError:
-            raise ConfigError(f"--strip-scale takes BROW_ENS,HEAD_DEG (e.g. 30,10), got {args.strip_scale!r}") from None
-        from ..fap.units import AU_PER_DEGREE
-
-        scales = (brow_ens, head_deg * AU_PER_DEGREE)
     say_unshown(stream, "drawn" if args.face == "drawn" else "head", args.input)
     write_preview(stream, args.output, audio=audio, width=args.width, exaggerate=args.exaggerate,
                   brow_scale=args.brow_scale, start_s=args.start_s, duration_s=args.duration_s,
                   progress=msg.frame_progress(args.output), scales=scales, face=face, strip=not args.no_strip)
     sound = " with sound" if audio is not None and Path(args.output).suffix.lower() == ".mp4" else ""
-    shown = stream.duration_s - min(args.start_s, stream.duration_s)
-    if args.duration_s is not None:
-        shown = min(shown, args.duration_s)
-    excerpt = (f"{shown:.2f} s from {args.start_s:g} s" if args.start_s or args.duration_s is not None
-               else f"{shown:.2f} s")
+    from ..evaluation.preview import excerpt_frames
+
+    first, count = excerpt_frames(stream.n_frames, stream.fps, args.start_s, args.duration_s)
+    frames = f"{count} frame{'s' if count != 1 else ''}, {count / stream.fps:.2f} s"
+    excerpt = (f"{frames} from {first / stream.fps:.2f} s" if args.start_s or args.duration_s is not None
+               else frames)
     msg.say(f"{args.output}: preview of {stream.name} ({excerpt}){sound}")
     return opt.EXIT_OK
 

@@ -568,6 +568,21 @@ def find_ffmpeg() -> str | None:
         return None
 
 
+def excerpt_frames(n_frames: int, fps: float, start_s: float, duration_s: float | None) -> tuple[int, int]:
+    """The first frame and the number of frames of the excerpt from ``start_s`` lasting ``duration_s`` (default:
+    to the end): the frame showing ``start_s`` first (0.099 s of a 0.10 s stream at 30 fps is its third), then
+    at least one frame."""
+    if n_frames == 0:
+        raise PreviewError("the stream has no frames: nothing to draw")
+    if not start_s >= 0 or (duration_s is not None and not duration_s > 0):
+        raise ConfigError(f"the excerpt needs start >= 0 and duration > 0, got {start_s!r} and {duration_s!r}")
+    first = math.floor(start_s * fps + 1e-9)
+    if first >= n_frames:
+        raise ConfigError(f"start {start_s:g} s is past the end of the stream ({n_frames / fps:.2f} s)")
+    count = n_frames - first if duration_s is None else min(n_frames - first, max(1, round(duration_s * fps)))
+    return first, count
+
+
 def check_gif(path: Path, *, fps: float, n_frames: int, width: int, height: int) -> None:
     """Refuse a GIF too long, too large to hold in memory, or faster than its delays can say."""
     if n_frames > MAX_GIF_FRAMES:
@@ -728,12 +743,7 @@ def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.Pa
     n, fps = panels[0][1].n_frames, panels[0][1].fps
     if any(s.n_frames != n or s.fps != fps for _, s in panels):
         raise ConfigError("streams side by side must have one length and frame rate")
-    if not start_s >= 0 or (duration_s is not None and not duration_s > 0):
-        raise ConfigError(f"the excerpt needs start >= 0 and duration > 0, got {start_s!r} and {duration_s!r}")
-    first = round(start_s * fps)
-    if first >= n:
-        raise ConfigError(f"start {start_s:g} s is past the end of the stream ({n / fps:.2f} s)")
-    count = n - first if duration_s is None else min(n - first, max(1, round(duration_s * fps)))
+    first, count = excerpt_frames(n, fps, start_s, duration_s)
     shared = scales if scales is not None else strip_scales([s for _, s in panels])
     face = resolve_face(face)
     width = face_size(face, width)

@@ -351,7 +351,13 @@ class _FrameReader:
         frame_value = _parse_number(value_tokens[0], path=name, line=value_number, what="a frame number")
         if frame_value != int(frame_value):
             raise FapFormatError(name, value_number, f"frame number {value_tokens[0]!r} is not an integer")
+        if abs(frame_value) > MAX_FRAME_NUMBER:
+            raise FapFormatError(name, value_number, f"frame number {value_tokens[0]!r} is past {MAX_FRAME_NUMBER:g} "
+                                 "(a day at 1000 fps is under 1e8): not a frame of this file")
         numbers, integer = _value_numbers(value_tokens, value_line, value_number, name)
+        if numbers and max(abs(min(numbers)), abs(max(numbers))) > MAX_PLAYABLE_VALUE:
+            raise FapFormatError(name, value_number, f"a FAP value beyond +-{MAX_PLAYABLE_VALUE} (2^24, the most "
+                                 "players hold exactly and far past any face's motion): not a value a face plays")
         self.integer_values = self.integer_values and integer
         frame_number = int(frame_value)
         if self.first_frame_number is None:
@@ -389,8 +395,10 @@ class FapNameWarning(UserWarning):
 
 #: Longest header name written: two players keep the header line in a 256-byte buffer.
 MAX_HEADER_NAME = 100
-#: Largest FAP value written: Xface stores values as float32, exact up to 2**24 (and no face shows more).
+#: Largest FAP value written or read: Xface stores values as float32, exact up to 2**24 (and no face shows more).
 MAX_PLAYABLE_VALUE = 2**24
+#: Largest frame number read.
+MAX_FRAME_NUMBER = 1e9
 
 
 def _header_name(name: str) -> str:
