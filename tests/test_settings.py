@@ -19,6 +19,7 @@ from prosody import (
     convert,
 )
 from prosody.errors import ConfigError
+from prosody.fap.stream import FapStream
 from prosody.jobs.batch import BatchOptions
 from prosody.motion.settings import takes_settings
 
@@ -77,8 +78,14 @@ def test_a_comparison_takes_them_both_ways(speech):
     (lambda: ChannelSettings(gains={"nose": 2.0}),
      "unknown channel(s) 'nose'; choose from pitch, yaw, roll, brows, lips"),
     (lambda: ChannelSettings(disabled=["ears"]), "unknown channel(s) 'ears'"),
-    (lambda: ChannelSettings(gains={"yaw": float("nan")}), "gain of 'yaw' must be a finite number, got nan"),
-    (lambda: ChannelSettings(gains={"yaw": True}), "gain of 'yaw' must be a finite number, got True"),
+    (lambda: ChannelSettings(gains={"yaw": float("nan")}), "gain of 'yaw' must be a number from 0 to 100"),
+    # as the command line refuses them: a negative gain, one past 100, gains that are not a mapping
+    (lambda: ChannelSettings(gains={"pitch": -1.0}), "0 stills it), got -1.0"),
+    (lambda: ChannelSettings(gains={"lips": 1e6}), "gain of 'lips' must be a number from 0 to 100"),
+    (lambda: ChannelSettings(gains=[("pitch", 2.0)]), "gains map channel names to numbers"),
+    (lambda: FapStream.from_curves({3: np.zeros(3)}, fps=True), "fps must be a positive number, got True"),
+    (lambda: FapStream.from_curves({3: np.zeros(3)}, fps="30"), "fps must be a positive number"),
+    (lambda: ChannelSettings(gains={"yaw": True}), "0 stills it), got True"),
     (lambda: FaceSettings(lips="phonemes"), "unknown lip method 'phonemes'; choose visemes, acoustic, combined"),
     (lambda: MotionSettings(seed=-1), "seed"),
     (lambda: MotionSettings(expressivity={"spatial": 1.0}), "expressivity must be an Expressivity"),

@@ -130,13 +130,15 @@ def add_motion_options(parser: argparse.ArgumentParser, *, live: bool = False) -
         parser.add_argument("--ground-truth", default=None, metavar="FILE",
                             help="recorded motion for --condition truth: <clip>.head.csv or .fap")
     add_generator_options(parser, live=live)
+    from ..motion.settings import MAX_GAIN
+
     controls = parser.add_argument_group("intensity (1 keeps the motion as computed, 0.5 halves it)")
     for channel, what in (("pitch", "head nods (FAP 48)"), ("yaw", "head turns (FAP 49)"),
                           ("roll", "head tilts (FAP 50)"), ("brow", "eyebrow raises (FAP 31-34)")):
-        controls.add_argument(f"--{channel}-gain", type=number_in(0, 100), default=1.0, metavar="G",
+        controls.add_argument(f"--{channel}-gain", type=number_in(0, MAX_GAIN), default=1.0, metavar="G",
                               help=f"scale the {what} by G (default 1; 0 to 100, the head and brows kept within "
                                    "what a person can do)")
-    controls.add_argument("--lip-gain", type=number_in(0, 100), default=1.0, metavar="G",
+    controls.add_argument("--lip-gain", type=number_in(0, MAX_GAIN), default=1.0, metavar="G",
                           help="scale the lips' motion (FAP 3-11, 16-17, 51-58) by G (default 1)")
     controls.add_argument("--off", action="append", default=[], metavar="CHANNEL[,CHANNEL]",
                           help="leave channels out of the output: pitch, yaw, roll, brows, lips (repeatable)")

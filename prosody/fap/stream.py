@@ -54,8 +54,12 @@ class FapStream:
             raise ConfigError(f"FAP values must have shape (n_frames, {N_FAPS}), got {values.shape!r}")
         if mask.shape != values.shape:
             raise ConfigError(f"FAP mask shape {mask.shape!r} differs from the values' {values.shape!r}")
-        if not (np.isfinite(self.fps) and self.fps > 0):
+        if isinstance(self.fps, (bool, np.bool_)) or not isinstance(self.fps, (int, float, np.integer, np.floating)) \
+                or not (np.isfinite(self.fps) and self.fps > 0):
             raise ConfigError(f"fps must be a positive number, got {self.fps!r}")
+        if not isinstance(self.name, str):
+            raise ConfigError(f"a stream's name is text, got {type(self.name).__name__}")
+        object.__setattr__(self, "fps", float(self.fps))
         if not np.all(np.isfinite(values) | ~mask):
             raise ConfigError("active FAP values must be finite")
         if values.flags.writeable:  # read-only arrays are another stream's, zeroed already

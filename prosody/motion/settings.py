@@ -29,7 +29,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import inspect
-import math
 import numbers
 import os
 import textwrap
@@ -157,6 +156,10 @@ class FaceSettings:
             check_language(self.language)
 
 
+#: The largest gain of a channel (the head and brows are then kept within what a person can do).
+MAX_GAIN = 100.0
+
+
 @documented_fields
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class ChannelSettings:
@@ -168,14 +171,18 @@ class ChannelSettings:
     disabled: Iterable[str] = setting((), "iterable of str", "Channels to leave out of the output.")
 
     def __post_init__(self) -> None:
+        if self.gains is not None and not isinstance(self.gains, Mapping):
+            raise ConfigError(f"gains map channel names to numbers (e.g. {{'pitch': 0.5}}), got {self.gains!r}")
         gains = dict(self.gains or {})
-        disabled = tuple(self.disabled)
+        # one channel's name alone is that channel, not its letters
+        disabled = (self.disabled,) if isinstance(self.disabled, str) else tuple(self.disabled)
         unknown = [name for name in [*gains, *disabled] if name not in CHANNELS]
         if unknown:
             raise ConfigError(f"unknown channel(s) {', '.join(map(repr, unknown))}; choose from {', '.join(CHANNELS)}")
         for name, gain in gains.items():
-            if isinstance(gain, bool) or not isinstance(gain, numbers.Real) or not math.isfinite(gain):
-                raise ConfigError(f"gain of {name!r} must be a finite number, got {gain!r}")
+            if isinstance(gain, bool) or not isinstance(gain, numbers.Real) or not 0 <= gain <= MAX_GAIN:
+                raise ConfigError(f"gain of {name!r} must be a number from 0 to {MAX_GAIN:g} (1 keeps the motion, "
+                                  f"0 stills it), got {gain!r}")
         object.__setattr__(self, "gains", gains)
         object.__setattr__(self, "disabled", disabled)
 
