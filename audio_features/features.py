@@ -332,7 +332,7 @@ def _read_all(sound, *, source: str, exact: bool) -> np.ndarray:
         raise AudioLoadError(decode_failure(source, sound.format, error)) from None
     if exact and data.shape[0] < sound.frames:
         raise AudioLoadError(truncation(source, sound.format, sound.frames, data.shape[0]))
-    mono = data[:, 0].copy() if data.shape[1] == 1 else data.mean(axis=1)
+    mono = data.reshape(-1) if data.shape[1] == 1 else data.mean(axis=1)  # one channel: a view, no copy
     finite = np.isfinite(mono)
     if not finite.all():
         bad = int(np.argmin(finite))

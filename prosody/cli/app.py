@@ -13,16 +13,20 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from . import batch, compare, convert, features, inspect, languages, paths, preview, stream, study, track, train
 from . import messages as msg
 from . import options as opt
+from . import paths
 
-#: The subcommands, in the order --help lists them.
-COMMANDS = (features, languages, convert, preview, stream, train, compare, batch, track, study, inspect)
+#: The subcommands (each a module of this package), in the order --help lists them.
+COMMAND_NAMES = ("features", "languages", "convert", "preview", "stream", "train", "compare", "batch", "track",
+                 "study", "inspect")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``prosody`` command line: one subcommand per module of this package."""
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The ``prosody`` command line: one subcommand per module of this package; ``only``: that command's
+    alone (what a run of it needs: the others' modules are not imported)."""
+    import importlib
+
     parser = opt.Parser(
         prog="prosody",
         description="Visual prosody from speech: head and eyebrow motion (MPEG-4 FAP streams) from audio.",
@@ -33,8 +37,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"prosody {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=opt.Parser)
 
-    for command in COMMANDS:
-        command.add_parser(commands)
+    for name in COMMAND_NAMES if only is None else (only,):
+        importlib.import_module(f"{__package__}.{name}").add_parser(commands)
     _add_message_options(parser)
     return parser
 
@@ -112,8 +116,11 @@ def _main(argv: Sequence[str] | None) -> int:
     import signal
     import warnings
 
-    parser = build_parser()
-    args, unknown = parser.parse_known_args(argv)
+    arguments = sys.argv[1:] if argv is None else list(argv)
+    # a run of one command builds that command's parser alone; help, --version and mistakes get them all
+    named = arguments[0] if arguments and arguments[0] in COMMAND_NAMES else None
+    parser = build_parser(named)
+    args, unknown = parser.parse_known_args(arguments)
     if unknown:  # said by the command's own parser, which names the command and its --help
         getattr(args, "parser", parser).error(f"unrecognized arguments: {' '.join(unknown)}")
     mode = msg.MESSAGES.mode
