@@ -15,7 +15,7 @@ from .inputs import check_input
 
 #: File name endings taken as audio when a folder is scanned (training pairs, batches).
 AUDIO_EXTENSIONS = (".wav", ".flac", ".ogg", ".oga", ".mp3", ".aif", ".aiff", ".aifc", ".au", ".caf", ".w64")
-#: Lowest sample rate accepted (SPEC section 2: "any sample rate from 8 kHz up").
+#: Lowest sample rate accepted: any sample rate from 8 kHz up.
 MIN_SAMPLE_RATE_HZ = 8000
 #: Highest sample rate accepted: above every rate recorders and interfaces use (768 kHz); a header that
 #: claims more is damaged or hostile, and would make the analysis run for ever.
@@ -61,7 +61,7 @@ class Audio:
                 "(samples, channels), e.g. samples.T"
             )
         if samples.ndim == 2:
-            # mix multichannel to mono: SPEC section 2
+            # mix multichannel to mono, as the analysis of one voice wants
             samples = samples.mean(axis=1)
         if samples.ndim != 1:
             raise AudioLoadError(f"{self.source}: audio must be 1-D or (samples, channels), got {samples.shape!r}")

@@ -254,14 +254,14 @@ def _end_slope(h0: float, h1: float, m0: float, m1: float) -> float:
 
 
 def condition_f0(f0: F0Track) -> Track:
-    """Bridge unvoiced gaps of an F0 track with a cubic spline (SPEC section 2).
+    """Bridge unvoiced gaps of an F0 track with a cubic spline (the thesis's conditioning, docs/models.md).
 
     The spline passes through every voiced frame. It is the shape-preserving one
     (:func:`shape_preserving_spline`): a gap is bridged from the F0 before it to the F0 after it without
     overshooting either (a natural cubic spline swung to 460-480 Hz and down to 8 Hz over the pauses of real
-    speech, enough to raise the brows in silence). The result is clipped to ``[0, max voiced F0]`` as the
-    SPEC asks (with this spline the clip never acts); frames before the first and after the last voiced frame
-    hold the nearest voiced value. With no voiced frame at all the result is 0 everywhere and a
+    speech, enough to raise the brows in silence). The result is clipped to ``[0, max voiced F0]``, as
+    the conditioning asks for (with this spline the clip never acts); frames before the first and after the last
+    voiced frame hold the nearest voiced value. With no voiced frame at all the result is 0 everywhere and a
     :class:`NoVoicedFramesWarning` is issued.
 
     Parameters

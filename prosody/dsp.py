@@ -1,5 +1,5 @@
 """Signal processing on the frame grid that measures and generators share: the zero-phase low-pass of head
-angles, centred moving averages, and the head's angular speed and its envelope (SPEC section 6's definitions).
+angles, centred moving averages, and the head's angular speed and its envelope (as docs/evaluation.md defines them).
 
 Examples
 --------

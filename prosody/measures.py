@@ -1,4 +1,4 @@
-"""Objective comparison of conditions (SPEC section 6): motion statistics, agreement with ground truth,
+"""Objective comparison of conditions (docs/evaluation.md): motion statistics, agreement with ground truth,
 canonical correlation, and the thesis's mean/spread normalisation."""
 
 from __future__ import annotations
@@ -164,7 +164,7 @@ def head_matrix(stream: FapStream) -> np.ndarray:
     return angles
 
 
-# Head-motion measures that discriminate at our data sizes (SPEC section 6) -----------------------------
+# Head-motion measures that discriminate at our data sizes (docs/evaluation.md) --------------------
 #: Welch segment length and frequency band of the velocity-spectrum distance.
 SPECTRUM_SEGMENT_FRAMES = 64
 SPECTRUM_BAND_HZ = (0.25, 4.0)
@@ -438,7 +438,7 @@ def average_brow_metrics(rows: Sequence[dict]) -> dict:
     return _average_block(rows, _BROW_LAYOUT)
 
 
-# the mouth (SPEC section 6: lips) -------------------------------------------------------------------------
+# the mouth (docs/evaluation.md: lips) ------------------------------------------------------------
 #: Low-pass of the recorded lip opening, Hz.
 MOUTH_LOWPASS_HZ = 8.0
 #: Largest audio-video lag searched for the mouth's agreement, s.

@@ -1,4 +1,4 @@
-"""Comparing the four conditions on one recording (SPEC section 6): streams, metrics, plots and a report.
+"""Comparing the four conditions on one recording (docs/evaluation.md): streams, metrics, plots and a report.
 
 :func:`compare` computes; :func:`write_comparison` writes the .fap files, ``metrics.json`` (written last, so
 its presence marks a complete output folder), the plots and the Markdown report.
@@ -65,7 +65,7 @@ if TYPE_CHECKING:
 #: Seeds over which the measures of a stochastic condition (RANDOM, the prosodic SPEECH_DRIVEN head) are
 #: averaged: seed, seed + 1, ... (the written streams use the first).
 SUMMARY_SEEDS = 10
-#: Conditions scaled by ``normalize`` (NO_PROSODY stays still: SPEC section 6).
+#: Conditions scaled by ``normalize`` (NO_PROSODY stays still: docs/evaluation.md).
 NORMALIZED_CONDITIONS = (Condition.RANDOM, Condition.SPEECH_DRIVEN, Condition.GROUND_TRUTH)
 
 

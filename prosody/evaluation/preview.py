@@ -2,7 +2,7 @@
 
 The face is a small 3D model drawn in orthographic projection: an ellipsoid head that turns about a pivot at
 the top of the neck, with eyes, nose, mouth and three points per eyebrow on its front. Angles and distances
-are applied in FAP units at true scale (SPEC section 1): FAP 48-50 rotate the head (R = Rz(roll) Ry(yaw)
+are applied in FAP units at true scale (docs/fap.md): FAP 48-50 rotate the head (R = Rz(roll) Ry(yaw)
 Rx(pitch), the signs of the .fap conventions: + pitch bows down, + yaw turns to the character's left, + roll
 tilts to its right), and FAP 31-36 raise the inner, middle and outer brow points by ``value / 1024`` of the
 model's eye-nose separation (ENS0). ``exaggerate`` multiplies both for viewing; the caption says so. The brows

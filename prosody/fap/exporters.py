@@ -1,6 +1,6 @@
 """Writers of FAP streams, chosen by name or file extension in one registry (stream in, file out).
 
-Formats and their mapping from FAP units (SPEC section 1; AU = 1e-5 rad, ENS = eye-nose separation / 1024):
+Formats and their mapping from FAP units (docs/fap.md; AU = 1e-5 rad, ENS = eye-nose separation / 1024):
 
 - ``fap``: MPEG-4 FAP text (:mod:`prosody.fap.fapfile`).
 - ``csv``: ``frame,time_s`` then one column per active FAP, named ``fap<N>_<name>_<unit>``, in FAP units
@@ -11,7 +11,7 @@ Formats and their mapping from FAP units (SPEC section 1; AU = 1e-5 rad, ENS = e
 - ``bvh``: one ``Head`` joint (BVH's Y-up, character facing +Z, X to the character's left) with channels
   ``Zrotation Yrotation Xrotation`` in degrees: Xrotation = head pitch (FAP 48, + bows down), Yrotation = head
   yaw (FAP 49, + turns to the character's left), Zrotation = head roll (FAP 50, + tilts to the character's
-  right); the order composes R = Rz Ry Rx like the recordings of SPEC section 9. Brows are not in BVH.
+  right); the order composes R = Rz Ry Rx as the recorded head motion does (docs/dependencies.md). Brows are not in BVH.
 - ``rhubarb-tsv``, ``rhubarb-json``, ``rhubarb-xml``, ``moho-dat``, ``prestonblair-dat``: the lips as Rhubarb
   Lip Sync's mouth cues (A-H, X) in its files (``.rhubarb.tsv``, ``.rhubarb.json``, ``.rhubarb.xml``, ``.dat``,
   ``.prestonblair.dat``; :mod:`prosody.fap.mouth_cues`).

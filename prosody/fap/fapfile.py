@@ -1,4 +1,4 @@
-"""Reading and writing MPEG-4 FAP files (.fap), SPEC section 8.
+"""Reading and writing MPEG-4 FAP files (.fap), docs/fap.md.
 
 Writing produces the subset that Xface, the Java Greta and the older C++ Greta all read: header
 ``2.1 <name> <integer fps> <N>``, 68 mask tokens, frames 0..N-1, integer values, FAP 1 and 2 masked off,

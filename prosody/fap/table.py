@@ -130,7 +130,7 @@ def _fap_enum() -> Any:
 #: Every FAP by its MPEG-4 name in capitals, an int: ``Fap.OPEN_JAW == 3``, ``Fap.HEAD_PITCH == 48``.
 Fap = _fap_enum()
 
-#: The prosody FAPs this project generates (SPEC section 1).
+#: The prosody FAPs this project generates (docs/fap.md).
 EYEBROW_FAPS = tuple(int(fap) for fap in (Fap.RAISE_L_I_EYEBROW, Fap.RAISE_R_I_EYEBROW, Fap.RAISE_L_M_EYEBROW,
                                           Fap.RAISE_R_M_EYEBROW))
 HEAD_FAPS = tuple(int(fap) for fap in (Fap.HEAD_PITCH, Fap.HEAD_YAW, Fap.HEAD_ROLL))

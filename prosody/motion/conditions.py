@@ -1,4 +1,4 @@
-"""The four conditions of SPEC section 1, each as a FAP stream computed from a recording's features."""
+"""The four conditions of docs/fap.md, each as a FAP stream computed from a recording's features."""
 
 from __future__ import annotations
 

@@ -195,7 +195,7 @@ def eyebrow_raises(features: Features, rule: EyebrowRule | None = None) -> Eyebr
     threshold_hz = rule.f0_threshold_hz(features)
     threshold_db = rule.energy_threshold(features)
     hold_frames = int(round(rule.min_hold_s * features.fps))  # 300 ms -> 9 frames at 30 fps
-    # rising edge: F0[k-1] < threshold <= F0[k] (SPEC section 3)
+    # rising edge: F0[k-1] < threshold <= F0[k] (docs/models.md)
     crossing = np.zeros(n, bool)
     crossing[1:] = (f0[:-1] < threshold_hz) & (f0[1:] >= threshold_hz)
     magnitude = np.maximum(rule.gain_ens_per_hz * f0 + rule.offset_ens, 0.0)

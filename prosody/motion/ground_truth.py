@@ -1,6 +1,6 @@
 """Recorded motion as a FAP stream: the GROUND_TRUTH condition.
 
-Two sources are read: a .fap file, and the ``<clip>.head.csv`` convention of SPEC section 9 (columns
+Two sources are read: a .fap file, and the ``<clip>.head.csv`` convention of docs/dependencies.md (columns
 frame, time_s, rx_rad, ry_rad, rz_rad at 30 fps; FAP 48 = rx, 49 = ry, 50 = rz, times 1e5 for AU, each
 clip's median pose removed since FAPs are displacements from a neutral pose).
 """
@@ -147,7 +147,7 @@ def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -
         )
     angles, measured = _bridge_gaps(data[:, 2:5], fps=HEAD_CSV_FPS, name=name)
     if remove_median:
-        angles = angles - np.median(angles[measured], axis=0)  # resting pose out: SPEC section 9
+        angles = angles - np.median(angles[measured], axis=0)  # resting pose out: docs/dependencies.md
     curves = {fap: angles[:, axis] / RADIANS_PER_AU for axis, fap in enumerate(HEAD_FAPS)}
     stream = FapStream.from_curves(curves, fps=HEAD_CSV_FPS, name=Path(name).name.removesuffix(".head.csv"))
     if not measured.all():

@@ -1,4 +1,4 @@
-"""The ARX head-motion model of SPEC section 4: head pitch, yaw and roll from speech.
+"""The ARX head-motion model of docs/models.md: head pitch, yaw and roll from speech.
 
     y[t] = sum_{i=1..na} A_i y[t-i] + sum_{j=0..nb-1} B_j u[t-nk-j] + c
 

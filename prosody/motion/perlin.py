@@ -1,4 +1,4 @@
-"""Fractal Perlin noise: the RANDOM baseline of SPEC section 5."""
+"""Fractal Perlin noise: the RANDOM baseline of docs/models.md."""
 
 from __future__ import annotations
 

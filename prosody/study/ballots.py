@@ -1,4 +1,4 @@
-"""Paired-comparison perceptual studies (SPEC section 7): plan the presentation order, analyse the ballots.
+"""Paired-comparison perceptual studies (docs/studies.md): plan the presentation order, analyse the ballots.
 
 A plan holds, per stimulus, all 16 ordered pairs of the four conditions (same-model pairs included), so each
 condition is shown 4 times on the left and 4 times on the right of every stimulus. The sequence is built in
