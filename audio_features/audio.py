@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import struct
 from collections.abc import Iterator
@@ -293,12 +294,56 @@ def _check_ogg_end(handle, file: Path, size: int) -> None:
 
 
 #: Endings of files whose sound libsndfile does not read (AAC, ALAC, Opus in MP4, QuickTime, Matroska, WMA):
-#: the refusal says how to convert them.
+#: their sound is decoded by FFmpeg where one is found, else the refusal says how to convert them.
 FFMPEG_ONLY_ENDINGS = (".m4a", ".mp4", ".aac", ".mov", ".mkv", ".webm", ".wma", ".3gp", ".m4v")
+
+
+def find_ffmpeg() -> str | None:
+    """An FFmpeg executable: ``ffmpeg`` on PATH, else the one of the ``imageio-ffmpeg`` package; None without."""
+    import shutil
+
+    found = shutil.which("ffmpeg")
+    if found:
+        return found
+    try:
+        import imageio_ffmpeg
+    except ImportError:
+        return None
+    try:
+        return str(imageio_ffmpeg.get_ffmpeg_exe())
+    except RuntimeError:
+        return None
+
+
+def _decoded_by_ffmpeg(file: Path, ffmpeg: str):
+    """The sound of ``file`` decoded by FFmpeg into 32-bit float WAV, open as a SoundFile (the temporary file is
+    unlinked once open: it goes when the SoundFile is closed)."""
+    import subprocess
+    import tempfile
+
+    import soundfile
+
+    handle, temporary = tempfile.mkstemp(prefix="prosody-sound-", suffix=".wav")
+    os.close(handle)
+    try:
+        done = subprocess.run([ffmpeg, "-nostdin", "-hide_banner", "-loglevel", "error", "-y", "-i", os.fspath(file),
+                               "-vn", "-map", "0:a:0", "-acodec", "pcm_f32le", "-f", "wav", temporary],
+                              capture_output=True, text=True, errors="replace")
+        if done.returncode != 0:
+            said = (done.stderr.strip().splitlines() or ["no sound"])[-1][:200]
+            raise AudioLoadError(f"{file}: FFmpeg could not decode its sound ({said})")
+        return soundfile.SoundFile(temporary)
+    except (soundfile.SoundFileError, RuntimeError) as error:
+        raise AudioLoadError(f"{file}: FFmpeg's decoding of its sound is not readable ({error})") from None
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(temporary)
 
 
 def open_sound_file(path: str | os.PathLike[str]):
     """Open ``path`` with soundfile after the checks of :func:`check_readable`; errors become AudioLoadError.
+    The sound of an MP4, M4A, MOV, MKV or WebM file (which libsndfile does not read) is decoded by FFmpeg where
+    one is found (:func:`find_ffmpeg`).
 
     Parameters
     ----------
@@ -320,8 +365,12 @@ def open_sound_file(path: str | os.PathLike[str]):
         reason = str(error).split(": ", 1)[-1] if ": " in str(error) else str(error)
         hint = ""
         if Path(file).suffix.lower() in FFMPEG_ONLY_ENDINGS:  # AAC and the like in MP4 containers
+            ffmpeg = find_ffmpeg()
+            if ffmpeg is not None:
+                return _decoded_by_ffmpeg(Path(file), ffmpeg)
             wav = Path(file).with_suffix(".wav").name
-            hint = f"; its sound can be converted first: ffmpeg -i {Path(file).name} -ac 1 {wav}"
+            hint = (f"; its sound is read through FFmpeg, which is not here (pip install imageio-ffmpeg), or can be "
+                    f"converted first: ffmpeg -i {Path(file).name} -ac 1 {wav}")
         raise AudioLoadError(f"{file}: not an audio file libsndfile can read ({reason.strip()}){hint}") from None
 
 

@@ -23,7 +23,6 @@ import contextlib
 import itertools
 import math
 import os
-import shutil
 import subprocess
 import tempfile
 from collections.abc import Callable, Iterator, Mapping
@@ -554,18 +553,11 @@ def face_size(face, width: int | None) -> int:
 
 
 def find_ffmpeg() -> str | None:
-    """An ffmpeg executable: ``ffmpeg`` on PATH, else the one the ``imageio-ffmpeg`` package ships, else None."""
-    on_path = shutil.which("ffmpeg")
-    if on_path:
-        return on_path
-    try:
-        import imageio_ffmpeg
-    except ImportError:
-        return None
-    try:
-        return str(imageio_ffmpeg.get_ffmpeg_exe())
-    except RuntimeError:
-        return None
+    """An ffmpeg executable: ``ffmpeg`` on PATH, else the one the ``imageio-ffmpeg`` package ships, else None
+    (the one the audio reader uses for MP4 sound: :func:`audio_features.audio.find_ffmpeg`)."""
+    from audio_features.audio import find_ffmpeg as found
+
+    return found()
 
 
 def excerpt_frames(n_frames: int, fps: float, start_s: float, duration_s: float | None) -> tuple[int, int]:
