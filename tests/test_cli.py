@@ -215,11 +215,19 @@ def test_batch_warnings_name_batchs_own_options_not_python(tmp_path, capsys) -> 
     assert main(["batch", str(folder), "-o", str(tmp_path / "out"), "--condition", "speech", "--seeds", "1",
                  "--lips", "none"]) == 0
     err = capsys.readouterr().err
-    assert "no eyebrow raise" in err and "(--brow-semitones ST, default 4)" in err
-    assert "AccentRule" not in err and "--accent-semitones" not in err
+    # batch says the brows' threshold by the name every command gives it
+    assert "no eyebrow raise" in err and "(--accent-semitones ST, default 4)" in err
+    assert "AccentRule" not in err and "--brow-semitones" not in err
     assert main(["batch", str(folder), "-o", str(tmp_path / "out2"), "--condition", "speech", "--seeds", "1",
-                 "--lips", "none", "--brow-semitones", "1"]) == 0
+                 "--lips", "none", "--accent-semitones", "1"]) == 0
     assert "no eyebrow raise" not in capsys.readouterr().err
+    # the old name still works, with a warning naming the new one
+    assert main(["batch", str(folder), "-o", str(tmp_path / "out3"), "--condition", "speech", "--seeds", "1",
+                 "--lips", "none", "--brow-semitones", "1"]) == 0
+    err = capsys.readouterr().err
+    assert "--brow-semitones is now --accent-semitones" in err and "no eyebrow raise" not in err
+    assert main(["batch", str(folder), "-o", str(tmp_path / "out4"), "--brow-semitones", "1",
+                 "--accent-semitones", "2"]) == 2
 
 
 def test_main_leaves_the_process_as_it_found_it(tmp_path, speech, capsys) -> None:
@@ -252,7 +260,7 @@ CLI_MESSAGES = [
     ("convert", "seed must be a whole number; the model runs at fps 30",
      "seed must be a whole number; the model runs at fps 30"),
     ("batch", "AccentRule(threshold_semitones=...) is 4; scheduler= is down",
-     "--brow-semitones ST is 4; --scheduler is down"),
+     "--accent-semitones ST is 4; --scheduler is down"),
     ("batch", "needs recorded motion (ground_truth=FILE)", "needs recorded motion (ground_truth=FILE)"),  # no option
     ("convert", "/data/seed=3/a.wav: not found", "/data/seed=3/a.wav: not found"),  # a path is left as it is
     ("convert", "'f0_floor_hz' and a.f0_floor_hz", "'f0_floor_hz' and a.f0_floor_hz"),

@@ -455,3 +455,42 @@ def test_typed_metrics_read_a_comparison_losslessly_and_refuse_another_layout(tm
         HeadMeasures().pitch  # noqa: B018
     with pytest.raises(ConfigError, match=f"reads version {METRICS_VERSION}"):
         Metrics.from_json({**result.metrics, "version": METRICS_VERSION + 1})
+
+
+def test_batch_takes_a_transcript_beside_each_recording_and_an_expression(tmp_path, capsys) -> None:
+    """batch had no --expression and no transcripts: now <stem>.txt beside a recording is its transcript (with
+    --transcripts), the same lips as convert --transcript; --expression is convert's; a transcript that changes
+    makes the file's output out of date; the refusals come before any file."""
+    import shutil
+
+    from conftest import REPO
+
+    from prosody.fap.fapfile import read_fap
+
+    indir = tmp_path / "in"
+    indir.mkdir()
+    shutil.copy(REPO / "samples" / "arctic_a0009.wav", indir / "a9.wav")
+    text = "He turned sharply, and faced Gregson across the table."
+    (indir / "a9.txt").write_text(text + "\n")
+    out = tmp_path / "out"
+    common = ["--condition", "none", "--seeds", "1"]
+    assert main(["batch", str(indir), "-o", str(out), *common, "--transcripts", "--expression", "joy:0.5"]) == 0
+    capsys.readouterr()
+    assert main(["convert", str(indir / "a9.wav"), "-o", str(tmp_path / "c.fap"), "--condition", "none",
+                 "--transcript", text, "--expression", "joy:0.5"]) == 0
+    batch_lips = read_fap(out / "a9" / "no_prosody.fap").stream
+    convert_lips = read_fap(tmp_path / "c.fap").stream
+    for fap in (3, 4, 5, 12, 13):  # the lips, and the smile's corners
+        assert np.allclose(batch_lips.curve(fap), convert_lips.curve(fap)), fap
+    assert main(["batch", str(indir), "-o", str(out), *common, "--transcripts", "--expression", "joy:0.5"]) == 0
+    assert "1 already complete" in capsys.readouterr().err
+    (indir / "a9.txt").write_text("completely different words about cheese\n")
+    assert main(["batch", str(indir), "-o", str(out), *common, "--transcripts", "--expression", "joy:0.5"]) == 0
+    assert "1 processed" in capsys.readouterr().err  # the transcript changed: redone
+    for bad, said in ((["--expression", "happy"], "unknown expression 'happy'"),
+                      (["--language", "es"], "add --transcripts"),
+                      (["--transcripts", "--language", "xx"], "does not speak 'xx'"),
+                      (["--transcripts", "--lips", "acoustic"], "transcripts are read by the visemes")):
+        assert main(["batch", str(indir), "-o", str(tmp_path / "bad"), *common, *bad]) == 2
+        assert said in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()

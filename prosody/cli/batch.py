@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import warnings
 
 from . import messages as msg
 from . import options as opt
@@ -14,11 +15,25 @@ def run(args: argparse.Namespace) -> int:
     from ..motion.expressivity import Expressivity
 
     conditions = [name for value in args.condition for name in value.split(",") if name.strip()] or None
+    if args.brow_semitones is not None:  # the old name, kept working for a while
+        from ..errors import ConfigError
+
+        semitones = "accent_semitones" if args.brows == "accent" else "eyebrow_semitones"
+        if getattr(args, semitones) is not None:
+            raise ConfigError(f"--brow-semitones is the old name of --{semitones.replace('_', '-')}: give one")
+        setattr(args, semitones, args.brow_semitones)
+        warnings.warn(f"--brow-semitones is now --{semitones.replace('_', '-')}, as in the other commands",
+                      FutureWarning, stacklevel=1)
+    if args.language is not None and not args.transcripts:
+        from ..errors import ConfigError
+
+        raise ConfigError("--language is the transcripts' language: add --transcripts (<stem>.txt beside each "
+                          "recording)")
     options = BatchOptions(model=args.model, seed=args.seed, seeds=args.seeds, normalize=args.normalize,
-                           plots=args.plots, video=args.video, brows=args.brows,
-                           brow_semitones=args.brow_semitones,
+                           plots=args.plots, video=args.video, brows=args.brows, eyebrow_rule=opt.eyebrow_rule(args),
                            lips=None if args.lips == "none" else args.lips,
                            expressivity=(opt.expressivity(args) or Expressivity()).as_dict(),
+                           expression=args.expression, transcripts=args.transcripts, language=args.language,
                            **opt.analysis_kwargs(args))
     if conditions:
         options = dataclasses.replace(options, conditions=tuple(conditions))
@@ -60,12 +75,16 @@ def add_parser(commands) -> None:
     batch.add_argument("--lips", default="visemes", choices=[*LIP_METHODS, "none"],
                        help="how the lips move, alike in every condition (default visemes; see convert --help); "
                             "with a <clip>.mouth.csv beside the ground truth, the lips are measured against it")
-    batch.add_argument("--brows", default="accent", choices=["accent", "thesis"],
-                       help="eyebrow rule of the speech-driven condition, with its default settings (default "
-                            "accent; thesis: the thesis's 207 Hz / 45 dB rule)")
-    batch.add_argument("--brow-semitones", type=opt.number_in(0, 24, low_open=True), default=None, metavar="ST",
-                       help="semitones above the speaker's median pitch that raise the brows, for either rule "
-                            "(default: the rule's own, 4 for the accent rule; lower raises more often)")
+    batch.add_argument("--brow-semitones", type=opt.number_in(0, 24, low_open=True), default=None,
+                       help=argparse.SUPPRESS)  # the old name of --accent-semitones (--eyebrow-semitones)
+    batch.add_argument("--expression", default=None, metavar="NAME[:INTENSITY]",
+                       help="a facial expression over every recording, as convert --expression (a name of "
+                            "'convert --help', intensity 0-1)")
+    batch.add_argument("--transcripts", action="store_true",
+                       help="read <stem>.txt beside each recording, where there is one, as what it says (as "
+                            "convert --transcript; with --lips visemes or combined)")
+    batch.add_argument("--language", default=None, metavar="CODE",
+                       help="with --transcripts: their language, an eSpeak NG code, as convert --language")
     batch.add_argument("--normalize", action="store_true", help="normalise as 'prosody compare --normalize'")
     batch.add_argument("--plots", action=argparse.BooleanOptionalAction, default=False,
                        help="also write figures and a report per file (default --no-plots, for speed)")
@@ -75,4 +94,5 @@ def add_parser(commands) -> None:
     batch.add_argument("--force", action="store_true", help="redo files whose outputs are already complete")
     opt.add_expressivity_options(batch)
     opt.add_analysis_options(batch)
+    opt.add_eyebrow_options(batch)
     batch.set_defaults(handler=run)

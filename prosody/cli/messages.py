@@ -117,12 +117,6 @@ _PHRASES = (
     ("give output_format=NAME", "give --format NAME"),  # stream's option keeps the parameter's other name
 )
 
-#: The same for batch, whose one option sets either rule's semitones.
-_BATCH_PHRASES = (
-    ("AccentRule(threshold_semitones=...)", "--brow-semitones ST"),
-    ("EyebrowRule(threshold_semitones=...)", "--brows thesis --brow-semitones ST"),
-)
-
 
 def flag_names(parser: argparse.ArgumentParser) -> dict[str, str]:
     """A command's options by the name they are stored under (its parser's ``dest``s, which are the library's
@@ -138,8 +132,7 @@ def as_flags(message: str, parser: argparse.ArgumentParser | None = None) -> str
     also plain English."""
     if parser is None:
         return message
-    phrases = _BATCH_PHRASES + _PHRASES if parser.prog.endswith(" batch") else _PHRASES
-    for python, flag in phrases:
+    for python, flag in _PHRASES:
         message = message.replace(python, flag)
     for name, flag in sorted(flag_names(parser).items(), key=lambda item: -len(item[0])):
         def as_option(match: re.Match, flag: str = flag) -> str:

@@ -33,6 +33,7 @@ from ..evaluation.metrics import BrowMeasures, HeadMeasures, Metrics, MouthMeasu
 from ..fap.table import HEAD_FAPS, PROSODY_FAPS
 from ..motion.conditions import CONDITION_ORDER, Condition
 from ..motion.expressivity import NEUTRAL, Expressivity
+from ..motion.eyebrows import AccentRule, EyebrowRule
 from ..motion.settings import AnalysisSettings, FaceSettings, MotionSettings
 from ..validate import valid_seeds
 
@@ -66,6 +67,14 @@ class BatchOptions:
     lips: str | None = FaceSettings.lips
     #: Greta's expressivity controls by name (see :class:`prosody.motion.expressivity.Expressivity`).
     expressivity: Mapping[str, float] = field(default_factory=lambda: dict(NEUTRAL))
+    #: The eyebrow rule itself, any of its settings (None: ``brows`` with ``brow_semitones``).
+    eyebrow_rule: AccentRule | EyebrowRule | None = None
+    #: A facial expression over every recording (``NAME[:INTENSITY]``, as ``convert --expression``).
+    expression: str | None = None
+    #: Read ``<stem>.txt`` beside each recording, where there is one, as what it says (its transcript).
+    transcripts: bool = False
+    #: The transcripts' language (an eSpeak NG code; None: English, aligned by PocketSphinx).
+    language: str | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "expressivity", Expressivity().with_changes(**self.expressivity).as_dict())
@@ -73,12 +82,38 @@ class BatchOptions:
         if not parsed:
             raise ConfigError("choose at least one condition")
         object.__setattr__(self, "conditions", parsed)
-        FaceSettings(lips=self.lips)  # refuses an unknown lip method
         if self.brows not in ("accent", "thesis"):
             raise ConfigError(f"brows must be 'accent' or 'thesis', got {self.brows!r}")
         if self.brow_semitones is not None and not (isinstance(self.brow_semitones, (int, float))
                                                     and 0 < self.brow_semitones <= 24):
             raise ConfigError(f"brow_semitones must be a number of semitones in (0, 24], got {self.brow_semitones!r}")
+        if self.eyebrow_rule is None:
+            rule: AccentRule | EyebrowRule
+            if self.brows == "accent":
+                rule = AccentRule() if self.brow_semitones is None else AccentRule(
+                    threshold_semitones=self.brow_semitones)
+            else:
+                rule = EyebrowRule() if self.brow_semitones is None else EyebrowRule(
+                    threshold_semitones=self.brow_semitones)
+            object.__setattr__(self, "eyebrow_rule", rule)
+        elif not isinstance(self.eyebrow_rule, AccentRule if self.brows == "accent" else EyebrowRule):
+            raise ConfigError(f"eyebrow_rule must be the rule brows={self.brows!r} names, got "
+                              f"{type(self.eyebrow_rule).__name__}")
+        if self.language is not None and not self.transcripts:
+            raise ConfigError("language is the transcripts' language: set transcripts=True (<stem>.txt beside each "
+                              "recording)")
+        # the face's rules are the library's: an unknown expression or language, or a transcript the lips do not
+        # read, is refused before any file
+        FaceSettings(lips=self.lips, language=self.language)
+        if self.expression is not None:
+            from ..motion.expressions import parse_expressions
+
+            if not isinstance(self.expression, str) or self.expression.lower().endswith(".csv"):
+                raise ConfigError(f"a batch's expression is NAME[:INTENSITY] for every recording, got "
+                                  f"{self.expression!r}")
+            parse_expressions(self.expression)
+        if self.transcripts and self.lips not in ("visemes", "combined"):
+            raise ConfigError(f"transcripts are read by the visemes; lips={self.lips!r} does not use them")
         valid_seeds(self.seeds)
 
 
@@ -149,6 +184,18 @@ def file_digest(path: str | os.PathLike[str] | None) -> str | None:
     return None if path is None else file_sha256(path)
 
 
+def transcript_file(audio: str | os.PathLike[str]) -> Path:
+    """Where a recording's transcript is read from with ``transcripts``: ``<stem>.txt`` beside it."""
+    return Path(audio).with_suffix(".txt")
+
+
+def _transcript(audio: str) -> str | None:
+    from audio_features.phones import read_transcript
+
+    path = transcript_file(audio)
+    return read_transcript(path) if path.is_file() else None
+
+
 def _settings(options: BatchOptions, ground_truth: Path | None, audio: str) -> dict:
     """What makes an output folder current: the options, the paths, and the content of every input."""
     model = options.model
@@ -156,10 +203,12 @@ def _settings(options: BatchOptions, ground_truth: Path | None, audio: str) -> d
         from ..motion.head_models import SHIPPED_MODELS
 
         model = str(SHIPPED_MODELS.get(model, model))
+    transcript = transcript_file(audio) if options.transcripts and transcript_file(audio).is_file() else None
     return {**asdict(options), "conditions": list(options.conditions),
+            "eyebrow_rule": {"rule": type(options.eyebrow_rule).__name__, **asdict(options.eyebrow_rule)},
             "ground_truth": str(ground_truth) if ground_truth else None,
             "content": {"audio": file_digest(audio), "ground_truth": file_digest(ground_truth),
-                        "model": file_digest(model)}}
+                        "model": file_digest(model), "transcript": file_digest(transcript)}}
 
 
 def _complete(folder: Path, settings: dict) -> dict | None:
@@ -200,23 +249,17 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
             (folder / "metrics.json").unlink()  # from here on the folder is not complete
         if not conditions:
             raise ConfigError("only GROUND_TRUTH was asked for and no ground truth was found")
-        from ..motion.eyebrows import AccentRule, EyebrowRule
-
-        rule: AccentRule | EyebrowRule
-        if options.brows == "accent":
-            rule = AccentRule() if options.brow_semitones is None else AccentRule(
-                threshold_semitones=options.brow_semitones)
-        else:
-            rule = EyebrowRule() if options.brow_semitones is None else EyebrowRule(
-                threshold_semitones=options.brow_semitones)
+        transcript = _transcript(audio) if options.transcripts else None
         with warnings.catch_warnings(record=True) as caught:
             # a file's warnings are reported with the file, not raised or printed by a worker
             warnings.simplefilter("always")
             comparison = compare(audio, ground_truth=truth, model=options.model, seed=options.seed,
-                                 seeds=options.seeds, eyebrow_rule=rule, normalize=options.normalize,
-                                 conditions=conditions, fps=options.fps, f0_floor_hz=options.f0_floor_hz,
-                                 f0_ceiling_hz=options.f0_ceiling_hz, lips=options.lips,
-                                 expressivity=Expressivity(**options.expressivity))
+                                 seeds=options.seeds, eyebrow_rule=options.eyebrow_rule,
+                                 normalize=options.normalize, conditions=conditions, fps=options.fps,
+                                 f0_floor_hz=options.f0_floor_hz, f0_ceiling_hz=options.f0_ceiling_hz,
+                                 lips=options.lips, expressivity=Expressivity(**options.expressivity),
+                                 expression=options.expression, transcript=transcript,
+                                 language=options.language if transcript is not None else None)
         outcome.warnings = list(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
         folder.mkdir(parents=True, exist_ok=True)
         # the features let the summary drive the generator with this recording's audio against other ones
