@@ -299,7 +299,13 @@ FFMPEG_ONLY_ENDINGS = (".m4a", ".mp4", ".aac", ".mov", ".mkv", ".webm", ".wma", 
 
 
 def find_ffmpeg() -> str | None:
-    """An FFmpeg executable: ``ffmpeg`` on PATH, else the one of the ``imageio-ffmpeg`` package; None without."""
+    """An FFmpeg executable: ``ffmpeg`` on PATH, else the one of the ``imageio-ffmpeg`` package.
+
+    Returns
+    -------
+    str or None
+        Its path; None where there is neither.
+    """
     import shutil
 
     found = shutil.which("ffmpeg")

@@ -204,8 +204,10 @@ def _settings(options: BatchOptions, ground_truth: Path | None, audio: str) -> d
 
         model = str(SHIPPED_MODELS.get(model, model))
     transcript = transcript_file(audio) if options.transcripts and transcript_file(audio).is_file() else None
+    rule = options.eyebrow_rule
+    assert rule is not None  # set by BatchOptions from brows where not given
     return {**asdict(options), "conditions": list(options.conditions),
-            "eyebrow_rule": {"rule": type(options.eyebrow_rule).__name__, **asdict(options.eyebrow_rule)},
+            "eyebrow_rule": {"rule": type(rule).__name__, **asdict(rule)},
             "ground_truth": str(ground_truth) if ground_truth else None,
             "content": {"audio": file_digest(audio), "ground_truth": file_digest(ground_truth),
                         "model": file_digest(model), "transcript": file_digest(transcript)}}
