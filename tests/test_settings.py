@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import re
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from prosody import (
 from prosody.errors import ConfigError
 from prosody.fap.stream import FapStream
 from prosody.jobs.batch import BatchOptions
+from prosody.motion.expressivity import Expressivity
 from prosody.motion.settings import takes_settings
 
 GROUPS = (AnalysisSettings, MotionSettings, FaceSettings, ChannelSettings)
@@ -130,3 +132,20 @@ def test_a_field_that_clashes_with_a_parameter_is_caught_when_decorating():
         takes_settings(analysis=AnalysisSettings)(documented)
     with pytest.raises(TypeError, match="documents its Parameters"):
         takes_settings(analysis=AnalysisSettings)(lambda audio, *, analysis: None)
+
+
+@pytest.mark.parametrize("keywords, said", [
+    ({"condition": "none", "model": "arx"}, "model= is the head model of condition=speech"),
+    ({"condition": "random", "ground_truth": "x.head.csv"}, "ground_truth= is the recorded motion of condition=truth"),
+    ({"condition": "none", "expressivity": Expressivity(activation=0.5)}, "condition=none has none"),
+    ({"lips": "acoustic", "transcript": "hello"}, "transcript= is read by the visemes"),
+    ({"language": "es"}, "language= is the transcript's language"),
+    ({"mouth_model": "m.json"}, "mouth_model= is the model of lips=acoustic"),
+    ({"pad_map": "p.json"}, "pad_map= maps the state of pad="),
+])
+def test_python_gets_the_command_lines_refusals(speech, keywords, said) -> None:
+    """convert(condition="none", model="arx") was accepted from Python and refused by the command line: the
+    rules about which settings go together are the library's now (the command line says them with its flags),
+    and they refuse before the audio is read."""
+    with pytest.raises(ConfigError, match=re.escape(said)):
+        convert(speech, None, **keywords)

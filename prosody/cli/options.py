@@ -344,33 +344,19 @@ def making_options_given(args: argparse.Namespace) -> list[str]:
 def check_motion_options(args: argparse.Namespace) -> None:
     """Options that would make the output silently other than asked are refused."""
     from ..errors import ConfigError
+    from ..motion.conditions import check_condition
 
-    if getattr(args, "ground_truth", None) is not None and args.condition != "truth":
-        raise ConfigError(f"--ground-truth is the recorded motion of --condition truth; it is not used by "
-                          f"--condition {args.condition}")
-    if getattr(args, "model", None) is not None and args.condition in ("none", "random", "truth"):
-        raise ConfigError(f"--model is the head model of --condition speech; it is not used by --condition "
-                          f"{args.condition}")
+    # the library's rules, said with the command's flags (messages.as_flags)
+    check_condition(args.condition, ground_truth=getattr(args, "ground_truth", None),
+                    model=getattr(args, "model", None), expressivity=expressivity(args))
     off = {name.strip() for value in args.off for name in value.split(",") if name.strip()}
     lips = getattr(args, "lips", getattr(args, "live_lips", "none"))
     channels = {"pitch", "yaw", "roll", "brows"} | ({"lips"} if lips != "none" else set())
     if channels <= off and getattr(args, "expression", None) is None:
         raise ConfigError(f"--off leaves out every channel ({', '.join(sorted(channels))}): the output would be "
                           "empty")
-    if getattr(args, "mouth_model", None) is not None and getattr(args, "lips", None) not in ("acoustic", "combined"):
-        raise ConfigError("--mouth-model is the model of --lips acoustic; add --lips acoustic")
-    if getattr(args, "transcript", None) is not None and getattr(args, "lips", None) not in ("visemes", "combined"):
-        raise ConfigError("--transcript is read by the visemes; it is not used by --lips "
-                          f"{getattr(args, 'lips', 'none')}")
-    if getattr(args, "language", None) is not None and getattr(args, "transcript", None) is None:
-        raise ConfigError("--language is the transcript's language: give --transcript too (without one, "
-                          "--lips acoustic follows any language)")
-    if getattr(args, "language", None) is not None:  # before the audio is read
-        from audio_features.espeak import check_language
+    if hasattr(args, "transcript"):  # the face's rules, before the audio is read
+        from ..motion.settings import FaceSettings
 
-        check_language(args.language)
-    if getattr(args, "pad_map", None) is not None and args.pad is None:
-        raise ConfigError("--pad-map maps the state of --pad to the face; give --pad too")
-    if args.condition in ("none", "truth") and expressivity(args) is not None:
-        raise ConfigError(f"the expressivity controls shape generated motion; --condition {args.condition} has none "
-                          "(choose speech or random)")
+        FaceSettings(lips=None if args.lips == "none" else args.lips, transcript=args.transcript,
+                     language=args.language, mouth_model=args.mouth_model, pad=args.pad, pad_map=args.pad_map)

@@ -14,7 +14,7 @@ from ..errors import ConfigError
 from ..fap.fapfile import read_fap
 from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS
-from ..motion.conditions import Condition, condition_stream
+from ..motion.conditions import Condition, check_condition, condition_stream
 from ..motion.face import FaceLayer, make_face
 from ..motion.ground_truth import fit_to_grid, read_motion
 from ..motion.head_models import resolve_head_model, rest_pose
@@ -124,7 +124,8 @@ def convert(
     """
     if output is not None and not os.fspath(output):
         raise ConfigError("output: no output file name given")
-    chosen = condition if isinstance(condition, Condition) else Condition.parse(condition)
+    chosen = check_condition(condition, ground_truth=ground_truth, model=motion.model,
+                             expressivity=motion.expressivity)
     if features is None:
         features = extract_features(audio, **analysis.as_keywords(), progress=progress)
     head_model = resolve_head_model(motion.model) if chosen is Condition.SPEECH_DRIVEN else None

@@ -41,6 +41,46 @@ class Condition(str, enum.Enum):
 
 _SHORT_NAMES = {"none": Condition.NO_PROSODY, "random": Condition.RANDOM, "speech": Condition.SPEECH_DRIVEN,
                 "truth": Condition.GROUND_TRUTH}
+_NAMES = {condition: name for name, condition in _SHORT_NAMES.items()}
+
+
+def check_condition(condition: Condition | str, *, ground_truth: object = None, model: object = None,
+                    expressivity: Expressivity | None = None) -> Condition:
+    """Refuse settings the condition would ignore, so the output is never silently other than asked: recorded
+    motion is the truth condition's, a head model the speech-driven one's, and the expressivity controls shape
+    generated motion (speech or random). The messages name the parameters (``ground_truth=``, ``model=``).
+
+    Parameters
+    ----------
+    condition : Condition or str
+    ground_truth : optional
+        Recorded motion given (anything but None).
+    model : optional
+        A head model given (anything but None).
+    expressivity : Expressivity, optional
+
+    Returns
+    -------
+    Condition
+        The condition, parsed.
+
+    Raises
+    ------
+    ConfigError
+        One of the settings does not apply to the condition.
+    """
+    chosen = condition if isinstance(condition, Condition) else Condition.parse(condition)
+    name = _NAMES[chosen]
+    if ground_truth is not None and chosen is not Condition.GROUND_TRUTH:
+        raise ConfigError(f"ground_truth= is the recorded motion of condition=truth; it is not used by "
+                          f"condition={name}")
+    if model is not None and chosen is not Condition.SPEECH_DRIVEN:
+        raise ConfigError(f"model= is the head model of condition=speech; it is not used by condition={name}")
+    if expressivity is not None and not expressivity.is_neutral and chosen in (Condition.NO_PROSODY,
+                                                                            Condition.GROUND_TRUTH):
+        raise ConfigError(f"the expressivity controls shape generated motion; condition={name} has none (choose "
+                          "speech or random)")
+    return chosen
 #: The conditions' short names as the commands take them, the default first; live streams have no recording.
 CONDITION_NAMES = ("speech", "random", "none", "truth")
 LIVE_CONDITION_NAMES = ("speech", "random", "none")

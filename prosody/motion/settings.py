@@ -150,6 +150,18 @@ class FaceSettings:
     def __post_init__(self) -> None:
         if self.lips is not None and self.lips not in LIP_METHODS:
             raise ConfigError(f"unknown lip method {self.lips!r}; choose {', '.join(LIP_METHODS)} (or None)")
+        # settings the lips would ignore are refused (the messages name the parameters)
+        lips = self.lips or "none"
+        if self.transcript is not None and lips not in ("visemes", "combined"):
+            raise ConfigError(f"transcript= is read by the visemes; it is not used by lips={lips}")
+        if self.language is not None and self.transcript is None:
+            raise ConfigError("language= is the transcript's language: give transcript= too (without one, "
+                              "lips=acoustic follows any language)")
+        if self.mouth_model is not None and lips not in ("acoustic", "combined"):
+            raise ConfigError(f"mouth_model= is the model of lips=acoustic (or combined); it is not used by "
+                              f"lips={lips}")
+        if self.pad_map is not None and self.pad is None:
+            raise ConfigError("pad_map= maps the state of pad= to the face; give pad= too")
         if self.language is not None:  # before any work: nothing eSpeak NG does not list reaches it
             from audio_features.espeak import check_language
 
