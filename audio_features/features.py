@@ -320,8 +320,28 @@ def _scan_file(sound, *, source: str) -> tuple[float, int]:
     return peak, offset
 
 
-def _read_all(sound, *, source: str, exact: bool) -> np.ndarray:
-    """The whole file as mono float64; with ``exact``, fewer samples than the header's count is truncation."""
+def read_all_mono(sound, *, source: str, exact: bool) -> np.ndarray:
+    """The whole of an open sound file as mono float64 samples.
+
+    Parameters
+    ----------
+    sound : soundfile.SoundFile
+        Open for reading (read from its start where it can seek).
+    source : str
+        How messages name the file.
+    exact : bool
+        True where the header's frame count is exact: fewer samples than it promises is truncation.
+
+    Returns
+    -------
+    numpy.ndarray
+        (frames,), the channels' mean.
+
+    Raises
+    ------
+    AudioLoadError
+        A decoding error, a truncated file, or a sample that is not finite.
+    """
     import soundfile
 
     if sound.seekable():
@@ -414,7 +434,7 @@ def extract_features(
             # libsndfile cannot seek in some codecs (GSM 6.10): those are read in one pass, whatever their length
             if n_samples * sound.channels <= IN_MEMORY_SAMPLES or not sound.seekable():
                 # one read instead of a peak scan and a second pass
-                samples = _read_all(sound, source=name, exact=not estimated)
+                samples = read_all_mono(sound, source=name, exact=not estimated)
                 n_samples = samples.shape[0]
                 check_shape(n_samples, source=name, sample_rate_hz=sound.samplerate)
                 reader, peak = array_reader(samples), float(np.max(np.abs(samples)))

@@ -449,11 +449,11 @@ def stream_file(path: str, *, fps: float = DEFAULT_FPS, f0_floor_hz: float = DEF
     f0_hz, energy_db : numpy.ndarray
     """
     from .audio import check_shape, open_sound_file
-    from .features import _read_all
+    from .features import read_all_mono
 
     with open_sound_file(path) as sound:
         check_shape(sound.frames, source=str(path), sample_rate_hz=sound.samplerate)
-        samples = _read_all(sound, source=str(path), exact=True)
+        samples = read_all_mono(sound, source=str(path), exact=True)
         analyser = StreamingAnalyser(int(sound.samplerate), fps=fps, f0_floor_hz=f0_floor_hz,
                                      f0_ceiling_hz=f0_ceiling_hz)
     first, last = analyser.push(samples), analyser.finish()

@@ -366,7 +366,7 @@ def test_a_cluster_without_workers_stops_waiting_and_a_lost_scheduler_is_said(mo
     monkeypatch.setattr(batch, "NO_WORKER_TIMEOUT_S", 0.2)
     stuck, lost = Future(), Future()
     lost.set_exception(CancelledError())
-    results = list(batch._completed({stuck: ("a",), lost: ("b",)}, alive=lambda: False, poll_s=0.05))
+    results = list(batch.completed_futures({stuck: ("a",), lost: ("b",)}, alive=lambda: False, poll_s=0.05))
     by_task = {task[0]: result for task, result in results}
     assert isinstance(by_task["b"], CancelledError)
     assert isinstance(by_task["a"], batch._NoWorkers) and "no worker" in str(by_task["a"])
@@ -380,7 +380,7 @@ def test_a_cluster_without_workers_stops_waiting_and_a_lost_scheduler_is_said(mo
             slow.set_result("done")
         return True
 
-    assert list(batch._completed({slow: ("c",)}, alive=alive, poll_s=0.05)) == [(("c",), "done")]
+    assert list(batch.completed_futures({slow: ("c",)}, alive=alive, poll_s=0.05)) == [(("c",), "done")]
 
 
 @pytest.mark.slow

@@ -123,7 +123,10 @@ def study_conditions(plan, path: str | None) -> dict:
         if parsed.ground_truth is not None:
             raise ConfigError(f"condition {name}: --ground-truth is found per stimulus (<stimulus>.head.csv next to "
                               "its recording); leave it out")
-        opt.check_motion_options(parsed)
+        try:
+            opt.check_motion_options(parsed)
+        except ConfigError as error:  # the library's rule, said with the condition's options
+            raise ConfigError(f"condition {name}: {msg.as_flags(str(error), parser)}") from None
         conditions[name] = StudyCondition(name, label, options, opt.motion_kwargs(parsed))
     return conditions
 

@@ -25,7 +25,7 @@ CONDITION_COLOURS = {"NO_PROSODY": "0.6", "RANDOM": "tab:orange", "SPEECH_DRIVEN
                      "GROUND_TRUTH": "black"}
 
 
-def _figure(**options):
+def new_figure(**options):
     """A figure drawn by matplotlib's Agg canvas directly: pyplot and its backend, which a caller (a notebook)
     may have chosen, are left alone."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -36,7 +36,7 @@ def _figure(**options):
     return figure
 
 
-def _save(figure, path: str | os.PathLike[str], *, tight: bool = False) -> None:
+def save_figure(figure, path: str | os.PathLike[str], *, tight: bool = False) -> None:
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=110, **({"bbox_inches": "tight", "pad_inches": 0.15} if tight else {}))
     with atomic_write(path, mode="wb") as handle:
@@ -53,7 +53,7 @@ def plot_features(comparison: Comparison, path: str | os.PathLike[str]) -> None:
     """F0, energy and eyebrow raises of the recording, with the rule's thresholds, as a PNG."""
     features = comparison.features
     times = features.f0.times_s
-    figure = _figure(figsize=(10, 7))
+    figure = new_figure(figsize=(10, 7))
     f0_axis, energy_axis, brow_axis = figure.subplots(3, 1, sharex=True)
     f0_axis.plot(times, features.f0_conditioned.values, color="tab:blue", linewidth=1.2,
                  label="conditioned F0")
@@ -83,13 +83,13 @@ def plot_features(comparison: Comparison, path: str | os.PathLike[str]) -> None:
         axis.grid(alpha=0.3)
     f0_axis.set_title(f"{os.path.basename(comparison.source)}: acoustics and eyebrow raises (shaded)")
     figure.tight_layout()
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 def plot_head(comparison: Comparison, path: str | os.PathLike[str]) -> None:
     """Head pitch, yaw and roll (degrees) of every condition, ground truth in black, as a PNG."""
     times = comparison.features.f0.times_s
-    figure = _figure(figsize=(10, 7))
+    figure = new_figure(figsize=(10, 7))
     axes = figure.subplots(3, 1, sharex=True)
     for axis, fap in zip(axes, HEAD_FAPS, strict=False):
         for condition, stream in comparison.streams.items():
@@ -107,4 +107,4 @@ def plot_head(comparison: Comparison, path: str | os.PathLike[str]) -> None:
     normalised = " (normalised)" if comparison.metrics.get("normalized") else ""
     axes[0].set_title(f"{os.path.basename(comparison.source)}: head rotation per condition{normalised}")
     figure.tight_layout()
-    _save(figure, path)
+    save_figure(figure, path)

@@ -104,7 +104,11 @@ class BatchOptions:
                               "recording)")
         # the face's rules are the library's: an unknown expression or language, or a transcript the lips do not
         # read, is refused before any file
-        FaceSettings(lips=self.lips, language=self.language)
+        FaceSettings(lips=self.lips)
+        if self.language is not None:
+            from audio_features.espeak import check_language
+
+            check_language(self.language)
         if self.expression is not None:
             from ..motion.expressions import parse_expressions
 
@@ -271,14 +275,14 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
                          extra={"settings": settings})
         outcome.metrics = comparison.metrics
     except (VisualProsodyError, OSError, ValueError) as error:
-        outcome.status, outcome.error = "failed", _one_line(error)
+        outcome.status, outcome.error = "failed", one_line(error)
     except Exception as error:  # noqa: BLE001 - one broken file must never stop the others
-        outcome.status, outcome.error = "failed", f"unexpected {type(error).__name__}: {_one_line(error)}"
+        outcome.status, outcome.error = "failed", f"unexpected {type(error).__name__}: {one_line(error)}"
     outcome.seconds = time.perf_counter() - started
     return outcome
 
 
-def _one_line(error: BaseException) -> str:
+def one_line(error: BaseException) -> str:
     if isinstance(error, OSError) and error.filename:
         return f"{error.filename}: {error.strerror or error}"
     return " ".join(str(error).split())
@@ -292,7 +296,7 @@ class _NoWorkers(Exception):
 NO_WORKER_TIMEOUT_S = 60.0
 
 
-def _completed(futures: dict[Future, tuple], *, alive: Callable[[], bool] | None = None,
+def completed_futures(futures: dict[Future, tuple], *, alive: Callable[[], bool] | None = None,
                poll_s: float = 2.0) -> Iterator[tuple[tuple, object]]:
     """``(task, outcome or exception)`` as the futures finish. With ``alive`` (the cluster still has
     workers), waiting stops when it has had none for :data:`NO_WORKER_TIMEOUT_S`: the rest are failed."""
@@ -453,7 +457,7 @@ def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,
                                                             task[1] in suffixed): task
                                             for task in tasks}
             broken: list[tuple] = []
-            for task, result in _completed(futures, alive=getattr(executor, "workers_alive", None)):
+            for task, result in completed_futures(futures, alive=getattr(executor, "workers_alive", None)):
                 if isinstance(result, FileOutcome):
                     outcome = result
                 elif isinstance(result, BrokenProcessPool):
@@ -465,7 +469,7 @@ def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,
                     outcome = failed(task, str(result))
                 else:
                     error = result if isinstance(result, BaseException) else RuntimeError(str(result))
-                    outcome = failed(task, f"worker failed: {type(error).__name__}: {_one_line(error)}")
+                    outcome = failed(task, f"worker failed: {type(error).__name__}: {one_line(error)}")
                 outcomes[outcome.file] = outcome
                 report(outcome)
             # after a worker died, every file it left undone is run alone in a fresh process: only the file

@@ -51,7 +51,7 @@ from ..tracking.video import (
     probe_video,
     read_video_audio,
 )
-from .batch import _completed, _one_line, file_digest, make_executor, natural_key
+from .batch import completed_futures, file_digest, make_executor, natural_key, one_line
 
 #: Version of the tracking method, stored in each track.json (a change redoes complete outputs).
 TRACK_VERSION = 1
@@ -351,7 +351,7 @@ def _track_one(video: str, outdir: str, options: TrackOptions, audio: str | None
         try:
             return track_video(video, outdir, options=options, audio=audio, force=force)
         except (VisualProsodyError, OSError, ValueError) as error:
-            line = _one_line(error).removeprefix(f"{video}: ")  # the report names the video already
+            line = one_line(error).removeprefix(f"{video}: ")  # the report names the video already
             return TrackOutcome(video, "failed", str(Path(outdir) / Path(video).stem), error=line,
                                 seconds=time.monotonic() - started)
 
@@ -396,12 +396,12 @@ def track_videos(videos: Iterable[str | os.PathLike[str]], outdir: str | os.Path
                 done(_track_one(*task))
         else:
             futures: dict[Future, tuple] = {executor.submit(_track_one, *task): task for task in tasks}
-            for task, result in _completed(futures, alive=getattr(executor, "workers_alive", None)):
+            for task, result in completed_futures(futures, alive=getattr(executor, "workers_alive", None)):
                 if isinstance(result, TrackOutcome):
                     done(result)
                 else:
                     done(TrackOutcome(task[0], "failed", str(Path(task[1]) / Path(task[0]).stem),
-                                      error=_one_line(result) if isinstance(result, BaseException) else str(result)))
+                                      error=one_line(result) if isinstance(result, BaseException) else str(result)))
     order = {str(path): index for index, path in enumerate(found)}
     return sorted(outcomes, key=lambda outcome: order.get(outcome.video, 0))
 

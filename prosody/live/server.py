@@ -100,7 +100,7 @@ def normalize_origin(text: str) -> str:
     return f"{parts.scheme}://{host}" + ("" if port in (None, default) else f":{port}")
 
 
-def _trusted_host(name: str) -> bool:
+def trusted_host(name: str) -> bool:
     """A host name that no other site can point at this machine: an address, localhost, this machine's name."""
     try:
         ipaddress.ip_address(name.strip("[]"))
@@ -419,7 +419,7 @@ class FrameServer:
         except (ConfigError, ValueError):
             return False
         allowed = {urllib.parse.urlsplit(origin).hostname for origin in self.allow_origins}
-        return _trusted_host(hostname) or hostname in allowed
+        return trusted_host(hostname) or hostname in allowed
 
     def _allowed(self, origin: str, host_header: str) -> bool:
         try:
@@ -431,7 +431,7 @@ class FrameServer:
         if origin in self.allow_origins:
             return True
         host = urllib.parse.urlsplit(origin).hostname or ""
-        return origin == own and _trusted_host(host)
+        return origin == own and trusted_host(host)
 
     async def _handle(self, websocket) -> None:
         from websockets.exceptions import ConnectionClosed

@@ -23,7 +23,7 @@ from ..measures import average_head_metrics, head_matrix, head_metrics
 from .controls import shift_offsets
 from .ground_truth import fit_to_grid, read_motion
 from .live import LiveHeadModel
-from .training import CV_SEEDS, HeldOut, _signed, find_pairs, held_out_summary
+from .training import CV_SEEDS, HeldOut, find_pairs, held_out_summary, signed
 
 _LOG = logging.getLogger("prosody.training")
 
@@ -116,9 +116,9 @@ def select_live(recordings: Sequence[StreamedRecording], *, fps: float = DEFAULT
         for value in values:
             result = held_out_live(recordings, fps=fps, seeds=seeds, **fixed, **{key: value})
             results.append(result)
-            report(f"[cv] {key}={value:g}: speed-envelope r {_signed(result.mean('speed_envelope_r'))} "
-                   f"(control {_signed(result.mean('speed_envelope_r', control=True))}), pitch r "
-                   f"{_signed(result.mean('pitch_r'))} (control {_signed(result.mean('pitch_r', control=True))})")
+            report(f"[cv] {key}={value:g}: speed-envelope r {signed(result.mean('speed_envelope_r'))} "
+                   f"(control {signed(result.mean('speed_envelope_r', control=True))}), pitch r "
+                   f"{signed(result.mean('pitch_r'))} (control {signed(result.mean('pitch_r', control=True))})")
     return sorted(results, key=lambda r: -r.score)
 
 
@@ -173,10 +173,10 @@ def train_live(directory: str | os.PathLike[str], output: str | os.PathLike[str]
             report(f"chosen {' '.join(f'{k}={v:g}' for k, v in settings.items())}")
             result = held_out_live(recordings, fps=fps, **settings)
             extra["cross_validation"] = held_out_summary(result)
-            report(f"held out over {result.seeds} seeds: speed-envelope r {_signed(result.mean('speed_envelope_r'))} "
-                   f"(mismatched audio {_signed(result.mean('speed_envelope_r', control=True))}), pitch r "
-                   f"{_signed(result.mean('pitch_r'))} "
-                   f"(mismatched audio {_signed(result.mean('pitch_r', control=True))})")
+            report(f"held out over {result.seeds} seeds: speed-envelope r {signed(result.mean('speed_envelope_r'))} "
+                   f"(mismatched audio {signed(result.mean('speed_envelope_r', control=True))}), pitch r "
+                   f"{signed(result.mean('pitch_r'))} "
+                   f"(mismatched audio {signed(result.mean('pitch_r', control=True))})")
         model = fit_live(recordings, fps=fps, **settings)
     except ConfigError as error:
         raise GroundTruthError(f"{directory}: {error}") from None

@@ -199,11 +199,11 @@ def select_orders(data: TrainingSet, *, grid: dict[str, Sequence[float]] | None 
         report(f"[cv {index}/{len(combos)}] na={na} nb={nb} nk={nk} ridge={ridge:g}: "
                f"free-run RMSE {result.rmse_au:.0f} AU, "
                f"r = {result.pearson_per_axis[0]:+.3f} {result.pearson_per_axis[1]:+.3f} "
-               f"{result.pearson_per_axis[2]:+.3f}; speed-envelope r {_signed(result.speed_envelope_r)}")
+               f"{result.pearson_per_axis[2]:+.3f}; speed-envelope r {signed(result.speed_envelope_r)}")
     return sorted(results, key=lambda r: r.rmse_au)
 
 
-def _signed(value: float | None) -> str:
+def signed(value: float | None) -> str:
     return "-" if value is None else f"{value:+.3f}"
 
 
@@ -279,9 +279,9 @@ def select_prosodic(data: TrainingSet, *, grid: dict[str, Sequence[float]] | Non
         result = held_out_prosodic(data, settings, seeds=seeds)
         results.append(result)
         report(f"[cv {index}/{len(combos)}] {' '.join(f'{k}={v:g}' for k, v in settings.items())}: "
-               f"speed-envelope r {_signed(result.mean('speed_envelope_r'))} "
-               f"(control {_signed(result.mean('speed_envelope_r', control=True))}), "
-               f"pitch r {_signed(result.mean('pitch_r'))} (control {_signed(result.mean('pitch_r', control=True))})")
+               f"speed-envelope r {signed(result.mean('speed_envelope_r'))} "
+               f"(control {signed(result.mean('speed_envelope_r', control=True))}), "
+               f"pitch r {signed(result.mean('pitch_r'))} (control {signed(result.mean('pitch_r', control=True))})")
     return sorted(results, key=lambda r: -r.score)
 
 
@@ -397,10 +397,10 @@ def _train_loaded(data: TrainingSet, directory: str | os.PathLike[str], output: 
             final = held_out_prosodic(data, settings, seeds=CV_SEEDS)
             extra["cross_validation"] = held_out_summary(final)
             report(f"chosen {' '.join(f'{k}={v:g}' for k, v in settings.items())}; held out over {CV_SEEDS} seeds: "
-                   f"speed-envelope r {_signed(final.mean('speed_envelope_r'))} "
-                   f"(mismatched audio {_signed(final.mean('speed_envelope_r', control=True))}), "
-                   f"pitch r {_signed(final.mean('pitch_r'))} "
-                   f"(mismatched audio {_signed(final.mean('pitch_r', control=True))})")
+                   f"speed-envelope r {signed(final.mean('speed_envelope_r'))} "
+                   f"(mismatched audio {signed(final.mean('speed_envelope_r', control=True))}), "
+                   f"pitch r {signed(final.mean('pitch_r'))} "
+                   f"(mismatched audio {signed(final.mean('pitch_r', control=True))})")
         model = ProsodicHeadModel(**settings).fit(data.features, data.motion_au, names=data.names)
         extra["diagnostics"] = diagnostics(model, data)
         model.save(output, extra=extra)

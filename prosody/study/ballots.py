@@ -148,7 +148,7 @@ class Ballot:
         return self.left if self.choice == "left" else self.right
 
 
-def _fail(source: str, problems: list[str]) -> BallotError:
+def ballot_error(source: str, problems: list[str]) -> BallotError:
     listed = problems[:_MAX_LISTED]
     more = f"; and {len(problems) - _MAX_LISTED} more" if len(problems) > _MAX_LISTED else ""
     return BallotError(f"{source}: {len(problems)} bad ballot row(s): " + "; ".join(listed) + more)
@@ -239,7 +239,7 @@ def parse_ballots(text: str, *, source: str = "<ballots>", conditions: Sequence[
         seen[key] = line
         ballots.append(Ballot(line, values["stimulus"], values["subject"], values["left"], values["right"], choice))
     if problems:
-        raise _fail(source, problems)
+        raise ballot_error(source, problems)
     if not ballots:
         raise BallotError(f"{source}: no ballot rows")
     return ballots

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BallotError, require_extra
-from .ballots import BALLOT_COLUMNS, SHORT_NAMES, _fail, filled_rows, holm
+from .ballots import BALLOT_COLUMNS, SHORT_NAMES, ballot_error, filled_rows, holm
 
 MOS_COLUMNS = ("stimulus", "subject", "condition", "score")
 IDENTIFICATION_COLUMNS = ("stimulus", "subject", "shown", "answer")
@@ -124,7 +124,7 @@ def parse_ratings(text: str, *, source: str = "<ballots>", conditions: Sequence[
             continue
         ratings.append(Rating(line, values["stimulus"], values["subject"], values["condition"], score))
     if problems:
-        raise _fail(source, problems)
+        raise ballot_error(source, problems)
     if not ratings:
         raise BallotError(f"{source}: no ballot rows")
     return ratings
@@ -147,7 +147,7 @@ def parse_identifications(text: str, *, source: str = "<ballots>",
         answers.append(Identification(line, values["stimulus"], values["subject"], values["shown"],
                                       values["answer"]))
     if problems:
-        raise _fail(source, problems)
+        raise ballot_error(source, problems)
     if not answers:
         raise BallotError(f"{source}: no ballot rows")
     return answers
@@ -447,11 +447,11 @@ def identification_markdown(results: dict, *, figure: str | None = None) -> str:
 
 def plot_means(results: dict, path: str | os.PathLike[str]) -> Path:
     """Mean score per condition with its 95% interval, as a PNG."""
-    from ..evaluation.plots import _figure, _save
+    from ..evaluation.plots import new_figure, save_figure
 
     names = list(results["conditions"])
     entries = [results["conditions"][name] for name in names]
-    figure = _figure(figsize=(max(4.0, 1.1 * len(names) + 1.5), 3.6), layout="tight")
+    figure = new_figure(figsize=(max(4.0, 1.1 * len(names) + 1.5), 3.6), layout="tight")
     axes = figure.subplots()
     means = [entry["mean"] for entry in entries]
     errors = [[0 if e["ci_low"] is None else e["mean"] - e["ci_low"] for e in entries],
@@ -461,7 +461,7 @@ def plot_means(results: dict, path: str | os.PathLike[str]) -> Path:
     axes.set_ylim(1, 5)
     axes.set_ylabel("mean score (1–5)")
     axes.set_title("Opinion scores, 95% intervals")
-    _save(figure, path, tight=True)
+    save_figure(figure, path, tight=True)
     return Path(path)
 
 
@@ -485,14 +485,14 @@ def plot_confusion(results: dict, path: str | os.PathLike[str]) -> Path:
     """The confusion matrix as a PNG: each row's share of answers as colour, the counts written in; past
     :data:`MAX_CONFUSION_CLASSES` classes, the rows and columns of those shown most often (a row's share is
     still of all its answers)."""
-    from ..evaluation.plots import _figure, _save
+    from ..evaluation.plots import new_figure, save_figure
 
     names, kept = confusion_shown(results)
     every = np.asarray(results["confusion"], float)
     counts = every[np.ix_(kept, kept)]
     shares = counts / np.maximum(every[kept].sum(axis=1, keepdims=True), 1)
     size = max(3.6, 0.8 * len(names) + 2.0)
-    figure = _figure(figsize=(size + 0.8, size), layout="tight")
+    figure = new_figure(figsize=(size + 0.8, size), layout="tight")
     axes = figure.subplots()
     image = axes.imshow(shares, vmin=0, vmax=1, cmap="Blues")
     for i, j in itertools.product(range(len(names)), repeat=2):
@@ -506,5 +506,5 @@ def plot_confusion(results: dict, path: str | os.PathLike[str]) -> Path:
         f", the {len(kept)} classes shown most often of {len(results['classes'])}"
     axes.set_title(f"Identification (chance {results['chance']:.0%}{part})")
     figure.colorbar(image, ax=axes, fraction=0.046, label="share of the row")
-    _save(figure, path, tight=True)
+    save_figure(figure, path, tight=True)
     return Path(path)

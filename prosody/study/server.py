@@ -50,7 +50,7 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import ConfigError
-from ..live.server import _trusted_host, normalize_origin
+from ..live.server import normalize_origin, trusted_host
 from ..study.designs import StudyPlan
 from .stimuli import check_stimuli
 from .store import StudyStore, StudyStoreError
@@ -389,7 +389,7 @@ class _Handler(BaseHTTPRequestHandler):
         except ConfigError:
             return False
         if own is not None and own not in study.allow_origins \
-                and not _trusted_host(urllib.parse.urlsplit(own).hostname or ""):
+                and not trusted_host(urllib.parse.urlsplit(own).hostname or ""):
             return False  # a name another site's DNS could point here (DNS rebinding)
         if not origins:
             return True  # not a browser page: a program, or a same-origin GET

@@ -193,13 +193,13 @@ def face_measures(observation: FaceObservation) -> dict[str, float]:
         "outer_height_r": ratio(BROW_OUTER_RIGHT, EYE_OUTER_RIGHT),
     }
     for shape in MOUTH_BLENDSHAPES:
-        values[_snake(shape)] = shapes.get(shape, math.nan)
+        values[snake_case(shape)] = shapes.get(shape, math.nan)
     values["lip_opening"] = ratio(LIP_INNER_UPPER, LIP_INNER_LOWER)
     values["mouth_width"] = ratio(MOUTH_CORNER_LEFT, MOUTH_CORNER_RIGHT)
     values["nose_chin"] = ratio(NOSE_TIP, CHIN)
     return values
 
 
-def _snake(name: str) -> str:
+def snake_case(name: str) -> str:
     """``mouthSmileLeft`` -> ``mouth_smile_left``."""
     return "".join("_" + c.lower() if c.isupper() else c for c in name)
