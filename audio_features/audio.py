@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import AudioLoadError
-from .inputs import check_input
+from .inputs import check_input, reading
 
 #: File name endings taken as audio when a folder is scanned (training pairs, batches).
 AUDIO_EXTENSIONS = (".wav", ".flac", ".ogg", ".oga", ".mp3", ".aif", ".aiff", ".aifc", ".au", ".caf", ".w64")
@@ -134,14 +134,8 @@ def check_readable(path: str | os.PathLike[str]) -> Path:
     pathlib.Path
     """
     file = Path(path)
-    try:
+    with reading(file, AudioLoadError, what="audio file"):
         size = check_input(file)
-    except FileNotFoundError:
-        raise AudioLoadError(f"{file}: no such file") from None
-    except IsADirectoryError:
-        raise AudioLoadError(f"{file}: is a directory, not an audio file") from None
-    except OSError as error:
-        raise AudioLoadError(f"{file}: cannot be read ({error.strerror or error})") from None
     if size == 0:
         raise AudioLoadError(f"{file}: the file is empty (0 bytes)")
     _check_container_truncation(file)

@@ -25,7 +25,7 @@ from .audio import (
 )
 from .defaults import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS
 from .errors import AudioLoadError, NoVoicedFramesWarning, ParameterError
-from .inputs import open_input
+from .inputs import open_input, reading
 from .tracks import F0Track, Track
 
 #: Column names of the features CSV, in order.
@@ -163,12 +163,9 @@ def read_features_csv(path: str | os.PathLike[str], *, fps: float) -> Features:
     """
     name = str(path)
     try:
-        with open_input(path, text=True, newline="", encoding="utf-8", max_bytes=MAX_CSV_BYTES) as handle:
+        with reading(name, AudioLoadError), open_input(path, text=True, newline="", encoding="utf-8",
+                                                       max_bytes=MAX_CSV_BYTES) as handle:
             rows = list(csv.reader(handle))
-    except FileNotFoundError:
-        raise AudioLoadError(f"{name}: no such file") from None
-    except OSError as error:
-        raise AudioLoadError(f"{name}: cannot be read ({error.strerror or error})") from None
     except (UnicodeDecodeError, csv.Error) as error:
         raise AudioLoadError(f"{name}: cannot be read as a features CSV ({error})") from None
     if not rows or tuple(rows[0]) != CSV_COLUMNS:

@@ -11,6 +11,8 @@ import errno
 import fcntl
 import os
 import stat
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import IO
 
 
@@ -137,3 +139,38 @@ def file_sha256(path: str | os.PathLike[str]) -> str:
         for block in iter(lambda: handle.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
+
+
+@contextmanager
+def reading(name: object, error: Callable[[str], Exception], *, what: str = "file") -> Iterator[None]:
+    """Translate the OSError of reading ``name`` into ``error(message)``, one line naming the file: no such
+    file, a folder where a file was wanted, or why it cannot be read (the system's words).
+
+    Parameters
+    ----------
+    name : str or path-like
+        The file, as messages name it.
+    error : callable
+        The project error to raise, called with the message.
+    what : str
+        What the file should be (``"CSV file"``): said where a folder was given.
+
+    Yields
+    ------
+    None
+
+    Examples
+    --------
+    >>> with reading("none.csv", ValueError):
+    ...     open("/nonexistent/none.csv")
+    Traceback (most recent call last):
+    ValueError: none.csv: no such file
+    """
+    try:
+        yield
+    except FileNotFoundError:
+        raise error(f"{name}: no such file") from None
+    except IsADirectoryError:
+        raise error(f"{name}: is a directory, not a {what}") from None
+    except OSError as failure:
+        raise error(f"{name}: cannot be read ({failure.strerror or failure})") from None

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from audio_features.inputs import open_input
+from audio_features.inputs import open_input, reading
 
 from ..errors import GroundTruthError
 from ..fap.stream import FapStream
@@ -38,18 +38,13 @@ def _csv_rows(path: str | os.PathLike[str], name: str) -> list[list[str]]:
     are a GroundTruthError naming the file and line."""
     try:
         # utf-8-sig: a byte-order mark (spreadsheets write one) is not part of the first column's name
-        with open_input(path, text=True, newline="", encoding="utf-8-sig", max_bytes=MAX_CSV_BYTES) as handle:
+        with reading(name, GroundTruthError, what="CSV file"), open_input(
+                path, text=True, newline="", encoding="utf-8-sig", max_bytes=MAX_CSV_BYTES) as handle:
             reader = csv.reader(handle)
             try:
                 return list(reader)
             except csv.Error as error:
                 raise GroundTruthError(f"{name}, line {reader.line_num}: not a CSV row ({error})") from None
-    except FileNotFoundError:
-        raise GroundTruthError(f"{name}: no such file") from None
-    except IsADirectoryError:
-        raise GroundTruthError(f"{name}: is a directory, not a CSV file") from None
-    except OSError as error:
-        raise GroundTruthError(f"{name}: cannot be read ({error.strerror or error})") from None
     except UnicodeDecodeError as error:
         raise GroundTruthError(f"{name}: cannot be read as CSV ({error})") from None
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from audio_features.atomic import atomic_write
-from audio_features.inputs import open_input
+from audio_features.inputs import open_input, reading
 
 from ..errors import ModelError
 
@@ -80,13 +80,12 @@ def read_model_json(path: str | os.PathLike[str], *, shipped: tuple[str, ...] = 
     """
     name = str(path)
     try:
-        with open_input(Path(path)) as handle:
+        with reading(name, ModelError, what="model file"), open_input(Path(path)) as handle:
             data = handle.read(MAX_MODEL_BYTES + 1)
-    except FileNotFoundError:
-        also = f" (or give a shipped model: {', '.join(shipped)})" if shipped else ""
-        raise ModelError(f"{name}: no such model file{also}") from None
-    except OSError as error:
-        raise ModelError(f"{name}: cannot be read ({error.strerror or error})") from None
+    except ModelError as error:
+        if not str(error).endswith(": no such file") or not shipped:
+            raise
+        raise ModelError(f"{name}: no such model file (or give a shipped model: {', '.join(shipped)})") from None
     if len(data) > MAX_MODEL_BYTES:
         raise ModelError(f"{name}: larger than {MAX_MODEL_BYTES >> 20} MiB; not a model file")
     try:

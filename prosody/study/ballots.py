@@ -24,7 +24,7 @@ from typing import TypeVar
 import numpy as np
 
 from audio_features.atomic import atomic_write
-from audio_features.inputs import open_input
+from audio_features.inputs import open_input, reading
 
 from ..errors import BallotError, ConfigError
 from ..motion.conditions import CONDITION_ORDER
@@ -249,12 +249,9 @@ def read_text_file(path: str | os.PathLike[str], *, what: str = "CSV") -> str:
     """The text of a ballot or plan file (UTF-8, a byte-order mark allowed, at most
     :data:`MAX_BALLOT_BYTES`); a BallotError naming the file when it cannot be read."""
     try:
-        with open_input(path, text=True, encoding="utf-8-sig", newline="", max_bytes=MAX_BALLOT_BYTES) as handle:
+        with reading(path, BallotError), open_input(path, text=True, encoding="utf-8-sig", newline="",
+                                                    max_bytes=MAX_BALLOT_BYTES) as handle:
             return handle.read()
-    except FileNotFoundError:
-        raise BallotError(f"{path}: no such file") from None
-    except OSError as error:
-        raise BallotError(f"{path}: cannot be read ({error.strerror or error})") from None
     except UnicodeDecodeError as error:
         raise BallotError(f"{path}: cannot be read as {what} text ({error})") from None
 

@@ -75,15 +75,12 @@ class StudyCondition:
 
 
 def _read_json(path: str | os.PathLike[str], what: str) -> dict:
-    from audio_features.inputs import open_input
+    from audio_features.inputs import open_input, reading
 
     try:
-        with open_input(path, text=True, encoding="utf-8", max_bytes=MAX_JSON_BYTES) as handle:
+        with reading(path, ConfigError), open_input(path, text=True, encoding="utf-8",
+                                                    max_bytes=MAX_JSON_BYTES) as handle:
             payload = json.load(handle)
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: no such file") from None
-    except OSError as error:
-        raise ConfigError(f"{path}: cannot be read ({error.strerror or error})") from None
     except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as error:
         raise ConfigError(f"{path}: not a {what} (not JSON: {error})") from None
     if not isinstance(payload, dict):
