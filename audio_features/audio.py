@@ -134,7 +134,7 @@ def check_readable(path: str | os.PathLike[str]) -> Path:
     pathlib.Path
     """
     file = Path(path)
-    with reading(file, AudioLoadError, what="audio file"):
+    with reading(file, AudioLoadError, wanted="audio file"):
         size = check_input(file)
     if size == 0:
         raise AudioLoadError(f"{file}: the file is empty (0 bytes)")

@@ -142,7 +142,7 @@ def file_sha256(path: str | os.PathLike[str]) -> str:
 
 
 @contextmanager
-def reading(name: object, error: Callable[[str], Exception], *, what: str = "file") -> Iterator[None]:
+def reading(name: object, error: Callable[[str], Exception], *, wanted: str = "file") -> Iterator[None]:
     """Translate the OSError of reading ``name`` into ``error(message)``, one line naming the file: no such
     file, a folder where a file was wanted, or why it cannot be read (the system's words).
 
@@ -152,7 +152,7 @@ def reading(name: object, error: Callable[[str], Exception], *, what: str = "fil
         The file, as messages name it.
     error : callable
         The project error to raise, called with the message.
-    what : str
+    wanted : str
         What the file should be (``"CSV file"``): said where a folder was given.
 
     Yields
@@ -171,6 +171,6 @@ def reading(name: object, error: Callable[[str], Exception], *, what: str = "fil
     except FileNotFoundError:
         raise error(f"{name}: no such file") from None
     except IsADirectoryError:
-        raise error(f"{name}: is a directory, not a {what}") from None
+        raise error(f"{name}: is a directory, not a {wanted}") from None
     except OSError as failure:
         raise error(f"{name}: cannot be read ({failure.strerror or failure})") from None

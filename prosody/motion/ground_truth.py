@@ -38,7 +38,7 @@ def _csv_rows(path: str | os.PathLike[str], name: str) -> list[list[str]]:
     are a GroundTruthError naming the file and line."""
     try:
         # utf-8-sig: a byte-order mark (spreadsheets write one) is not part of the first column's name
-        with reading(name, GroundTruthError, what="CSV file"), open_input(
+        with reading(name, GroundTruthError, wanted="CSV file"), open_input(
                 path, text=True, newline="", encoding="utf-8-sig", max_bytes=MAX_CSV_BYTES) as handle:
             reader = csv.reader(handle)
             try:

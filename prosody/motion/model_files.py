@@ -80,12 +80,13 @@ def read_model_json(path: str | os.PathLike[str], *, shipped: tuple[str, ...] = 
     """
     name = str(path)
     try:
-        with reading(name, ModelError, what="model file"), open_input(Path(path)) as handle:
+        with reading(name, ModelError, wanted="model file"), open_input(Path(path)) as handle:
             data = handle.read(MAX_MODEL_BYTES + 1)
     except ModelError as error:
-        if not str(error).endswith(": no such file") or not shipped:
+        if not str(error).endswith(": no such file"):
             raise
-        raise ModelError(f"{name}: no such model file (or give a shipped model: {', '.join(shipped)})") from None
+        also = f" (or give a shipped model: {', '.join(shipped)})" if shipped else ""
+        raise ModelError(f"{name}: no such model file{also}") from None
     if len(data) > MAX_MODEL_BYTES:
         raise ModelError(f"{name}: larger than {MAX_MODEL_BYTES >> 20} MiB; not a model file")
     try:
