@@ -593,7 +593,7 @@ def check_gif(path: Path, *, fps: float, n_frames: int, width: int, height: int)
                            "or resample the stream")
 
 
-def _write_gif(frames: Iterator[np.ndarray], path: Path, *, fps: float, n_frames: int) -> None:
+def _write_gif(frames: Iterator[np.ndarray], path: Path, *, fps: float) -> None:
     from PIL import Image
 
     images = [Image.fromarray(frame).quantize(colors=64, method=Image.Quantize.MEDIANCUT) for frame in frames]
@@ -754,7 +754,7 @@ def _write_video(panels: list[tuple[str | None, FapStream]], output: str | os.Pa
         if first_gif is not None:
             check_gif(path, fps=fps, n_frames=count, width=first_gif.shape[1], height=first_gif.shape[0])
             frames = itertools.chain([first_gif], frames)
-        _write_gif(frames, path, fps=fps, n_frames=count)
+        _write_gif(frames, path, fps=fps)
         return path
     executable = find_ffmpeg() if ffmpeg == "auto" else ffmpeg
     if executable is None:
