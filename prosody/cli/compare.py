@@ -12,11 +12,11 @@ from . import options as opt
 def run(args: argparse.Namespace) -> int:
     from ..errors import ConfigError
     from ..evaluation.compare import compare, write_comparison
+    from ..motion.settings import FaceSettings
 
-    if args.transcript is not None and args.lips not in ("visemes", "combined"):
-        raise ConfigError(f"--transcript is read by the visemes; it is not used by --lips {args.lips}")
-    if args.pad_map is not None and args.pad is None:
-        raise ConfigError("--pad-map maps the state of --pad to the face; give --pad too")
+    # the face's rules are the library's (said with the flags), checked before the photo and the audio
+    FaceSettings(lips=None if args.lips == "none" else args.lips, transcript=args.transcript, language=args.language,
+                 mouth_model=args.mouth_model, pad=args.pad, pad_map=args.pad_map)
     face: Any = "head"
     if args.face is not None:  # the photo is read, and its face found, before the audio
         if not args.video:
