@@ -34,8 +34,8 @@ def run(args: argparse.Namespace) -> int:
         given = [f"--{name}" for name, value in orders.items() if value is not None]
         if given:
             raise ConfigError(f"{', '.join(given)} set(s) the ARX model's orders: add --kind arx")
-        train_live(args.data[0], args.output, lookahead_ms=100.0 if args.lookahead_ms is None else args.lookahead_ms,
-                   cv=args.cv, fps=args.fps, report=msg.say)
+        given_lookahead = {} if args.lookahead_ms is None else {"lookahead_ms": args.lookahead_ms}
+        train_live(args.data[0], args.output, cv=args.cv, fps=args.fps, report=msg.say, **given_lookahead)
         return opt.EXIT_OK
     if args.kind != "arx":
         given = [f"--{name}" for name, value in orders.items() if value is not None]

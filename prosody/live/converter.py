@@ -30,12 +30,10 @@ from ..motion.expressions import ExpressionSegment, add_brow_raises, expressions
 from ..motion.expressivity import BrowShaper, Expressivity, HeadShaper
 from ..motion.limits import limit_frame
 from ..motion.lips import LIP_FAPS, shape_faps
-from ..motion.live import LiveHeadModel, LivePerlin, live_brows
+from ..motion.live import DEFAULT_LOOKAHEAD_MS, LiveHeadModel, LivePerlin, live_brows
 from ..motion.model_files import read_model_json
 from ..motion.settings import CHANNELS, AnalysisSettings, ChannelSettings, MotionSettings, takes_settings
 
-#: Look-ahead of the live head and brows by default, in ms (the measured trade: see docs/live.md).
-DEFAULT_LOOKAHEAD_MS = 100.0
 #: Shipped live head models by the look-ahead they read, in ms.
 LIVE_MODELS_DIR = Path(__file__).resolve().parents[1] / "motion" / "models"
 SHIPPED_LOOKAHEADS_MS = (0, 100, 200, 300, 500)

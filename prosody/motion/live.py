@@ -50,6 +50,9 @@ from .speech_head import (
     windowed_features,
 )
 
+#: Look-ahead of the live head and brows by default, in ms (the measured trade: see docs/live.md).
+DEFAULT_LOOKAHEAD_MS = 100.0
+
 #: Weight of a voiced frame in the speaker's running medians halves after this many further voiced frames
 #: (five minutes of voice at 30 fps).
 LEVELS_HALF_LIFE_FRAMES = 9000

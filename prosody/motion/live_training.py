@@ -22,7 +22,7 @@ from ..fap.table import HEAD_FAPS
 from ..measures import average_head_metrics, head_matrix, head_metrics
 from .controls import shift_offsets
 from .ground_truth import fit_to_grid, read_motion
-from .live import LiveHeadModel
+from .live import DEFAULT_LOOKAHEAD_MS, LiveHeadModel
 from .training import CV_SEEDS, HeldOut, find_pairs, held_out_summary, signed
 
 _LOG = logging.getLogger("prosody.training")
@@ -151,8 +151,8 @@ def _measure(model: LiveHeadModel, recording: StreamedRecording, *, fps: float, 
     return average_head_metrics(own), average_head_metrics(mismatched)
 
 
-def train_live(directory: str | os.PathLike[str], output: str | os.PathLike[str], *, lookahead_ms: float = 100.0,
-               cv: bool = False, fps: float = DEFAULT_FPS,
+def train_live(directory: str | os.PathLike[str], output: str | os.PathLike[str], *,
+               lookahead_ms: float = DEFAULT_LOOKAHEAD_MS, cv: bool = False, fps: float = DEFAULT_FPS,
                report: Callable[[str], None] | None = None) -> LiveHeadModel:
     """Train a live head model reading ``lookahead_ms`` ahead on every pair in ``directory`` and save it;
     with ``cv`` its settings are chosen from :data:`LIVE_GRID` by leave-one-speaker-out (the folder's
