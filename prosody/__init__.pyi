@@ -82,6 +82,7 @@ def compare(
     analysis: AnalysisSettings | None = ...,
     motion: MotionSettings | None = ...,
     face: FaceSettings | None = ...,
+    channels: ChannelSettings | None = ...,
     fps: float = ...,
     f0_floor_hz: float = ...,
     f0_ceiling_hz: float = ...,
@@ -96,6 +97,8 @@ def compare(
     expression: str | Sequence[ExpressionSegment] | None = ...,
     pad: str | Sequence[PadSegment] | None = ...,
     pad_map: str | os.PathLike[str] | None = ...,
+    gains: Mapping[str, float] | None = ...,
+    disabled: Iterable[str] = ...,
 ) -> Comparison: ...
 
 

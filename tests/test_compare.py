@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -494,3 +495,32 @@ def test_batch_takes_a_transcript_beside_each_recording_and_an_expression(tmp_pa
         assert main(["batch", str(indir), "-o", str(tmp_path / "bad"), *common, *bad]) == 2
         assert said in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
+
+
+def test_compare_takes_converts_gains_and_channels_left_out(tmp_path) -> None:
+    """compare had no gains and no --off: they act on the generated conditions (and their controls) as convert
+    applies them, the speech-driven condition's stream being convert's with the same settings."""
+    from conftest import REPO
+
+    from prosody.evaluation.compare import compare
+    from prosody.fap.fapfile import read_fap
+    from prosody.motion.conditions import Condition
+
+    speech = REPO / "samples" / "arctic_a0009.wav"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plain = compare(speech, seeds=1, lips=None)
+        quiet = compare(speech, seeds=1, lips=None, gains={"yaw": 0.0, "pitch": 0.5}, disabled=["brows"])
+    for condition in (Condition.SPEECH_DRIVEN, Condition.RANDOM):
+        stream, base = quiet.streams[condition], plain.streams[condition]
+        assert not set(range(31, 37)) & set(stream.active_faps)  # the brows left out
+        assert np.allclose(stream.curve(49), 0.0) and base.curve(49).std() > 0  # no yaw
+        assert np.allclose(stream.curve(50), base.curve(50))  # roll as it was
+    assert main(["convert", str(speech), "-o", str(tmp_path / "c.fap"), "--lips", "none", "--yaw-gain", "0",
+                 "--pitch-gain", "0.5", "--off", "brows"]) == 0
+    converted = read_fap(tmp_path / "c.fap").stream
+    for fap in (48, 49, 50):
+        assert np.allclose(quiet.streams[Condition.SPEECH_DRIVEN].curve(fap), converted.curve(fap), atol=1.0), fap
+    assert main(["compare", str(speech), "-o", str(tmp_path / "cmp"), "--lips", "none", "--seeds", "1",
+                 "--no-plots", "--off", "brows", "--yaw-gain", "0"]) == 0
+    assert (tmp_path / "cmp" / "speech_driven.fap").is_file()

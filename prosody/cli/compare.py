@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
                          language=args.language,
                          expression=args.expression, mouth=args.mouth, mouth_model=args.mouth_model,
                          expressivity=opt.expressivity(args), pad=args.pad, pad_map=args.pad_map,
-                         **opt.analysis_kwargs(args))
+                         **opt.channel_kwargs(args), **opt.analysis_kwargs(args))
     written = write_comparison(comparison, args.output, plots=args.plots, video=args.video,
                                exaggerate=args.exaggerate, face=face,
                                progress=msg.frame_progress(f"{args.output}/conditions.mp4") if args.video else None)
@@ -84,6 +84,7 @@ def add_parser(commands) -> None:
                          help="a video-tracked mouth for the lip measures (default: the <clip>.mouth.csv beside "
                               "the ground truth or the audio, if any)")
     opt.add_face_options(compare)
+    opt.add_channel_options(compare)
     opt.add_expressivity_options(compare)
     compare.add_argument("--exaggerate", type=opt.exaggeration, default=1.0, metavar="X",
                          help="with --video: draw head angles and brow raises X times larger (default 1)")

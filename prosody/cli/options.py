@@ -130,18 +130,7 @@ def add_motion_options(parser: argparse.ArgumentParser, *, live: bool = False) -
         parser.add_argument("--ground-truth", default=None, metavar="FILE",
                             help="recorded motion for --condition truth: <clip>.head.csv or .fap")
     add_generator_options(parser, live=live)
-    from ..motion.settings import MAX_GAIN
-
-    controls = parser.add_argument_group("intensity (1 keeps the motion as computed, 0.5 halves it)")
-    for channel, what in (("pitch", "head nods (FAP 48)"), ("yaw", "head turns (FAP 49)"),
-                          ("roll", "head tilts (FAP 50)"), ("brow", "eyebrow raises (FAP 31-34)")):
-        controls.add_argument(f"--{channel}-gain", type=number_in(0, MAX_GAIN), default=1.0, metavar="G",
-                              help=f"scale the {what} by G (default 1; 0 to 100, the head and brows kept within "
-                                   "what a person can do)")
-    controls.add_argument("--lip-gain", type=number_in(0, MAX_GAIN), default=1.0, metavar="G",
-                          help="scale the lips' motion (FAP 3-11, 16-17, 51-58) by G (default 1)")
-    controls.add_argument("--off", action="append", default=[], metavar="CHANNEL[,CHANNEL]",
-                          help="leave channels out of the output: pitch, yaw, roll, brows, lips (repeatable)")
+    add_channel_options(parser)
     add_expressivity_options(parser)
     if live:
         from ..motion.expressions import EXPRESSIONS
@@ -156,6 +145,30 @@ def add_motion_options(parser: argparse.ArgumentParser, *, live: bool = False) -
                                  "times from the stream's start), mixed with the lips as in convert")
     else:
         add_face_options(parser)
+
+
+def add_channel_options(parser: argparse.ArgumentParser) -> None:
+    """The gains and channels left out (the library's :class:`~prosody.motion.settings.ChannelSettings`)."""
+    from ..motion.settings import MAX_GAIN
+
+    controls = parser.add_argument_group("intensity (1 keeps the motion as computed, 0.5 halves it)")
+    for channel, what in (("pitch", "head nods (FAP 48)"), ("yaw", "head turns (FAP 49)"),
+                          ("roll", "head tilts (FAP 50)"), ("brow", "eyebrow raises (FAP 31-34)")):
+        controls.add_argument(f"--{channel}-gain", type=number_in(0, MAX_GAIN), default=1.0, metavar="G",
+                              help=f"scale the {what} by G (default 1; 0 to 100, the head and brows kept within "
+                                   "what a person can do)")
+    controls.add_argument("--lip-gain", type=number_in(0, MAX_GAIN), default=1.0, metavar="G",
+                          help="scale the lips' motion (FAP 3-11, 16-17, 51-58) by G (default 1)")
+    controls.add_argument("--off", action="append", default=[], metavar="CHANNEL[,CHANNEL]",
+                          help="leave channels out of the output: pitch, yaw, roll, brows, lips (repeatable)")
+
+
+def channel_kwargs(args: argparse.Namespace) -> dict:
+    """The ``gains`` and ``disabled`` keywords set by :func:`add_channel_options`."""
+    gains = {"pitch": args.pitch_gain, "yaw": args.yaw_gain, "roll": args.roll_gain, "brows": args.brow_gain,
+             "lips": args.lip_gain}
+    return {"gains": gains, "disabled": [name.strip() for value in args.off for name in value.split(",")
+                                         if name.strip()]}
 
 
 def add_expressivity_options(parser: argparse.ArgumentParser) -> None:
@@ -309,9 +322,6 @@ def eyebrow_rule(args: argparse.Namespace):
 
 def motion_kwargs(args: argparse.Namespace) -> dict:
     """The keyword arguments of :func:`prosody.jobs.pipeline.convert` set by :func:`add_motion_options`."""
-    gains = {"pitch": args.pitch_gain, "yaw": args.yaw_gain, "roll": args.roll_gain, "brows": args.brow_gain,
-             "lips": args.lip_gain}
-    disabled = [name.strip() for value in args.off for name in value.split(",") if name.strip()]
     face: dict = {}
     if hasattr(args, "live_lips"):
         face = {"live_lips": args.live_lips != "none", "expression": args.expression}
@@ -320,7 +330,7 @@ def motion_kwargs(args: argparse.Namespace) -> dict:
                 "expression": args.expression, "mouth_model": args.mouth_model, "pad": args.pad,
                 "pad_map": args.pad_map, "language": args.language}
     return {"condition": args.condition, "ground_truth": getattr(args, "ground_truth", None), "model": args.model,
-            "seed": args.seed, "eyebrow_rule": eyebrow_rule(args), "gains": gains, "disabled": disabled, **face,
+            "seed": args.seed, "eyebrow_rule": eyebrow_rule(args), **channel_kwargs(args), **face,
             "expressivity": expressivity(args),
             **analysis_kwargs(args)}
 

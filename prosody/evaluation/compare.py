@@ -55,7 +55,7 @@ from ..motion.eyebrows import BrowRule, EyebrowRaises, NoRaiseWarning, brow_rais
 from ..motion.face import make_face, stream_mouth
 from ..motion.ground_truth import RecordedMouth, fit_to_grid, mouth_beside, read_motion, read_mouth_csv
 from ..motion.head_models import HeadModel, is_stochastic, resolve_head_model, rest_pose
-from ..motion.settings import AnalysisSettings, FaceSettings, MotionSettings, takes_settings
+from ..motion.settings import AnalysisSettings, ChannelSettings, FaceSettings, MotionSettings, takes_settings
 from ..validate import valid_seeds
 from .metrics import METRICS_VERSION, Metrics
 
@@ -214,7 +214,7 @@ def comparison_metrics(streams: Mapping[Condition, FapStream], features: Feature
                                               "audio_vs_head": audio_vs_head}}
 
 
-@takes_settings(analysis=AnalysisSettings, motion=MotionSettings, face=FaceSettings)
+@takes_settings(analysis=AnalysisSettings, motion=MotionSettings, face=FaceSettings, channels=ChannelSettings)
 def compare(
     audio: str | os.PathLike[str],
     *,
@@ -229,6 +229,7 @@ def compare(
     analysis: AnalysisSettings,
     motion: MotionSettings,
     face: FaceSettings,
+    channels: ChannelSettings,
 ) -> Comparison:
     """Compute every condition for a recording and compare them.
 
@@ -264,6 +265,9 @@ def compare(
         their controls and the other head models alike; recorded motion is left as it is); or its fields.
     face : FaceSettings, optional
         The lips, expression and PAD state's partial expressions given to every condition alike; or its fields.
+    channels : ChannelSettings, optional
+        Gains and channels left out, on the generated conditions and their controls alike (recorded motion is
+        left as it is), as ``convert`` applies them; or its fields.
 
     Returns
     -------
@@ -287,9 +291,9 @@ def compare(
     if Condition.SPEECH_DRIVEN in wanted:
         warn_if_no_raise(eyebrows)
     # the same lips and expression in every condition: the comparison is about prosody
-    layer = make_face(audio, features, face)
+    layer = make_face(audio, features, face, channels)
     setup = _Setup(features, eyebrows, eyebrow_rule, head_model, truth, Path(str(audio)).stem, layer, expressivity,
-                   seed, seeds, normalize)
+                   seed, seeds, normalize, channels)
     streams = setup.generate(wanted, targets)
     head_blocks, brow_blocks, control, brow_control = setup.measure_conditions(streams)
     metrics = {**setup.recording_metrics(audio, ground_truth), **comparison_metrics(streams, features)}
@@ -323,6 +327,7 @@ class _Setup:
     seed: int
     seeds: int
     normalize: bool
+    channels: ChannelSettings | None = None
     targets: dict[int, tuple[float, float]] = field(default_factory=dict)
 
     def recording_metrics(self, audio: str | os.PathLike[str], ground_truth: object) -> dict:
@@ -359,7 +364,11 @@ class _Setup:
                                       eyebrows=self.eyebrows if source is self.features else None,
                                       eyebrow_rule=self.rule, name=f"{self.stem}_{condition.value.lower()}",
                                       expressivity=self.expressivity)
-        return self.face.over(stream) if self.face is not None else stream  # type: ignore[attr-defined]
+        stream = self.face.over(stream) if self.face is not None else stream  # type: ignore[attr-defined]
+        if self.channels is not None and condition is not Condition.GROUND_TRUTH:
+            rest = rest_pose(self.head_model) if condition is Condition.SPEECH_DRIVEN and self.head_model else None
+            stream = self.channels.applied(stream, rest=rest)
+        return stream
 
     def finished(self, condition: Condition, stream: FapStream) -> FapStream:
         """``stream`` normalised as the comparison's conditions are."""

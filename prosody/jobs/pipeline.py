@@ -57,10 +57,7 @@ def apply_controls(stream: FapStream, *, rest: Mapping[int, float] | None = None
     -------
     FapStream
     """
-    # the lips' gain is applied where they are made (it scales the mouth shapes, not the mixed expression)
-    stream = stream.scaled({fap: channels.gain(name) for name in channels.gains or {} if name != "lips"
-                            for fap in CHANNELS[name]}, about=rest)
-    return stream.without(sorted(channels.disabled_faps()))
+    return channels.applied(stream, rest=rest)
 
 
 def load_ground_truth(path: str | os.PathLike[str], features: Features) -> FapStream:

@@ -222,6 +222,25 @@ class ChannelSettings:
         """
         return {fap for name in self.disabled for fap in CHANNELS[name]}
 
+    def applied(self, stream, *, rest: Mapping[int, float] | None = None):
+        """``stream`` with each channel's motion (pitch, yaw, roll, brows) times its gain about the rest pose,
+        and the channels left out masked off entirely (absent from the output, not zero). The lips' gain is
+        applied where they are made (it scales the mouth's shapes, not a mixed expression).
+
+        Parameters
+        ----------
+        stream : FapStream
+        rest : mapping FAP -> value, optional
+            The rest pose the gains scale about (0 where not given).
+
+        Returns
+        -------
+        FapStream
+        """
+        stream = stream.scaled({fap: self.gain(name) for name in self.gains or {} if name != "lips"
+                                for fap in CHANNELS[name]}, about=rest)
+        return stream.without(sorted(self.disabled_faps()))
+
 
 Result = TypeVar("Result")
 Class = TypeVar("Class", bound=type)
