@@ -524,3 +524,25 @@ def test_compare_takes_converts_gains_and_channels_left_out(tmp_path) -> None:
     assert main(["compare", str(speech), "-o", str(tmp_path / "cmp"), "--lips", "none", "--seeds", "1",
                  "--no-plots", "--off", "brows", "--yaw-gain", "0"]) == 0
     assert (tmp_path / "cmp" / "speech_driven.fap").is_file()
+
+
+def test_batch_takes_the_gains_and_channels_left_out(tmp_path, capsys) -> None:
+    """batch had no gains and no --off: they are convert's (and compare's), refused alike."""
+    import shutil
+
+    from conftest import REPO
+
+    from prosody.fap.fapfile import read_fap
+
+    indir = tmp_path / "in"
+    indir.mkdir()
+    shutil.copy(REPO / "samples" / "arctic_a0009.wav", indir / "a9.wav")
+    out = tmp_path / "out"
+    assert main(["batch", str(indir), "-o", str(out), "--condition", "speech", "--seeds", "1", "--lips", "none",
+                 "--off", "brows", "--yaw-gain", "0"]) == 0
+    stream = read_fap(out / "a9" / "speech_driven.fap").stream
+    assert not set(range(31, 37)) & set(stream.active_faps) and np.allclose(stream.curve(49), 0.0)
+    assert stream.curve(48).std() > 0
+    capsys.readouterr()
+    assert main(["batch", str(indir), "-o", str(tmp_path / "bad"), "--off", "ears"]) == 2
+    assert "unknown channel(s) 'ears'" in capsys.readouterr().err

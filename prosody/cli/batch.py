@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
                            lips=None if args.lips == "none" else args.lips,
                            expressivity=(opt.expressivity(args) or Expressivity()).as_dict(),
                            expression=args.expression, transcripts=args.transcripts, language=args.language,
-                           **opt.analysis_kwargs(args))
+                           **opt.channel_kwargs(args), **opt.analysis_kwargs(args))
     if conditions:
         options = dataclasses.replace(options, conditions=tuple(conditions))
     on_outcome = msg.outcome_reporter(args.parser, args.output, "file", len(find_audio_files(args.input)),
@@ -92,6 +92,7 @@ def add_parser(commands) -> None:
                        help="also write each file's conditions.mp4, as compare --video (needs ffmpeg or the "
                             "imageio-ffmpeg package)")
     batch.add_argument("--force", action="store_true", help="redo files whose outputs are already complete")
+    opt.add_channel_options(batch)
     opt.add_expressivity_options(batch)
     opt.add_analysis_options(batch)
     opt.add_eyebrow_options(batch)

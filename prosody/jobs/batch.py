@@ -34,7 +34,7 @@ from ..fap.table import HEAD_FAPS, PROSODY_FAPS
 from ..motion.conditions import CONDITION_ORDER, Condition
 from ..motion.expressivity import NEUTRAL, Expressivity
 from ..motion.eyebrows import AccentRule, EyebrowRule
-from ..motion.settings import AnalysisSettings, FaceSettings, MotionSettings
+from ..motion.settings import AnalysisSettings, ChannelSettings, FaceSettings, MotionSettings
 from ..validate import valid_seeds
 
 #: Ground-truth file endings looked up beside an audio file's stem, in order of preference.
@@ -75,6 +75,9 @@ class BatchOptions:
     transcripts: bool = False
     #: The transcripts' language (an eSpeak NG code; None: English, aligned by PocketSphinx).
     language: str | None = None
+    #: Gains per channel and the channels left out, as ``convert`` applies them (on the generated conditions).
+    gains: Mapping[str, float] | None = None
+    disabled: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "expressivity", Expressivity().with_changes(**self.expressivity).as_dict())
@@ -116,6 +119,9 @@ class BatchOptions:
                 raise ConfigError(f"a batch's expression is NAME[:INTENSITY] for every recording, got "
                                   f"{self.expression!r}")
             parse_expressions(self.expression)
+        channels = ChannelSettings(gains=self.gains, disabled=self.disabled)  # refuses what convert refuses
+        object.__setattr__(self, "gains", dict(channels.gains or {}) or None)
+        object.__setattr__(self, "disabled", tuple(channels.disabled))
         if self.transcripts and self.lips not in ("visemes", "combined"):
             raise ConfigError(f"transcripts are read by the visemes; lips={self.lips!r} does not use them")
         valid_seeds(self.seeds)
@@ -210,11 +216,12 @@ def _settings(options: BatchOptions, ground_truth: Path | None, audio: str) -> d
     transcript = transcript_file(audio) if options.transcripts and transcript_file(audio).is_file() else None
     rule = options.eyebrow_rule
     assert rule is not None  # set by BatchOptions from brows where not given
-    return {**asdict(options), "conditions": list(options.conditions),
+    # as metrics.json will hold it (tuples as lists), so that a finished folder compares equal
+    return json.loads(json.dumps({**asdict(options), "conditions": list(options.conditions),
             "eyebrow_rule": {"rule": type(rule).__name__, **asdict(rule)},
             "ground_truth": str(ground_truth) if ground_truth else None,
             "content": {"audio": file_digest(audio), "ground_truth": file_digest(ground_truth),
-                        "model": file_digest(model), "transcript": file_digest(transcript)}}
+                        "model": file_digest(model), "transcript": file_digest(transcript)}}))
 
 
 def _complete(folder: Path, settings: dict) -> dict | None:
@@ -265,7 +272,8 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
                                  f0_floor_hz=options.f0_floor_hz, f0_ceiling_hz=options.f0_ceiling_hz,
                                  lips=options.lips, expressivity=Expressivity(**options.expressivity),
                                  expression=options.expression, transcript=transcript,
-                                 language=options.language if transcript is not None else None)
+                                 language=options.language if transcript is not None else None,
+                                 gains=options.gains, disabled=options.disabled)
         outcome.warnings = list(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
         folder.mkdir(parents=True, exist_ok=True)
         # the features let the summary drive the generator with this recording's audio against other ones
