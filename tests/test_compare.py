@@ -458,6 +458,7 @@ def test_typed_metrics_read_a_comparison_losslessly_and_refuse_another_layout(tm
         Metrics.from_json({**result.metrics, "version": METRICS_VERSION + 1})
 
 
+@pytest.mark.slow
 def test_batch_takes_a_transcript_beside_each_recording_and_an_expression(tmp_path, capsys) -> None:
     """batch had no --expression and no transcripts: now <stem>.txt beside a recording is its transcript (with
     --transcripts), the same lips as convert --transcript; --expression is convert's; a transcript that changes

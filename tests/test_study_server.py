@@ -509,6 +509,7 @@ def test_the_study_listens_on_ipv6(tmp_path, recordings) -> None:
         store.close()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("damage, said", [
     (lambda text: text[: len(text) // 2], "SHA-256"),  # cut short after the stimuli were made
     (None, "not head frames a page can play"),  # changed, and its hash with it: frames not one per FAP
