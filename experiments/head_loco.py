@@ -8,7 +8,7 @@ recordings of the control's figure) and each speech-driven row's control beside 
 - prosodic: the default generator (10 seeds), and the same driven by the recording's own audio shifted
   by 5 s or more (the mismatched-audio control);
 - arx: the thesis's model with the shipped orders, and its control;
-- seed 000's PAD-driven gestures and their random baseline (nothing fitted; 10 seeds), with their control;
+- Jia et al.'s PAD-driven gestures and their random baseline (nothing fitted; 10 seeds), with their control;
 - Perlin noise (20 seeds), a still head, and another recording's real motion (trimmed or tiled).
 
 Usage: python -m experiments.head_loco [DIR]  (default ../shared/data/talking-heads)
@@ -129,9 +129,9 @@ def main(argv: list[str]) -> int:
         arx_control.append(average_head_metrics(shifted))
     print(_row("thesis ARX (na={na}, nb={nb}, nk={nk}, ridge {ridge:g}: the shipped orders)".format(**SHIPPED_ARX),
                arx_rows, arx_control))
-    # seed 000's gestures have nothing fitted: every clip is held out by construction
-    for label, model in (("seed 000's PAD gestures (pad), 10 seeds", PadHeadModel()),
-                         ("seed 000's random baseline (pad-random), 10 seeds", PadHeadModel(randomized=True))):
+    # Jia et al.'s gestures have nothing fitted: every clip is held out by construction
+    for label, model in (("Jia et al.'s PAD gestures (pad), 10 seeds", PadHeadModel()),
+                         ("Jia et al.'s random baseline (pad-random), 10 seeds", PadHeadModel(randomized=True))):
         rows, controls = [], []
         for features, recorded in zip(data.features, data.motion_au, strict=True):
             own, control = seeded_measures(model, features, recorded, fps)
@@ -148,7 +148,7 @@ def main(argv: list[str]) -> int:
         own, control = seeded_measures(model, data.features[held], data.motion_au[held], fps)
         rows.append(own)
         controls.append(control)
-    print(_row("seed 000's PAD gestures, C4-C6 fitted on the other speakers (train --kind pad), 10 seeds", rows,
+    print(_row("Jia et al.'s PAD gestures, C4-C6 fitted on the other speakers (train --kind pad), 10 seeds", rows,
                controls))
     perlin = []
     for recorded in data.motion_au:

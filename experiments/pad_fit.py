@@ -1,7 +1,7 @@
 """Eq. 2's arousal coefficients (C4-C6, at P = 0) fitted to recorded head motion, leave one speaker out
 (``make evaluate``; the fit is ``prosody train --kind pad``, ``prosody.motion.pad_head.fit_arousal``).
 
-Seed 000 does not print C1-C6. The recordings here carry no emotion labels, so pleasure cannot be fitted;
+Jia et al. (2013) does not print C1-C6. The recordings here carry no emotion labels, so pleasure cannot be fitted;
 the arousal part can: each prosodic word (PW) the pad model finds in the audio has an arousal A in {0, 0.5, 1}
 (its prominence) and each pause A = -0.5, and the recorded head has a peak-to-peak amplitude per axis over
 the same stretch. For every speaker, C4..C6 are fitted by least squares on the other speakers' stretches and

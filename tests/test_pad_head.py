@@ -1,4 +1,4 @@
-"""Seed 000's PAD-driven head gestures: Eq. 1, 2 and 13 and the peak rule (doctests), and on real speech."""
+"""Jia et al.'s PAD-driven head gestures: Eq. 1, 2 and 13 and the peak rule (doctests), and on real speech."""
 
 from __future__ import annotations
 

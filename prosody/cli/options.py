@@ -112,7 +112,7 @@ def add_generator_options(parser: argparse.ArgumentParser, *, live: bool = False
         parser.add_argument("--model", default=None, metavar="NAME|FILE",
                             help="head model for the speech-driven condition: 'prosodic' (the default: motion of "
                                  "a person's size timed by the speech), 'arx' (the thesis's linear model), 'pad' "
-                                 "(seed 000's nod per prosodic word), 'pad-random' (its random baseline), or a "
+                                 "(Jia et al.'s nod per prosodic word), 'pad-random' (its random baseline), or a "
                                  "file from 'prosody train'")
     parser.add_argument("--seed", type=seed, default=0,
                         help="seed of the random condition and of the speech-driven head's motion (a whole "
@@ -245,7 +245,7 @@ def add_face_options(parser: argparse.ArgumentParser) -> None:
                       help="an emotional state: pleasure, arousal and dominance, each -1..1, for the whole "
                            "recording (e.g. 0.5,0.6,0), or a CSV file of timed ones with the columns "
                            "start_s,end_s,pleasure,arousal,dominance. It shows on the face (brows raised or "
-                           "squeezed, eyes opened: seed 000's partial expressions) and drives --model pad's "
+                           "squeezed, eyes opened: Jia et al.'s partial expressions) and drives --model pad's "
                            "gestures (P, and A shifting each word's arousal); write --pad=-0.5,0.3,0 when it "
                            "starts with a minus")
     face.add_argument("--pad-map", default=None, metavar="FILE.json",

@@ -295,10 +295,10 @@ def add_parser(commands) -> None:
     study = commands.add_parser(
         "study", help="run a perceptual study: plan it, make its videos, serve its page, export and analyse answers",
         description="A perceptual study from plan to analysis. 'plan' writes the presentation order of one of three "
-                    "designs (paired comparisons as the thesis, 1-5 opinion scores as seed 000, identification as "
-                    "seed 002); 'stimuli' draws the face video of every stimulus and condition; 'serve' runs the "
-                    "study's page and saves every answer in an SQLite database; 'export' writes the answers as "
-                    "ballots; 'analyze' runs the design's statistics.",
+                    "designs (paired comparisons as Zavala Chmelicka 2005, 1-5 opinion scores as Jia et al. 2013, "
+                    "identification as Wu et al. 2006); 'stimuli' draws the face video of every stimulus and "
+                    "condition; 'serve' runs the study's page and saves every answer in an SQLite database; "
+                    "'export' writes the answers as ballots; 'analyze' runs the design's statistics.",
     )
     study_commands = study.add_subparsers(dest="study_command", required=True, metavar="STEP",
                                           parser_class=opt.Parser)

@@ -69,7 +69,7 @@ def add_parser(commands) -> None:
                             "recording,speaker) in a folder makes --cv hold out a speaker's recordings together")
     train.add_argument("-o", "--output", required=True, help="model file to write (.json)")
     train.add_argument("--kind", default="prosodic", choices=[*MODEL_KINDS, "live", "mouth"],
-                       help="which model to fit (default prosodic; pad: seed 000's gestures with Eq. 2's arousal "
+                       help="which model to fit (default prosodic; pad: Jia et al.'s gestures with Eq. 2's arousal "
                             "coefficients fitted to the recordings' amplitude per prosodic word, for --model FILE; "
                             "live: the causal form of the prosodic model "
                             "that 'prosody stream' uses, trained on the audio analysed as a stream; mouth: the "

@@ -224,7 +224,7 @@ class LiveConverter:
 
     def _with_expression(self, faps: dict[int, float], time_s: float) -> dict[int, float]:
         """One frame's FAPs with the expression mixed in as offline (:class:`prosody.motion.face.FaceLayer`):
-        by seed 000's Eq. 14 with the lips, under the prosodic brow raises, alone elsewhere."""
+        by Jia et al.'s Eq. 14 with the lips, under the prosodic brow raises, alone elsewhere."""
         shown = {fap: curve for fap, curve in expressions_at(self._expression, np.array([time_s])).items()
                  if fap in self.faps}
         brows = {fap: np.array([faps[fap]]) for fap in shown if 31 <= fap <= 36 and fap in faps}

@@ -1,11 +1,11 @@
 """Facial expressions: the six MPEG-4 expressions as low-level FAP targets, blended over time and mixed with
-the lips (seed 002's superposition; seed 000's Eq. 14).
+the lips (Wu et al.'s superposition; Jia et al.'s Eq. 14).
 
 The targets in :data:`EXPRESSIONS` (intensity 1) are ours: set from the MPEG-4 standard's description of its
 six expressions (FAP 2's table: joy, sadness, anger, fear, disgust, surprise) and the facial action units
 that carry them, with magnitudes of a clearly visible but not extreme display (a surprised brow rises about
 7 mm: 200 ENS; a smile lifts the lip corners about 4 mm: 240 MNS, and draws them back about 5 mm: 100 MW).
-Seed 002 matched its targets to JAFFE photographs without publishing them; these are not fitted to any
+Wu et al. (2006) matched its targets to JAFFE photographs without publishing them; these are not fitted to any
 recording.
 
 Over time (:func:`expression_curves`), each segment (start, end, expression, intensity) has the dominance of
@@ -13,7 +13,7 @@ Over time (:func:`expression_curves`), each segment (start, end, expression, int
 neutral face has a small constant dominance everywhere: the display reaches 87 % of its intensity 0.25 s
 before the segment starts and fades the same way after it ends, and neighbouring expressions blend.
 
-Mixing with the lips (:func:`mix_with_lips`, seed 000's Eq. 14): where the viseme and the expression move a
+Mixing with the lips (:func:`mix_with_lips`, Jia et al.'s Eq. 14): where the viseme and the expression move a
 FAP the same way, ``delta * FAP_v + (1 - delta) * FAP_e``; where they disagree, the viseme's value, so the lips
 still articulate while smiling; where the visemes leave a FAP at 0 (lip corners), the expression's.
 """
@@ -176,7 +176,7 @@ def blend_targets_at(timed: Sequence[tuple[float, float | None, Mapping[int, flo
 
 def mix_with_lips(lips: Mapping[int, np.ndarray], expression: Mapping[int, np.ndarray], *,
                   delta: float = VISEME_WEIGHT) -> dict[int, np.ndarray]:
-    """Seed 000's Eq. 14 on every FAP either moves, frame by frame.
+    """Jia et al.'s Eq. 14 on every FAP either moves, frame by frame.
 
     Examples
     --------

@@ -1,7 +1,7 @@
 """Greta's six expressivity controls, applied to the motion of any head or brow generator.
 
 The controls reshape a generator's output frame by frame and look at no future frame, so the offline
-commands and the live stream apply the very same operation, and every generator (the prosodic head, seed 000's
+commands and the live stream apply the very same operation, and every generator (the prosodic head, Jia et al.'s
 PAD gestures, the thesis's ARX model, Perlin noise, both brow rules, the live head and brows) gets the same
 meaning for each control. Every control at its neutral value (activation 1, the others 0) leaves the motion
 exactly as the generator made it.

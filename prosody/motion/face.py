@@ -39,7 +39,7 @@ def face_layer(audio, n_frames: int, *, fps: float, lips: str | None = "visemes"
                mouth_model=None, pad: Sequence[PadSegment] = (), pad_map=None,
                language: str | None = None) -> FaceLayer:
     """The lips (``lips``: one of :data:`LIP_METHODS`, or None), the expressions and the partial expressions of a PAD
-    state (:mod:`prosody.motion.pad`) of a recording, mixed by seed 000's Eq. 14 (see
+    state (:mod:`prosody.motion.pad`) of a recording, mixed by Jia et al.'s Eq. 14 (see
     :mod:`prosody.motion.expressions`)."""
     curves: dict[int, np.ndarray] = {}
     if lips is not None:

@@ -25,7 +25,7 @@ from .speech_head import MODEL_FORMAT as PROSODIC_FORMAT
 from .speech_head import ProsodicHeadModel
 
 HeadModel = Union[ArxHeadModel, ProsodicHeadModel, PadHeadModel]  # noqa: UP007 - a runtime alias on Python 3.10
-#: Models made from their settings, by name: seed 000's PAD-driven gestures and its random baseline.
+#: Models made from their settings, by name: Jia et al.'s PAD-driven gestures and its random baseline.
 NAMED_MODELS = {"pad": lambda: PadHeadModel(), "pad-random": lambda: PadHeadModel(randomized=True)}
 PROSODIC_MODEL_PATH = Path(__file__).with_name("models") / "default_head.json"
 #: Shipped models by name: ``prosodic`` (the default) and ``arx`` (the thesis's model).

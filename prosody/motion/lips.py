@@ -1,4 +1,4 @@
-"""Lips from phones: MPEG-4 visemes coarticulated by dominance functions (seed 002, Cohen and Massaro).
+"""Lips from phones: MPEG-4 visemes coarticulated by dominance functions (Wu et al. 2006, after Cohen and Massaro 1993).
 
 Each phone belongs to one of the 14 MPEG-4 visemes (plus neutral, 0). A viseme is a mouth shape given by
 three numbers, which are turned into low-level lip FAPs by one fixed geometry (:func:`shape_faps`):

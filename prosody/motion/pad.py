@@ -1,16 +1,16 @@
 """An emotional state in PAD (pleasure, arousal, dominance) for a recording, and what it does to the face.
 
 PAD is given for the whole recording (``"P,A,D"``, each -1..1) or timed, as a CSV file with the columns
-``start_s,end_s,pleasure,arousal,dominance``. Seed 000's questionnaire (Eq. 13) gives PAD from twelve answers:
+``start_s,end_s,pleasure,arousal,dominance``. Jia et al.'s questionnaire (Eq. 13) gives PAD from twelve answers:
 :func:`prosody.motion.pad_head.pad_from_questionnaire`.
 
 Two things follow from it:
 
-- the head of seed 000's gestures (``--model pad``): each prosodic word takes the pleasure P of the moment it
+- the head of Jia et al.'s gestures (``--model pad``): each prosodic word takes the pleasure P of the moment it
   peaks in, and the state's arousal shifts the word's own A (quantised from its prominence) by ``A / 2``,
-  clipped to 0..1; pauses keep A = -0.5 (seed 000's silence);
-- the face, through seed 000's partial expression parameters: raise the eyebrows, squeeze them, open the eyes.
-  Seed 000 fits them to PAD with weights it does not publish; this project uses a linear map of its own
+  clipped to 0..1; pauses keep A = -0.5 (Jia et al.'s silence);
+- the face, through Jia et al.'s partial expression parameters: raise the eyebrows, squeeze them, open the eyes.
+  Jia et al. (2013) fits them to PAD with weights it does not publish; this project uses a linear map of its own
   (:data:`DEFAULT_FACE_MAP`: each parameter is ``wP * P + wA * A + wD * D``, then each parameter moves its FAPs
   by the amounts given at 1), in a JSON file a user can replace (``--pad-map``). Its directions follow the
   expressions PAD places at its corners: aroused and submissive states (fear, surprise: A+, D-) raise the
@@ -34,7 +34,7 @@ from .expressions import blend_targets, read_timed_rows
 #: Columns of a timed PAD file.
 PAD_FILE_COLUMNS = ("start_s", "end_s", "pleasure", "arousal", "dominance")
 FACE_MAP_FORMAT = "visual-prosody-pad-face"
-#: Seed 000's partial expression parameters: PAD weights (P, A, D) and the FAPs each moves at 1 (FAP units).
+#: Jia et al.'s partial expression parameters: PAD weights (P, A, D) and the FAPs each moves at 1 (FAP units).
 DEFAULT_FACE_MAP: dict[str, dict] = {
     "brow_raise": {"weights": [0.0, 0.6, -0.4], "faps": {31: 100, 32: 100, 33: 80, 34: 80, 35: 60, 36: 60}},
     "brow_squeeze": {"weights": [-0.5, 0.3, 0.4], "faps": {37: 80, 38: 80, 31: -40, 32: -40}},

@@ -1,4 +1,4 @@
-"""Seed 000's head gestures (Jia et al.): one sinusoid per prosodic word and axis, its size set by emotion.
+"""Jia et al.'s (2013) head gestures: one sinusoid per prosodic word and axis, its size set by emotion.
 
 What the paper gives, as this port reads it:
 
@@ -53,7 +53,7 @@ from ..fap.table import HEAD_FAPS
 from ..fap.units import AU_PER_DEGREE
 from .model_files import TrainingClip
 
-#: Table 3 of seed 000: amplitude means, in degrees, per axis (pitch, yaw, roll).
+#: Table 3 of Jia et al. (2013): amplitude means, in degrees, per axis (pitch, yaw, roll).
 TABLE3_AMPLITUDE_DEG = (9.83, 3.41, 3.35)
 #: Table 3: mean pose of a PW, mean and standard deviation in degrees, per axis.
 TABLE3_AVERAGE_DEG = ((-5.09, 3.48), (-0.47, 1.86), (0.57, 1.88))
@@ -71,7 +71,7 @@ FIT_MIN_FRAMES = 12
 
 
 def sinusoid(n_frames: int, *, peak: float, amplitude: float, average: float) -> np.ndarray:
-    """Seed 000's Eq. 1 over the ``n_frames`` of a PW (frames 0..n-1), peaking at frame ``peak``.
+    """Jia et al.'s Eq. 1 over the ``n_frames`` of a PW (frames 0..n-1), peaking at frame ``peak``.
 
     Examples
     --------
@@ -84,7 +84,7 @@ def sinusoid(n_frames: int, *, peak: float, amplitude: float, average: float) ->
 
 
 def amplitude(pleasure: float, arousal: float, coefficients: Sequence[float]) -> float:
-    """Seed 000's Eq. 2, clamped at 0.
+    """Jia et al.'s Eq. 2, clamped at 0.
 
     Examples
     --------
@@ -135,7 +135,7 @@ def smooth_boundaries(curve: np.ndarray, boundaries: Sequence[int], *, window: i
 
 
 def pad_from_questionnaire(answers: Sequence[float]) -> tuple[float, float, float]:
-    """Seed 000's Eq. 13: pleasure, arousal and dominance (each -1..1) from twelve answers -4..4; items 1, 4, 7,
+    """Jia et al.'s Eq. 13: pleasure, arousal and dominance (each -1..1) from twelve answers -4..4; items 1, 4, 7,
     10 ask for pleasure, 2, 5, 8, 11 arousal, 3, 6, 9, 12 dominance, the second and fourth of each reversed.
 
     Examples
@@ -328,7 +328,7 @@ def held_out_arousal(per_recording: Sequence[tuple[np.ndarray, np.ndarray]], fol
 
 
 class PadHeadModel:
-    """Seed 000's head gestures as a head model (``--model pad``; ``pad-random`` for its random baseline).
+    """Jia et al.'s head gestures as a head model (``--model pad``; ``pad-random`` for its random baseline).
 
     Parameters
     ----------

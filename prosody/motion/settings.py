@@ -104,7 +104,7 @@ class MotionSettings:
     model: Any = setting(
         None, "head model, shipped name or path, optional",
         "Head model of the speech-driven condition: the shipped prosodic generator when omitted; offline also "
-        "``\"arx\"`` for the thesis's ARX model, ``\"pad\"`` for seed 000's gestures, or a file from ``prosody "
+        "``\"arx\"`` for the thesis's ARX model, ``\"pad\"`` for Jia et al.'s gestures, or a file from ``prosody "
         "train``.")
     seed: int = setting(0, "int >= 0", "Seed of the stochastic heads (the default generator, Perlin noise).")
     eyebrow_rule: BrowRule | None = setting(None, "AccentRule or EyebrowRule, optional",
@@ -142,7 +142,7 @@ class FaceSettings:
     pad: str | Sequence[PadSegment] | None = setting(
         None, "str or sequence of PadSegment, optional",
         "An emotional state: ``P,A,D`` for the whole recording, a CSV file of timed states, or segments. It shows on "
-        "the face as seed 000's partial expressions (brows raised or squeezed, eyes opened), and it drives "
+        "the face as Jia et al.'s partial expressions (brows raised or squeezed, eyes opened), and it drives "
         "``model=\"pad\"``'s gestures (see :mod:`prosody.motion.pad`).")
     pad_map: str | os.PathLike[str] | None = setting(
         None, "path, optional", "A JSON file replacing the default map of PAD states to partial expressions.")

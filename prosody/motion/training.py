@@ -353,7 +353,7 @@ def train(directory: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], 
         mismatched-audio control, and the chosen setting's held-out measures (over :data:`CV_SEEDS` seeds)
         are stored in the model file. ``arx``: the thesis's model; with ``cv`` the orders and the ridge
         penalty are chosen over :data:`DEFAULT_ORDER_GRID` by free-run error, otherwise ``na``, ``nb``,
-        ``nk``, ``ridge`` are used as given. ``pad``: seed 000's gestures with Eq. 2's arousal coefficients
+        ``nk``, ``ridge`` are used as given. ``pad``: Jia et al.'s gestures with Eq. 2's arousal coefficients
         fitted to the recordings (:func:`prosody.motion.pad_head.fit_arousal`); with ``cv`` their held-out
         figures (:func:`prosody.motion.pad_head.held_out_arousal`) are stored in the model file.
     """
@@ -428,7 +428,7 @@ def _train_loaded(data: TrainingSet, directory: str | os.PathLike[str], output: 
 
 def _train_pad(data: TrainingSet, output: str | os.PathLike[str], *, cv: bool, fps: float, extra: dict,
                report: Callable[[str], None]):
-    """Seed 000's gestures with C1-C6 fitted to the recordings' amplitude per PW and pause (see ``train``)."""
+    """Jia et al.'s gestures with C1-C6 fitted to the recordings' amplitude per PW and pause (see ``train``)."""
     from .model_files import TrainingClip
     from .pad_head import PadHeadModel, amplitude, arousal_amplitudes, fit_arousal, held_out_arousal
 

@@ -2,9 +2,9 @@
 
 - ``paired`` (the thesis): every ordered pair of the conditions per stimulus; the participant chooses the face
   that moves more naturally. Plan columns ``order,stimulus,left,right`` (:func:`prosody.study.ballots.plan_study`).
-- ``mos`` (seed 000): every condition of every stimulus once, rated from 1 (bad) to 5 (excellent). Plan columns
+- ``mos`` (Jia et al. 2013): every condition of every stimulus once, rated from 1 (bad) to 5 (excellent). Plan columns
   ``order,stimulus,condition``.
-- ``identification`` (seed 002): every condition of every stimulus shown ``repeats`` times; the participant says
+- ``identification`` (Wu et al. 2006): every condition of every stimulus shown ``repeats`` times; the participant says
   which of the conditions (expressions, say) it is. Plan columns ``order,stimulus,shown``; the answer options are
   the plan's conditions.
 

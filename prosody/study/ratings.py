@@ -1,4 +1,4 @@
-"""Opinion scores (seed 000) and identification (seed 002): their ballots and analyses.
+"""Opinion scores (Jia et al. 2013) and identification (Wu et al. 2006): their ballots and analyses.
 
 Opinion-score ballots have the columns ``stimulus,subject,condition,score`` (score a whole number from 1 to 5).
 The analysis gives per condition the mean with its 95% interval (t), a one-way ANOVA over all ratings (as seed
@@ -33,7 +33,7 @@ from .ballots import BALLOT_COLUMNS, SHORT_NAMES, ballot_error, filled_rows, hol
 
 MOS_COLUMNS = ("stimulus", "subject", "condition", "score")
 IDENTIFICATION_COLUMNS = ("stimulus", "subject", "shown", "answer")
-#: The opinion scale: 1 (bad) to 5 (excellent), as seed 000's questionnaire.
+#: The opinion scale: 1 (bad) to 5 (excellent), as Jia et al.'s questionnaire.
 SCORES = (1, 2, 3, 4, 5)
 SCORE_LABELS = {1: "bad", 2: "poor", 3: "fair", 4: "good", 5: "excellent"}
 
