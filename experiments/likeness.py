@@ -16,7 +16,11 @@ voice), by speaker:
    which absorbs the clips' own sound-to-picture offsets); control: the same render circularly shifted
    against the person at that lag (mean and spread over speakers).
 
-``python -m experiments.likeness [--stream-only] [--speakers N]``.
+With ``--lips acoustic`` or ``--lips combined`` the acoustic mouth model is refitted for each speaker without
+that speaker (the shipped model's recipe: the talking-heads clips and the other video speakers), so no figure
+comes from a model that heard the person.
+
+``python -m experiments.likeness [--stream-only] [--speakers N] [--lips METHOD]``.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from experiments.mouth_videos_loso import speakers
 from prosody.measures import mouth_metrics
 from prosody.motion.ground_truth import read_brows_csv, read_mouth_csv
 from prosody.motion.lips import MNS_PER_EYE_WIDTH, inner_opening
+from prosody.motion.settings import LIP_METHODS, FaceSettings
 
 FPS = 30.0
 SECONDS = 20.0
@@ -88,15 +93,38 @@ def clips(limit: int | None) -> list[dict]:
     return chosen[:limit] if limit else chosen
 
 
-def stream_level(chosen: list[dict]) -> dict[str, dict]:
+def held_out_models(chosen: list[dict], folder: Path) -> dict[str, Path]:
+    """Per speaker, an acoustic mouth model fitted without that speaker's clips, saved in ``folder``."""
+    from experiments.mouth_videos_loso import heads_training, load_clips
+    from prosody.motion.mouth_model import AcousticMouthModel
+
+    heads = heads_training()
+    training = load_clips()
+    paths = {}
+    for clip in chosen:
+        speaker = clip["speaker"]
+        paths[speaker] = folder / f"mouth-without-{len(paths)}.json"
+        AcousticMouthModel().fit(heads + [c["training"] for c in training if c["speaker"] != speaker]).save(
+            paths[speaker])
+    return paths
+
+
+def stream_level(chosen: list[dict], lips: str = "visemes") -> dict[str, dict]:
     """Per speaker: spreads and closings of ours and the person's, in FAP units."""
     from prosody.jobs.pipeline import convert
 
     out = {}
+    with tempfile.TemporaryDirectory() as folder:
+        models = held_out_models(chosen, Path(folder)) if lips in ("acoustic", "combined") else {}
+        streams = {}
+        for clip in chosen:
+            model = models.get(clip["speaker"])
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                streams[clip["speaker"]] = convert(clip["audio"], None, lips=lips,
+                                                   **({"mouth_model": str(model)} if model else {}))
     for clip in chosen:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            stream = convert(clip["audio"], None)
+        stream = streams[clip["speaker"]]
         n = min(stream.n_frames, len(clip["mouth"].lip_opening))
         ours_open = inner_opening({f: stream.curve(f) for f in (3, 4, 5)})[:n]
         person_open = clip["mouth"].lip_opening[:n] / MNS_PER_EYE_WIDTH * 1024.0
@@ -187,10 +215,14 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--stream-only", action="store_true", help="the stream-level table alone (no render)")
     parser.add_argument("--speakers", type=int, default=None, help="only the first N speakers")
+    parser.add_argument("--lips", choices=LIP_METHODS, default=FaceSettings().lips,
+                        help="the lips (default: the default's); acoustic ones refitted without each speaker")
     args = parser.parse_args(argv)
     chosen = clips(args.speakers)
-    print(f"{len(chosen)} speakers of the talking videos, one clip each (the longest), the default settings\n")
-    level = stream_level(chosen)
+    print(f"{len(chosen)} speakers of the talking videos, one clip each (the longest), the default settings"
+          f"{'' if args.lips == FaceSettings().lips else f' but --lips {args.lips}'} (lips: {args.lips}"
+          f"{', its acoustic model refitted without each speaker' if args.lips != 'visemes' else ''})\n")
+    level = stream_level(chosen, args.lips)
     print_stream_level(level)
     if not args.stream_only:
         through_render(chosen, level)

@@ -88,13 +88,21 @@ def test_the_facade_stub_names_the_facade() -> None:
     assert named >= set(prosody._FACADE)
 
 
-def test_the_facade_stub_spells_out_the_settings_keywords() -> None:
-    """The stub is what ``python -m scripts.facade_stub`` writes from the signatures, so a type checker sees every
-    keyword of ``convert``, ``compare`` and ``LiveConverter``."""
-    from scripts.facade_stub import render
+def test_the_settings_keywords_are_the_groups_fields() -> None:
+    """The typed keywords of ``convert``, ``compare`` and ``LiveConverter`` (``**fields: Unpack[...]``) are the
+    settings groups' fields, name for name and type for type, so the source a type checker reads cannot drift
+    from what the call accepts."""
+    import dataclasses
 
-    stub = (REPO / "prosody" / "__init__.pyi").read_text()
-    assert stub == render(), "prosody/__init__.pyi is stale: run python -m scripts.facade_stub"
-    tree = ast.parse(stub)
-    convert = next(node for node in tree.body if isinstance(node, ast.FunctionDef) and node.name == "convert")
-    assert {"fps", "lips", "gains", "face"} <= {arg.arg for arg in convert.args.kwonlyargs}
+    from prosody.motion.settings import GROUP_FIELDS, FaceSettings, LiveFields, SettingsFields
+
+    def names(group: type) -> dict[str, str]:
+        return {f.name: str(f.type) for f in dataclasses.fields(group) if f.init}
+
+    for group, keywords in GROUP_FIELDS.items():
+        declared = {name: kind.__forward_arg__ for name, kind in keywords.__annotations__.items()}
+        assert declared == names(group), group.__name__
+    every = {name for group in GROUP_FIELDS for name in names(group)}
+    assert set(SettingsFields.__optional_keys__) == every and not SettingsFields.__required_keys__
+    assert set(LiveFields.__optional_keys__) == every - set(names(FaceSettings))
+

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import inspect
 import pkgutil
@@ -9,9 +10,15 @@ from collections import defaultdict
 
 import audio_features
 import prosody
+from prosody.motion.settings import AnalysisSettings, ChannelSettings, FaceSettings, MotionSettings
+
+#: A parameter whose default is one of these groups takes its fields as keywords too.
+SETTINGS_GROUPS = (AnalysisSettings, MotionSettings, FaceSettings, ChannelSettings)
 
 #: Parameter names whose defaults rightly differ, and why.
 DIFFERENT_MEANINGS = {
+    "channels": "a PCM format's number of audio channels; elsewhere the motion channels' gains and switches",
+    "face": "a conversion's face settings (lips, expressions); the head a preview draws (the 3D head or a photo)",
     "ridge": "the ARX penalty is per normalised coefficient, the prosodic one per standardised window column",
     "plots": "a comparison draws its figures unless told not to; a batch only when asked",
     "seeds": "settings are ranked on 3 seeds, then the chosen one is measured on 10",
@@ -47,9 +54,15 @@ def shared_defaults() -> dict[str, dict[str, object]]:
                         signature = inspect.signature(target)
                     except (TypeError, ValueError):
                         continue
+                    where = f"{module.__name__}.{target.__qualname__}"
                     for parameter in signature.parameters.values():
                         if parameter.default not in (inspect.Parameter.empty, None):
-                            found[parameter.name][f"{module.__name__}.{target.__qualname__}"] = parameter.default
+                            found[parameter.name][where] = parameter.default
+                        if isinstance(parameter.default, SETTINGS_GROUPS):  # its fields are keywords too
+                            for field in dataclasses.fields(parameter.default):
+                                value = getattr(parameter.default, field.name)
+                                if value is not None:
+                                    found[field.name][where] = value
     return found
 
 

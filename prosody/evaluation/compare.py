@@ -55,11 +55,20 @@ from ..motion.eyebrows import BrowRule, EyebrowRaises, NoRaiseWarning, brow_rais
 from ..motion.face import make_face, stream_mouth
 from ..motion.ground_truth import RecordedMouth, fit_to_grid, mouth_beside, read_motion, read_mouth_csv
 from ..motion.head_models import HeadModel, is_stochastic, resolve_head_model, rest_pose
-from ..motion.settings import AnalysisSettings, ChannelSettings, FaceSettings, MotionSettings, takes_settings
+from ..motion.settings import (
+    AnalysisSettings,
+    ChannelSettings,
+    FaceSettings,
+    MotionSettings,
+    SettingsFields,
+    settings_groups,
+)
 from ..validate import valid_seeds
 from .metrics import METRICS_VERSION, Metrics
 
 if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
     from .preview import Face
 
 #: Seeds over which the measures of a stochastic condition (RANDOM, the prosodic SPEECH_DRIVEN head) are
@@ -214,7 +223,6 @@ def comparison_metrics(streams: Mapping[Condition, FapStream], features: Feature
                                               "audio_vs_head": audio_vs_head}}
 
 
-@takes_settings(analysis=AnalysisSettings, motion=MotionSettings, face=FaceSettings, channels=ChannelSettings)
 def compare(
     audio: str | os.PathLike[str],
     *,
@@ -226,10 +234,11 @@ def compare(
     conditions: Iterable[Condition | str] | None = None,
     features: Features | None = None,
     mouth: str | os.PathLike[str] | RecordedMouth | None = None,
-    analysis: AnalysisSettings,
-    motion: MotionSettings,
-    face: FaceSettings,
-    channels: ChannelSettings,
+    analysis: AnalysisSettings = AnalysisSettings(),
+    motion: MotionSettings = MotionSettings(),
+    face: FaceSettings = FaceSettings(),
+    channels: ChannelSettings = ChannelSettings(),
+    **fields: Unpack[SettingsFields],
 ) -> Comparison:
     """Compute every condition for a recording and compare them.
 
@@ -268,11 +277,18 @@ def compare(
     channels : ChannelSettings, optional
         Gains and channels left out, on the generated conditions and their controls alike (recorded motion is
         left as it is), as ``convert`` applies them; or its fields.
+    **fields
+        Any field of the groups above by its name, overriding that group's: ``fps``, ``f0_floor_hz``,
+        ``f0_ceiling_hz`` (analysis); ``model``, ``seed``, ``eyebrow_rule``, ``expressivity`` (motion); ``lips``,
+        ``transcript``, ``language``, ``mouth_model``, ``expression``, ``pad``, ``pad_map`` (face); ``gains``,
+        ``disabled`` (channels). Typed by :class:`~prosody.motion.settings.SettingsFields`.
 
     Returns
     -------
     Comparison
     """
+    analysis, motion, face, channels = settings_groups("compare", fields, analysis=analysis, motion=motion, face=face,
+                                                       channels=channels)
     wanted = [c if isinstance(c, Condition) else Condition.parse(c) for c in (conditions or CONDITION_ORDER)]
     if ground_truth is None:
         if conditions is not None and Condition.GROUND_TRUTH in wanted:

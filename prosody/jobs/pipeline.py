@@ -7,6 +7,7 @@ import os
 import warnings
 from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from audio_features import Features, extract_features
 
@@ -25,11 +26,16 @@ from ..motion.perlin import PerlinSettings
 from ..motion.settings import (
     CHANNELS,
     AnalysisSettings,
+    ChannelFields,
     ChannelSettings,
     FaceSettings,
     MotionSettings,
-    takes_settings,
+    SettingsFields,
+    settings_groups,
 )
+
+if TYPE_CHECKING:  # the keywords' types, for a type checker
+    from typing_extensions import Unpack
 
 __all__ = ["CHANNELS", "BaseResampledWarning", "apply_controls", "convert", "load_ground_truth"]
 
@@ -38,9 +44,8 @@ class BaseResampledWarning(UserWarning):
     """A ``base`` .fap at another frame rate than the output was resampled to it."""
 
 
-@takes_settings(channels=ChannelSettings)
 def apply_controls(stream: FapStream, *, rest: Mapping[int, float] | None = None,
-                   channels: ChannelSettings) -> FapStream:
+                   channels: ChannelSettings = ChannelSettings(), **fields: Unpack[ChannelFields]) -> FapStream:
     """Per-channel intensity: multiply each channel's motion (pitch, yaw, roll, brows) by its gain about the
     rest pose, and mask the disabled channels off entirely (they are then absent from the output, not zero).
 
@@ -51,12 +56,15 @@ def apply_controls(stream: FapStream, *, rest: Mapping[int, float] | None = None
     rest : mapping FAP -> value, optional
         The rest pose the gains scale about (0 where not given).
     channels : ChannelSettings, optional
-        The gains and the channels left out; or its fields as keywords (below).
+        The gains and the channels left out; or its fields as keywords.
+    **fields
+        ``gains`` and ``disabled``, overriding those of ``channels``.
 
     Returns
     -------
     FapStream
     """
+    channels = settings_groups("apply_controls", fields, channels=channels, taking=("channels",)).channels
     return channels.applied(stream, rest=rest)
 
 
@@ -65,7 +73,6 @@ def load_ground_truth(path: str | os.PathLike[str], features: Features) -> FapSt
     return fit_to_grid(read_motion(path), n_frames=features.n_frames, fps=features.fps, source=str(path))
 
 
-@takes_settings(analysis=AnalysisSettings, motion=MotionSettings, face=FaceSettings, channels=ChannelSettings)
 def convert(
     audio: str | os.PathLike[str],
     output: str | os.PathLike[str] | None = None,
@@ -77,10 +84,11 @@ def convert(
     output_format: str | None = None,
     features: Features | None = None,
     progress: Callable[[int, int], None] | None = None,
-    analysis: AnalysisSettings,
-    motion: MotionSettings,
-    face: FaceSettings,
-    channels: ChannelSettings,
+    analysis: AnalysisSettings = AnalysisSettings(),
+    motion: MotionSettings = MotionSettings(),
+    face: FaceSettings = FaceSettings(),
+    channels: ChannelSettings = ChannelSettings(),
+    **fields: Unpack[SettingsFields],
 ) -> FapStream:
     """Convert a speech recording into the FAP stream of one condition, and write it if ``output`` is given.
 
@@ -114,11 +122,18 @@ def convert(
         The lips, the transcript, expressions and emotional states; or its fields as keywords.
     channels : ChannelSettings, optional
         Gains and channels left out; or its fields as keywords.
+    **fields
+        Any field of the groups above by its name, overriding that group's: ``fps``, ``f0_floor_hz``,
+        ``f0_ceiling_hz`` (analysis); ``model``, ``seed``, ``eyebrow_rule``, ``expressivity`` (motion); ``lips``,
+        ``transcript``, ``language``, ``mouth_model``, ``expression``, ``pad``, ``pad_map`` (face); ``gains``,
+        ``disabled`` (channels). Typed by :class:`~prosody.motion.settings.SettingsFields`.
 
     Returns
     -------
     FapStream
     """
+    analysis, motion, face, channels = settings_groups("convert", fields, analysis=analysis, motion=motion, face=face,
+                                                       channels=channels)
     if output is not None and not os.fspath(output):
         raise ConfigError("output: no output file name given")
     chosen = check_condition(condition, ground_truth=ground_truth, model=motion.model,

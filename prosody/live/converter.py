@@ -16,6 +16,7 @@ import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,7 +33,17 @@ from ..motion.limits import limit_frame
 from ..motion.lips import LIP_FAPS, shape_faps
 from ..motion.live import DEFAULT_LOOKAHEAD_MS, LiveHeadModel, LivePerlin, live_brows
 from ..motion.model_files import read_model_json
-from ..motion.settings import CHANNELS, AnalysisSettings, ChannelSettings, MotionSettings, takes_settings
+from ..motion.settings import (
+    CHANNELS,
+    AnalysisSettings,
+    ChannelSettings,
+    LiveFields,
+    MotionSettings,
+    settings_groups,
+)
+
+if TYPE_CHECKING:  # the keywords' types, for a type checker
+    from typing_extensions import Unpack
 
 #: Shipped live head models by the look-ahead they read, in ms.
 LIVE_MODELS_DIR = Path(__file__).resolve().parents[1] / "motion" / "models"
@@ -74,7 +85,6 @@ class LiveFrame:
                           separators=(",", ":"))
 
 
-@takes_settings(analysis=AnalysisSettings, motion=MotionSettings, channels=ChannelSettings)
 class LiveConverter:
     """Audio in, FAP frames out, causally.
 
@@ -103,6 +113,10 @@ class LiveConverter:
         streaming); or its fields as keywords.
     channels : ChannelSettings, optional
         Gains and channels left out, as :func:`prosody.jobs.pipeline.convert`'s; or its fields as keywords.
+    **fields
+        Any field of the three groups above by its name, overriding that group's: ``fps``, ``f0_floor_hz``,
+        ``f0_ceiling_hz``; ``model``, ``seed``, ``eyebrow_rule``, ``expressivity``; ``gains``, ``disabled``.
+        Typed by :class:`~prosody.motion.settings.LiveFields`.
 
     Examples
     --------
@@ -115,8 +129,11 @@ class LiveConverter:
 
     def __init__(self, sample_rate_hz: int, *, condition: Condition | str = Condition.SPEECH_DRIVEN,
                  lookahead_ms: float = DEFAULT_LOOKAHEAD_MS, live_lips: bool = True,
-                 expression: str | Sequence[ExpressionSegment] | None = None, analysis: AnalysisSettings,
-                 motion: MotionSettings, channels: ChannelSettings) -> None:
+                 expression: str | Sequence[ExpressionSegment] | None = None,
+                 analysis: AnalysisSettings = AnalysisSettings(), motion: MotionSettings = MotionSettings(),
+                 channels: ChannelSettings = ChannelSettings(), **fields: Unpack[LiveFields]) -> None:
+        analysis, motion, _, channels = settings_groups("LiveConverter", fields, analysis=analysis, motion=motion,
+                                                        channels=channels, taking=("analysis", "motion", "channels"))
         chosen = condition if isinstance(condition, Condition) else Condition.parse(condition)
         if chosen is Condition.GROUND_TRUTH:
             raise ConfigError("recorded motion (condition truth) has no live form; choose speech, random or none")

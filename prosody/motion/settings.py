@@ -7,12 +7,11 @@ Four groups, each a frozen dataclass whose fields carry their default, their typ
 - :class:`FaceSettings`: the lips, the transcript and its language, expressions and emotional states;
 - :class:`ChannelSettings`: the gain of each channel and the channels left out.
 
-:func:`takes_settings` gives a function that takes a group both ways: as one object
-(``convert(audio, face=FaceSettings(lips="acoustic"))``) or as its fields, one keyword each
-(``convert(audio, lips="acoustic")``); keywords override the object's fields. The function's signature and its
-numpydoc ``Parameters`` are made from the fields, so :func:`prosody.jobs.pipeline.convert`,
-:func:`prosody.evaluation.compare.compare` and :class:`prosody.live.converter.LiveConverter` never type a
-setting again.
+A function takes a group both ways: as one object (``convert(audio, face=FaceSettings(lips="acoustic"))``) or as
+its fields, one keyword each (``convert(audio, lips="acoustic")``); keywords override the object's fields. Its
+signature says so in the source: each group a parameter with its defaults, and ``**fields:
+Unpack[SettingsFields]``, the typed dictionary of every field, so a type checker sees every keyword and its
+type; :func:`overridden` applies the keywords to each group.
 
 Examples
 --------
@@ -27,13 +26,12 @@ prosody.errors.ConfigError: unknown channel(s) 'nose'; choose from pitch, yaw, r
 from __future__ import annotations
 
 import dataclasses
-import functools
 import inspect
 import numbers
 import os
 import textwrap
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any, Protocol, TypeVar, cast, overload
+from collections.abc import Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple, TypedDict, TypeVar, cast
 
 from audio_features import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_FPS
 
@@ -242,97 +240,137 @@ class ChannelSettings:
         return stream.without(sorted(self.disabled_faps()))
 
 
-Result = TypeVar("Result")
-Class = TypeVar("Class", bound=type)
+class AnalysisFields(TypedDict, total=False):
+    """The fields of :class:`AnalysisSettings` as keywords (``convert(audio, fps=25)``)."""
+
+    fps: float
+    f0_floor_hz: float
+    f0_ceiling_hz: float
 
 
-class _Decorator(Protocol):
-    """What :func:`takes_settings` returns: a function keeps its return type (its keywords are not checked
-    statically), a class stays itself."""
+class MotionFields(TypedDict, total=False):
+    """The fields of :class:`MotionSettings` as keywords."""
 
-    @overload
-    def __call__(self, target: Class) -> Class: ...
-
-    @overload
-    def __call__(self, target: Callable[..., Result]) -> Callable[..., Result]: ...
+    model: Any
+    seed: int
+    eyebrow_rule: BrowRule | None
+    expressivity: Expressivity | None
 
 
-def takes_settings(**groups: type) -> _Decorator:
-    """Let a function (or a class's constructor) take each settings group (``name=SettingsClass``) as one
-    object or as its fields.
+class FaceFields(TypedDict, total=False):
+    """The fields of :class:`FaceSettings` as keywords."""
 
-    The function is written with one keyword-only parameter per group and no default (``analysis:
-    AnalysisSettings``). The wrapper offers it as optional, accepts every field of the group as a keyword, builds
-    the group from them (over the object when one is given too) and passes it on, so the function always
-    receives a complete, checked group. The wrapper's signature and docstring list the fields, from the
-    dataclasses.
+    lips: str | None
+    transcript: str | None
+    language: str | None
+    mouth_model: str | os.PathLike[str] | None
+    expression: str | Sequence[ExpressionSegment] | None
+    pad: str | Sequence[PadSegment] | None
+    pad_map: str | os.PathLike[str] | None
+
+
+class ChannelFields(TypedDict, total=False):
+    """The fields of :class:`ChannelSettings` as keywords."""
+
+    gains: Mapping[str, float] | None
+    disabled: Iterable[str]
+
+
+class SettingsFields(AnalysisFields, MotionFields, FaceFields, ChannelFields, total=False):
+    """Every group's fields as keywords: what ``convert`` and ``compare`` take besides the groups themselves."""
+
+
+class LiveFields(AnalysisFields, MotionFields, ChannelFields, total=False):
+    """The fields a live conversion takes as keywords (it has no face group)."""
+
+
+#: Each settings group and the keywords that stand for its fields.
+GROUP_FIELDS: dict[type, type] = {AnalysisSettings: AnalysisFields, MotionSettings: MotionFields,
+                                  FaceSettings: FaceFields, ChannelSettings: ChannelFields}
+
+Settings = TypeVar("Settings")
+
+
+def overridden(kind: type[Settings], given: object, fields: dict[str, Any], *, name: str) -> Settings:
+    """The settings group ``given`` (a ``kind``; ``None`` for its defaults) with those of ``fields`` that are its
+    own, which are taken out of ``fields``.
+
+    A function that takes a group both ways (``face=FaceSettings(lips="acoustic")`` or ``lips="acoustic"``) calls
+    this once per group on its ``**fields`` (through :func:`settings_groups`).
 
     Parameters
     ----------
-    **groups : type
-        Parameter name -> settings dataclass.
+    kind : type
+        The group's dataclass.
+    given : kind or None
+        The group as passed.
+    fields : dict
+        The keywords passed; this group's are removed from it.
+    name : str
+        The group's parameter name, for the error.
 
     Returns
     -------
-    callable
-        The decorator.
+    kind
+        The group, checked, with the keywords applied.
+
+    Examples
+    --------
+    >>> keywords = {"fps": 25.0, "lips": "acoustic"}
+    >>> overridden(AnalysisSettings, AnalysisSettings(), keywords, name="analysis").fps, keywords
+    (25.0, {'lips': 'acoustic'})
     """
-    fields = {name: [f for f in dataclasses.fields(kind) if f.init] for name, kind in groups.items()}
-
-    def decorate(function: Any) -> Any:
-        if isinstance(function, type):  # a class: its __init__ takes them, its docstring documents them
-            function.__init__ = decorate(function.__init__)  # type: ignore[misc]
-            function.__doc__ = _with_field_docs(inspect.cleandoc(function.__doc__ or ""), fields)
-            return function
-        own = inspect.signature(function)
-        owner = {f.name: group for group, group_fields in fields.items() for f in group_fields}
-        clashes = sorted(set(owner) & set(own.parameters))
-        if clashes or len(owner) != sum(map(len, fields.values())):
-            raise TypeError(f"{function.__qualname__}: settings fields clash: {clashes or 'between groups'}")
-
-        @functools.wraps(function)
-        def wrapper(*args: Any, **kwargs: Any) -> Any:
-            picked: dict[str, dict[str, Any]] = {group: {} for group in groups}
-            for name in [name for name in kwargs if name in owner]:
-                picked[owner[name]][name] = kwargs.pop(name)
-            for group, kind in groups.items():
-                given = kwargs.get(group)
-                if given is None:
-                    kwargs[group] = kind(**picked[group])
-                elif isinstance(given, kind):
-                    kwargs[group] = dataclasses.replace(cast(Any, given), **picked[group])
-                else:
-                    raise ConfigError(f"{group} must be a {kind.__name__}, got {given!r}")
-            return function(*args, **kwargs)
-
-        flat = [inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=f.default, annotation=f.type)
-                for group_fields in fields.values() for f in group_fields]
-        parameters = [p.replace(default=None, annotation=f"{p.annotation} | None") if p.name in groups else p
-                      for p in own.parameters.values()]
-        keep = [p for p in parameters if p.kind is not inspect.Parameter.VAR_KEYWORD]
-        wrapper.__signature__ = own.replace(  # type: ignore[attr-defined]
-            parameters=keep + flat + [p for p in parameters if p.kind is inspect.Parameter.VAR_KEYWORD])
-        if function.__name__ != "__init__":
-            wrapper.__doc__ = _with_field_docs(inspect.getdoc(function) or "", fields)
-        return wrapper
-
-    return cast(_Decorator, decorate)
+    if given is None:
+        given = kind()
+    if not isinstance(given, kind):
+        raise ConfigError(f"{name} must be a {kind.__name__}, got {given!r}")
+    own = [f.name for f in dataclasses.fields(cast(Any, kind)) if f.init]
+    picked = {key: fields.pop(key) for key in own if key in fields}
+    return cast(Settings, dataclasses.replace(cast(Any, given), **picked)) if picked else given
 
 
-def _with_field_docs(doc: str, fields: Mapping[str, list[dataclasses.Field]]) -> str:
-    """``doc`` with each group's fields documented after the last entry of its ``Parameters`` section."""
-    entries = []
-    for group, group_fields in fields.items():
-        for f in group_fields:
-            text = f"{f.metadata['doc']} A field of ``{group}``, which it overrides."
-            entries += [f"{f.name} : {f.metadata['kind']}",
-                        *textwrap.wrap(text, width=100, initial_indent="    ", subsequent_indent="    ")]
-    lines = doc.splitlines()
-    if "Parameters" not in lines:
-        raise TypeError("a function that takes settings documents its Parameters (numpydoc)")
-    end = lines.index("Parameters") + 2
-    while end < len(lines) and not (lines[end] and end + 1 < len(lines) and set(lines[end + 1]) == {"-"}):
-        end += 1
-    while end > 0 and not lines[end - 1].strip():
-        end -= 1
-    return "\n".join(lines[:end] + entries + lines[end:])
+class Groups(NamedTuple):
+    """The four settings groups of one call, each complete and checked."""
+
+    analysis: AnalysisSettings
+    motion: MotionSettings
+    face: FaceSettings
+    channels: ChannelSettings
+
+
+def settings_groups(function: str, fields: Mapping[str, Any], *, analysis: object = None, motion: object = None,
+                    face: object = None, channels: object = None,
+                    taking: Iterable[str] = ("analysis", "motion", "face", "channels")) -> Groups:
+    """The groups a function was given, with its ``**fields`` applied to them by :func:`overridden`.
+
+    Parameters
+    ----------
+    function : str
+        The function's name, for the error on a keyword no group has.
+    fields : mapping
+        Its ``**fields``.
+    analysis, motion, face, channels : the groups as passed (``None``: the defaults)
+    taking : iterable of str
+        The groups whose fields the function takes as keywords; another group's field is an unknown keyword.
+
+    Returns
+    -------
+    Groups
+
+    Examples
+    --------
+    >>> settings_groups("convert", {"seed": 3}).motion.seed
+    3
+    >>> settings_groups("convert", {"fpss": 25})
+    Traceback (most recent call last):
+    ...
+    TypeError: convert() got an unexpected keyword argument 'fpss'
+    """
+    left, taken = dict(fields), set(taking)
+    given = {"analysis": analysis, "motion": motion, "face": face, "channels": channels}
+    groups = Groups(*(overridden(kind, given[name], left if name in taken else {}, name=name)
+                      for name, kind in zip(Groups._fields, (AnalysisSettings, MotionSettings, FaceSettings,
+                                                             ChannelSettings), strict=True)))
+    if left:
+        raise TypeError(f"{function}() got an unexpected keyword argument {next(iter(left))!r}")
+    return groups
