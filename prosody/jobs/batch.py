@@ -614,6 +614,24 @@ def summarize(outcomes: Iterable[FileOutcome], *, indir: str, outdir: str,
                 "other_recordings_control": cross.get(o.file)}
                for o in outcomes]
     with_truth = [Metrics.from_json(o.metrics) for o in outcomes if o.metrics is not None and o.ground_truth]
+    aggregate, measures = _per_condition(with_truth)
+    controls = {}
+    if with_truth:
+        controls["mismatched_audio"] = _measure_summary([m.controls.head for m in with_truth])
+        controls["mismatched_audio_brows"] = _brow_summary([m.controls.brows for m in with_truth])
+        controls["mismatched_audio_mouth"] = _mouth_summary([m.controls.mouth for m in with_truth])
+    if cross:
+        controls["other_recordings"] = _measure_summary([HeadMeasures.from_json(block) for block in cross.values()])
+    counts = {status: sum(o.status == status for o in outcomes) for status in ("done", "skipped", "failed")}
+    counts["files"] = len(outcomes)
+    counts["with_ground_truth"] = sum(o.ground_truth is not None for o in outcomes)
+    return {"input": indir, "output": outdir, "counts": counts, "seeds": options.seeds, "files": entries,
+            "measures": measures, "controls": controls, "aggregate": aggregate}
+
+
+def _per_condition(with_truth: list[Metrics]) -> tuple[dict[str, dict], dict[str, dict]]:
+    """Per condition over the recordings with recorded motion: the mean r per FAP and CCA (``aggregate``), and the
+    head, brow and mouth measures with their intervals (``measures``)."""
     aggregate: dict[str, dict] = {}
     measures: dict[str, dict] = {}
     for condition in CONDITION_ORDER:
@@ -632,18 +650,7 @@ def summarize(outcomes: Iterable[FileOutcome], *, indir: str, outdir: str,
         measures[name] = {"head": _measure_summary([block.head for block in present]),
                           "brows": _brow_summary([block.brows for block in present]),
                           "mouth": _mouth_summary([block.mouth for block in present])}
-    controls = {}
-    if with_truth:
-        controls["mismatched_audio"] = _measure_summary([m.controls.head for m in with_truth])
-        controls["mismatched_audio_brows"] = _brow_summary([m.controls.brows for m in with_truth])
-        controls["mismatched_audio_mouth"] = _mouth_summary([m.controls.mouth for m in with_truth])
-    if cross:
-        controls["other_recordings"] = _measure_summary([HeadMeasures.from_json(block) for block in cross.values()])
-    counts = {status: sum(o.status == status for o in outcomes) for status in ("done", "skipped", "failed")}
-    counts["files"] = len(outcomes)
-    counts["with_ground_truth"] = sum(o.ground_truth is not None for o in outcomes)
-    return {"input": indir, "output": outdir, "counts": counts, "seeds": options.seeds, "files": entries,
-            "measures": measures, "controls": controls, "aggregate": aggregate}
+    return aggregate, measures
 
 
 def _compact(metrics: dict | None) -> dict | None:

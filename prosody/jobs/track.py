@@ -254,10 +254,10 @@ def _refuse_files_of_others(video: Path, stem: Path, record: Path, *, writes_wav
                           "'prosody track': nothing is replaced; track into another folder (-o OUT)")
 
 
-def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options: TrackOptions,
-           pending: contextlib.ExitStack, note: Callable[[str], None],
-           progress: Callable[[int, int], None] | None) -> tuple[TrackOutcome, dict]:
-    # the sound first: it sets the time base and the length of the grid
+def _track_sound(path: Path, stem: Path, info: VideoInfo, sound: Path | None, pending: contextlib.ExitStack,
+                 note: Callable[[str], None]) -> EnvelopeAccumulator:
+    """The sound first (it sets the time base and the length of the grid): the video's own, written beside the
+    curves, or the WAV given for a silent video; its loudness envelope."""
     envelope = EnvelopeAccumulator(sample_rate_hz=TRACK_AUDIO_RATE_HZ)
     if info.has_audio:
         wav = pending.enter_context(atomic_path(f"{stem}.wav"))
@@ -279,7 +279,12 @@ def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options:
             abs(info.duration_s + info.video_start_s - duration_s) > LENGTH_WARNING_S:
         note(f"the picture ({info.duration_s:.2f} s from {info.video_start_s:+.2f} s) and the sound "
              f"({duration_s:.2f} s) differ in length; frames beyond the sound are left out")
+    return envelope
 
+
+def _track_faces(path: Path, info: VideoInfo, options: TrackOptions,
+                 progress: Callable[[int, int], None] | None) -> tuple[list[float], list[np.ndarray], int, int]:
+    """Every frame's time and measured row (NaN without a face), the most faces seen at once, the frames with one."""
     times, rows, faces_seen, with_face = [], [], 0, 0
     estimate = int(round(info.duration_s * info.fps)) if np.isfinite(info.duration_s * info.fps) else 0
     blank = np.full(len(ALL_COLUMNS), np.nan)
@@ -297,6 +302,16 @@ def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options:
                 rows.append(np.array([{**angles, **measures}.get(name, np.nan) for name in ALL_COLUMNS]))
             if progress is not None:
                 progress(index + 1, max(estimate, index + 1))
+    return times, rows, faces_seen, with_face
+
+
+def _track(path: Path, stem: Path, info: VideoInfo, sound: Path | None, options: TrackOptions,
+           pending: contextlib.ExitStack, note: Callable[[str], None],
+           progress: Callable[[int, int], None] | None) -> tuple[TrackOutcome, dict]:
+    envelope = _track_sound(path, stem, info, sound, pending, note)
+    has_sound = envelope.samples > 0
+    duration_s = envelope.samples / TRACK_AUDIO_RATE_HZ
+    times, rows, faces_seen, with_face = _track_faces(path, info, options, progress)
     if not times:
         raise TrackingError(f"{path}: its video has no frames")
     if not has_sound:  # the picture's length as decoded: browser recorders' headers give none, or 0 s

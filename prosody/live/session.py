@@ -171,6 +171,20 @@ def check_session(options: StreamOptions, source: AudioSource | None,
     ConfigError
         A combination that would do something other than asked, or nothing at all.
     """
+    _check_sources_and_sinks(options, source, flag)
+    _check_output(options, source, flag)
+    if options.allow_origin and options.listen is None:
+        raise ConfigError(f"{flag('allow_origin')} names pages allowed to open the stream of {flag('listen')}; "
+                          f"give {flag('listen')} too")
+    if options.allow_origin:
+        from .server import normalize_origin
+
+        for origin in options.allow_origin:
+            normalize_origin(origin)
+
+
+def _check_sources_and_sinks(options: StreamOptions, source: AudioSource | None, flag: Callable[[str], str]) -> None:
+    """Something to read and somewhere to send it, and each link's option only with its link."""
     if source is None and options.listen is None:
         raise ConfigError(f"give {flag('input')} (a file, or - for standard input), {flag('mic')}, or "
                           f"{flag('listen')} to serve the page for browsers' microphones")
@@ -185,6 +199,10 @@ def check_session(options: StreamOptions, source: AudioSource | None,
     if options.livelink_subject != "prosody" and not options.livelink:
         raise ConfigError(f"{flag('livelink_subject')} names the stream of {flag('livelink')}; give "
                           f"{flag('livelink')} too")
+
+
+def _check_output(options: StreamOptions, source: AudioSource | None, flag: Callable[[str], str]) -> None:
+    """Pacing that fits the source, and an output file that can be written as asked (its format known now)."""
     paced = options.loop or (source is not None and source.realtime)
     if paced and (source is None or source.arrives_live):
         what = f"{flag('loop')} plays a file again" if options.loop else f"{flag('realtime')} paces a file"
@@ -207,14 +225,6 @@ def check_session(options: StreamOptions, source: AudioSource | None,
         if chosen not in MOTION_FORMATS:
             raise ConfigError(f"{flag('output')} {options.output}: a live stream writes motion "
                               f"({', '.join(MOTION_FORMATS)}, or JSON lines to a .jsonl file), not {chosen}")
-    if options.allow_origin and options.listen is None:
-        raise ConfigError(f"{flag('allow_origin')} names pages allowed to open the stream of {flag('listen')}; "
-                          f"give {flag('listen')} too")
-    if options.allow_origin:
-        from .server import normalize_origin
-
-        for origin in options.allow_origin:
-            normalize_origin(origin)
 
 
 @dataclass

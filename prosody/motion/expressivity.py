@@ -270,18 +270,7 @@ class HeadShaper:
         gain = 1.0
         target = x
         if e.activation < 1.0:
-            # the threshold follows the running (1 - activation) quantile of the ratio: the share of time held
-            # is about 1 - activation whatever the generator's own statistics
-            below = 1.0 if ratio < self._threshold else 0.0
-            self._threshold = max(0.0, self._threshold + QUANTILE_STEP * ((1.0 - e.activation) - below))
-            open_ = 0.0 if e.activation <= 0 else ratio**GATE_SHARPNESS / (
-                ratio**GATE_SHARPNESS + self._threshold**GATE_SHARPNESS + 1e-300)
-            self._gate = self._smooth_gate * self._gate + (1 - self._smooth_gate) * open_
-            share = IDLE_SHARE + (1 - IDLE_SHARE) * self._gate
-            gain *= share
-            # a held head is pulled towards its mean pose, not the generator's: the generator's slow drifts
-            # would otherwise pass through the 4 s pull and keep a third of its spread
-            target = [m + self._gate * (a - m) for a, m in zip(x, mean, strict=True)]
+            gain, target = self._gated(ratio, x, mean, e.activation)
         if e.power != 0.0:
             # the gain's average over the speed it scales is kept at 1, so the average speed stays
             exponent = e.power if e.power < 0 else POWER_SHARPENING * e.power
@@ -292,6 +281,39 @@ class HeadShaper:
             gain *= min(max(boost / norm, POWER_GAIN_RANGE[0]), POWER_GAIN_RANGE[1])
         if gain != 1.0:
             velocity = self._balanced(velocity, gain, weight)
+        if e.temporal != 0.0 or e.fluidity != 0.0:
+            velocity = self._filtered(velocity, e)
+        if self._reshaping:
+            output = self._output
+            for k in range(3):
+                output[k] = output[k] + velocity[k]
+                output[k] += self._pull * (target[k] - output[k])
+        else:
+            self._output = list(x)
+        scale = self._scale
+        shaped = [self._output[0] * scale, self._output[1] * scale, self._output[2] * scale]
+        if e.repetition > 0:
+            shaped[0] = (self._output[0] + self._nod(x[0], ratio)) * scale
+        self._ratio = ratio
+        return shaped
+
+    def _gated(self, ratio: float, x: list[float], mean: list[float], activation: float,
+               ) -> tuple[float, list[float]]:
+        """The activation gate: the gain of the velocity and the pose the head is pulled to. The threshold
+        follows the running (1 - activation) quantile of the ratio, so the share of time held is about
+        1 - activation whatever the generator's own statistics."""
+        below = 1.0 if ratio < self._threshold else 0.0
+        self._threshold = max(0.0, self._threshold + QUANTILE_STEP * ((1.0 - activation) - below))
+        open_ = 0.0 if activation <= 0 else ratio**GATE_SHARPNESS / (
+            ratio**GATE_SHARPNESS + self._threshold**GATE_SHARPNESS + 1e-300)
+        self._gate = self._smooth_gate * self._gate + (1 - self._smooth_gate) * open_
+        # a held head is pulled towards its mean pose, not the generator's: the generator's slow drifts
+        # would otherwise pass through the 4 s pull and keep a third of its spread
+        return (IDLE_SHARE + (1 - IDLE_SHARE) * self._gate,
+                [m + self._gate * (a - m) for a, m in zip(x, mean, strict=True)])
+
+    def _filtered(self, velocity: list[float], e: Expressivity) -> list[float]:
+        """The velocity slowed or quickened (temporal), then smoothed or jittered (fluidity)."""
         if e.temporal != 0.0:
             pole, slow = self._tempo_pole, self._slow
             for k in range(3):
@@ -306,19 +328,7 @@ class HeadShaper:
                 second[k] = pole * second[k] + (1 - pole) * first[k]
             velocity = (list(second) if e.fluidity > 0
                         else [v + JITTER_BOOST * -e.fluidity * (v - w) for v, w in zip(velocity, second, strict=True)])
-        if self._reshaping:
-            output = self._output
-            for k in range(3):
-                output[k] = output[k] + velocity[k]
-                output[k] += self._pull * (target[k] - output[k])
-        else:
-            self._output = list(x)
-        scale = self._scale
-        shaped = [self._output[0] * scale, self._output[1] * scale, self._output[2] * scale]
-        if e.repetition > 0:
-            shaped[0] = (self._output[0] + self._nod(x[0], ratio)) * scale
-        self._ratio = ratio
-        return shaped
+        return velocity
 
     def _balanced(self, velocity: list[float], gain: float, weight: float) -> list[float]:
         """The velocity times the gain, each axis's rises and falls rescaled so that, on average, they stand in
@@ -404,6 +414,25 @@ class BrowShaper:
         k = self._frame
         self._frame += 1
         value = float(value)
+        self._follow_raise(value, k, e)
+        out = value if (self._raising and self._kept) else 0.0
+        if e.temporal != 0:
+            out = self._timed(out, k, e.temporal)
+        if e.power != 0 and self._raising and self._kept:
+            out *= 1 + e.power / 2 * math.exp(-(k - self._onset) / (BROW_FLICK_S * self.fps))
+        if e.fluidity > 0:
+            pole = self._fluid_pole
+            self._smooth[0] = pole * self._smooth[0] + (1 - pole) * out
+            self._smooth[1] = pole * self._smooth[1] + (1 - pole) * self._smooth[0]
+            out = self._smooth[1]
+        elif e.fluidity < 0 and self._raising and self._kept and out > 0:
+            out += -e.fluidity * (max(self._highest, out) - out)
+        if self._echo_at is not None:
+            out = self._echoed(out, k, e.repetition)
+        return max(0.0, out) * 2.0**e.spatial
+
+    def _follow_raise(self, value: float, k: int, e: Expressivity) -> None:
+        """A raise's start (kept or left out by the activation) and end (an echo scheduled after a high one)."""
         if value > BROW_REST_ENS and not self._raising:
             self._raising, self._onset, self._highest = True, k, 0.0
             i = self._raises
@@ -418,40 +447,37 @@ class BrowShaper:
                     self._echo_at, self._echo_height = k + self._frames_of(ECHO_DELAY_S), self._highest
         if self._raising:
             self._highest = max(self._highest, value)
-        out = value if (self._raising and self._kept) else 0.0
+
+    def _timed(self, out: float, k: int, temporal: float) -> float:
+        """Slower raises held at their height, then let fall (temporal > 0); quicker ones cut short (< 0)."""
         fall = self._frames_of(BROW_FALL_S)
-        if e.temporal > 0:
+        if temporal > 0:
             if out >= self._held:
                 self._held, self._since_highest = out, 0
             else:
                 self._since_highest += 1
-                late = self._since_highest - self._frames_of(BROW_HOLD_S * e.temporal)
+                late = self._since_highest - self._frames_of(BROW_HOLD_S * temporal)
                 held = self._held if late <= 0 else self._held * max(0.0, 1 - late / fall)
                 if held <= 0:
                     self._held = 0.0
                 out = max(out, held)
-        elif e.temporal < 0 and self._raising:
-            late = (k - self._onset) - self._frames_of(BROW_LONGEST_S * 4.0**e.temporal)
+        elif self._raising:
+            late = (k - self._onset) - self._frames_of(BROW_LONGEST_S * 4.0**temporal)
             if late > 0:
                 out *= max(0.0, 1 - late / fall)
-        if e.power != 0 and self._raising and self._kept:
-            out *= 1 + e.power / 2 * math.exp(-(k - self._onset) / (BROW_FLICK_S * self.fps))
-        if e.fluidity > 0:
-            pole = self._fluid_pole
-            self._smooth[0] = pole * self._smooth[0] + (1 - pole) * out
-            self._smooth[1] = pole * self._smooth[1] + (1 - pole) * self._smooth[0]
-            out = self._smooth[1]
-        elif e.fluidity < 0 and self._raising and self._kept and out > 0:
-            out += -e.fluidity * (max(self._highest, out) - out)
-        if self._echo_at is not None:
-            elapsed = k - self._echo_at
-            rise, hold = self._frames_of(ECHO_RISE_S), self._frames_of(ECHO_HOLD_S)
-            if elapsed >= 2 * rise + hold:
-                self._echo_at = None
-            elif elapsed >= 0:
-                shape = min(1.0, (elapsed + 1) / rise, (2 * rise + hold - elapsed) / rise)
-                out = max(out, e.repetition * ECHO_SHARE * self._echo_height * shape)
-        return max(0.0, out) * 2.0**e.spatial
+        return out
+
+    def _echoed(self, out: float, k: int, repetition: float) -> float:
+        """The echo of a high raise: a smaller raise after :data:`ECHO_DELAY_S` (repetition)."""
+        assert self._echo_at is not None
+        elapsed = k - self._echo_at
+        rise, hold = self._frames_of(ECHO_RISE_S), self._frames_of(ECHO_HOLD_S)
+        if elapsed >= 2 * rise + hold:
+            self._echo_at = None
+        elif elapsed >= 0:
+            shape = min(1.0, (elapsed + 1) / rise, (2 * rise + hold - elapsed) / rise)
+            out = max(out, repetition * ECHO_SHARE * self._echo_height * shape)
+        return out
 
 
 def shape_head(motion_au: np.ndarray, *, fps: float, expressivity: Expressivity) -> np.ndarray:

@@ -84,20 +84,8 @@ def _bridge_gaps(angles: np.ndarray, *, fps: float, name: str) -> tuple[np.ndarr
     return filled, measured
 
 
-def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -> FapStream:
-    """Read a ``<clip>.head.csv`` into a stream with FAP 48-50 in AU.
-
-    Empty cells (a face tracker's frames without a face) are bridged by linear interpolation; stretches
-    longer than :data:`MAX_MEASURED_GAP_S` are bridged too but masked (``stream.mask`` False for FAP 48-50),
-    which the measures leave out, with a :class:`RecordedGapWarning`.
-
-    Raises
-    ------
-    GroundTruthError
-        Missing file, wrong columns, non-numeric or non-finite values, no frame with a face, or frames that
-        are not 0, 1, 2, ...
-    """
-    name = str(path)
+def _head_csv_numbers(path: str | os.PathLike[str], name: str) -> np.ndarray:
+    """The rows of a head.csv as numbers (frame, time_s, rx, ry, rz; empty angle cells NaN), its header checked."""
     rows = _csv_rows(path, name)
     if not rows or tuple(cell.strip() for cell in rows[0]) != HEAD_CSV_COLUMNS:
         found = ",".join(rows[0]) if rows else "nothing"
@@ -116,6 +104,12 @@ def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -
         except ValueError as error:
             raise GroundTruthError(f"{name}, line {index + 2}: expected 5 numbers (or frame, time_s and three "
                                    f"empty cells), found {row!r} ({error})") from None
+    return data
+
+
+def _check_head_csv(data: np.ndarray, name: str) -> None:
+    """Refuse a head.csv without frames or faces, with values not finite or beyond a head's turn, or off the
+    30 fps grid; the message names the line."""
     if data.shape[0] == 0:
         raise GroundTruthError(f"{name}: no frames")
     empty = np.asarray(np.isnan(data[:, 2:]).all(axis=1), dtype=bool)
@@ -140,6 +134,24 @@ def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -
             f"{name}, line {line}: time_s {float(data[line - 2, 1])!r} is not frame {int(data[line - 2, 0])} at "
             f"{HEAD_CSV_FPS:g} fps ({data[line - 2, 0] / HEAD_CSV_FPS:.4f} s): a head.csv is 30 fps, frame k at k/30 s"
         )
+
+
+def read_head_csv(path: str | os.PathLike[str], *, remove_median: bool = True) -> FapStream:
+    """Read a ``<clip>.head.csv`` into a stream with FAP 48-50 in AU.
+
+    Empty cells (a face tracker's frames without a face) are bridged by linear interpolation; stretches
+    longer than :data:`MAX_MEASURED_GAP_S` are bridged too but masked (``stream.mask`` False for FAP 48-50),
+    which the measures leave out, with a :class:`RecordedGapWarning`.
+
+    Raises
+    ------
+    GroundTruthError
+        Missing file, wrong columns, non-numeric or non-finite values, no frame with a face, or frames that
+        are not 0, 1, 2, ...
+    """
+    name = str(path)
+    data = _head_csv_numbers(path, name)
+    _check_head_csv(data, name)
     angles, measured = _bridge_gaps(data[:, 2:5], fps=HEAD_CSV_FPS, name=name)
     if remove_median:
         angles = angles - np.median(angles[measured], axis=0)  # resting pose out: docs/dependencies.md

@@ -486,12 +486,17 @@ class LiveHeadModel(LiveHeadSettings):
         self.velocity_scale_ = np.sqrt(np.mean([np.mean(v**2, axis=0) for v in velocities], axis=0)) * fps
         self.speed_rad_s_ = float(np.mean(speeds))
         self.spread_au_ = np.mean(spreads, axis=0) / RADIANS_PER_AU
-        # calibration: the noise and the pitch prediction at unit spread, then the whole at the recorded
-        # average spread per axis (a person's size), as the offline generator is calibrated
+        self._calibrate([self.drive(per_frame[i], presence[i]) for i in kept], spreads)
+        names = list(names) if names is not None else [f"recording {i}" for i in range(len(f0_hz))]
+        self.training_ = [TrainingClip(names[i], per_frame[i].shape[0], per_frame[i].shape[0] / fps) for i in kept]
+        return self
+
+    def _calibrate(self, drives: list[tuple[np.ndarray, np.ndarray]], spreads: list[np.ndarray]) -> None:
+        """The noise and the pitch prediction at unit spread, then the whole at the recorded average spread per
+        axis (a person's size), as the offline generator is calibrated; ``drives`` of the kept recordings."""
         self.noise_spread_ = np.ones(len(HEAD_FAPS))
         self.pitch_prediction_spread_ = 1.0
         self.output_scale_ = np.ones(len(HEAD_FAPS))
-        drives = [self.drive(per_frame[i], presence[i]) for i in kept]
         noise = [self._synthesise(*drive, seed=seed, parts=True)[0] for drive in drives
                  for seed in range(_CALIBRATION_SEEDS)]
         spread = np.mean([n.std(axis=0) for n in noise], axis=0)
@@ -501,9 +506,6 @@ class LiveHeadModel(LiveHeadSettings):
         ratios = np.mean([self._synthesise(*drive, seed=seed).std(axis=0) / (spreads[n] / RADIANS_PER_AU)
                           for n, drive in enumerate(drives) for seed in range(_CALIBRATION_SEEDS)], axis=0)
         self.output_scale_ = np.where(ratios > 0, 1.0 / np.where(ratios > 0, ratios, 1.0), 1.0)
-        names = list(names) if names is not None else [f"recording {i}" for i in range(len(f0_hz))]
-        self.training_ = [TrainingClip(names[i], per_frame[i].shape[0], per_frame[i].shape[0] / fps) for i in kept]
-        return self
 
     # the two predictions ----------------------------------------------------------------------------------
     def _regression(self, per_frame: np.ndarray, columns: tuple[int, ...], weights: np.ndarray, mean: np.ndarray,

@@ -165,17 +165,9 @@ def _z(values: np.ndarray) -> np.ndarray:
     return (values - values.mean()) / spread if spread > 1e-9 else np.zeros_like(values)
 
 
-def prosodic_words(features: Features) -> list[ProsodicWord]:
-    """The PWs of a recording (see the module: pauses, nuclei, F0 resets, stress and arousal)."""
-    fps, n = features.fps, features.n_frames
-    voiced = features.f0.voiced
-    energy = features.energy.values
-    if n == 0 or not voiced.any():
-        return []
-    loud = float(np.quantile(energy, 0.95))
-    speech = voiced | (energy >= loud - SPEECH_BELOW_LOUD_DB)
-    # pauses shorter than PAUSE_S are bridged
-    gap = max(1, int(round(PAUSE_S * fps)))
+def _speech_runs(speech: np.ndarray, gap: int) -> list[tuple[int, int]]:
+    """(start, end) of the runs of speech frames, pauses shorter than ``gap`` frames bridged."""
+    n = len(speech)
     runs, k = [], 0
     while k < n:
         if not speech[k]:
@@ -185,16 +177,58 @@ def prosodic_words(features: Features) -> list[ProsodicWord]:
         while k < n and (speech[k] or (k + gap < n and speech[k:k + gap].any())):
             k += 1
         runs.append((start, k))
-    smooth = np.convolve(energy, np.ones(3) / 3, mode="same")
-    spacing = max(1, int(round(NUCLEUS_SPACING_S * fps)))
-    semitones = np.where(voiced, 12 * np.log2(np.where(voiced, features.f0.values, 1.0)), np.nan)
-    nuclei_all = [k for k in range(1, n - 1) if voiced[k] and smooth[k] >= smooth[k - 1] and smooth[k] > smooth[k + 1]]
-    # at least NUCLEUS_SPACING_S apart: the louder of two close peaks stays
+    return runs
+
+
+def _nuclei(smooth: np.ndarray, voiced: np.ndarray, spacing: int) -> list[int]:
+    """Voiced loudness peaks at least ``spacing`` frames apart (the louder of two close peaks stays), in order."""
+    n = len(smooth)
+    peaks = [k for k in range(1, n - 1) if voiced[k] and smooth[k] >= smooth[k - 1] and smooth[k] > smooth[k + 1]]
     kept: list[int] = []
-    for k in sorted(nuclei_all, key=lambda j: -smooth[j]):
+    for k in sorted(peaks, key=lambda j: -smooth[j]):
         if all(abs(k - j) >= spacing for j in kept):
             kept.append(k)
-    nuclei_all = sorted(kept)
+    return sorted(kept)
+
+
+def _nucleus_groups(inside: list[int], semitones: np.ndarray, longest: int) -> list[list[int]]:
+    """The nuclei of one run of speech split into PWs: at an F0 reset, after MAX_NUCLEI, or past ``longest``."""
+    groups: list[list[int]] = [[inside[0]]]
+    for k in inside[1:]:
+        group = groups[-1]
+        reset = semitones[k] - semitones[group[-1]] >= RESET_SEMITONES
+        if len(group) >= MAX_NUCLEI or k - group[0] >= longest or reset:
+            groups.append([k])
+        else:
+            group.append(k)
+    return groups
+
+
+def _word(group: list[int], lo: int, hi: int, prominence: dict[int, float], semitones: np.ndarray,
+          fall_frames: int) -> ProsodicWord:
+    """One PW over frames lo..hi: its stressed nucleus, its steepest F0 fall, its arousal and its peak."""
+    best = max(group, key=lambda j: prominence[j])
+    stressed = best if prominence[best] > 1.0 else None
+    falls = {j: semitones[j] - np.nanmin(semitones[j:min(hi, j + fall_frames + 1)]) for j in group}
+    steepest = max(falls, key=lambda j: falls[j])
+    falling = steepest if falls[steepest] >= 2.0 else None
+    top = max(prominence[j] for j in group)
+    arousal = 0.0 if top < 0 else (0.5 if top < 1 else 1.0)
+    return ProsodicWord(lo, hi, tuple(group), peak_frame(group, stressed=stressed, falling=falling), arousal)
+
+
+def prosodic_words(features: Features) -> list[ProsodicWord]:
+    """The PWs of a recording (see the module: pauses, nuclei, F0 resets, stress and arousal)."""
+    fps, n = features.fps, features.n_frames
+    voiced = features.f0.voiced
+    energy = features.energy.values
+    if n == 0 or not voiced.any():
+        return []
+    loud = float(np.quantile(energy, 0.95))
+    runs = _speech_runs(voiced | (energy >= loud - SPEECH_BELOW_LOUD_DB), max(1, int(round(PAUSE_S * fps))))
+    smooth = np.convolve(energy, np.ones(3) / 3, mode="same")
+    semitones = np.where(voiced, 12 * np.log2(np.where(voiced, features.f0.values, 1.0)), np.nan)
+    nuclei_all = _nuclei(smooth, voiced, max(1, int(round(NUCLEUS_SPACING_S * fps))))
     if not nuclei_all:
         return []
     prominence = dict(zip(nuclei_all, _z(np.array([semitones[k] for k in nuclei_all]))
@@ -206,25 +240,10 @@ def prosodic_words(features: Features) -> list[ProsodicWord]:
         inside = [k for k in nuclei_all if start <= k < end]
         if not inside:
             continue
-        groups: list[list[int]] = [[inside[0]]]
-        for k in inside[1:]:
-            group = groups[-1]
-            reset = semitones[k] - semitones[group[-1]] >= RESET_SEMITONES
-            if len(group) >= MAX_NUCLEI or k - group[0] >= longest or reset:
-                groups.append([k])
-            else:
-                group.append(k)
+        groups = _nucleus_groups(inside, semitones, longest)
         edges = [start] + [(a[-1] + b[0]) // 2 for a, b in zip(groups, groups[1:], strict=False)] + [end]
-        for group, lo, hi in zip(groups, edges, edges[1:], strict=False):
-            best = max(group, key=lambda j: prominence[j])
-            stressed = best if prominence[best] > 1.0 else None
-            falls = {j: semitones[j] - np.nanmin(semitones[j:min(hi, j + fall_frames + 1)]) for j in group}
-            steepest = max(falls, key=lambda j: falls[j])
-            falling = steepest if falls[steepest] >= 2.0 else None
-            top = max(prominence[j] for j in group)
-            arousal = 0.0 if top < 0 else (0.5 if top < 1 else 1.0)
-            words.append(ProsodicWord(lo, hi, tuple(group), peak_frame(group, stressed=stressed, falling=falling),
-                                      arousal))
+        words += [_word(group, lo, hi, prominence, semitones, fall_frames)
+                  for group, lo, hi in zip(groups, edges, edges[1:], strict=False)]
     return words
 
 

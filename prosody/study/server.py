@@ -94,8 +94,6 @@ def checked_head_frames(folder: Path, motion: object, digest: object, *, seconds
     They must be inside the stimuli folder, hash to ``motion_sha256``, and hold the head-frames document:
     its format, a frame rate of 1-1000, FAP numbers 1-68, one row of finite numbers per frame with a value for
     each FAP, and as many frames as the video's ``seconds`` (within two)."""
-    from ..head.web import HEAD_FRAMES_FORMAT
-
     if not motion or not digest:
         return "are not in the manifest"
     try:
@@ -110,26 +108,35 @@ def checked_head_frames(folder: Path, motion: object, digest: object, *, seconds
     if hashlib.sha256(body).hexdigest() != str(digest):
         return "changed since the stimuli were made (their SHA-256 is not the manifest's)"
     try:
-        document = json.loads(body)
-        fps, faps, frames = document["fps"], document["faps"], document["frames"]
-        if document.get("format") != HEAD_FRAMES_FORMAT:
-            raise ValueError(f"format {document.get('format')!r}")
-        if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 1 <= fps <= 1000:
-            raise ValueError(f"frame rate {fps!r}")
-        if not isinstance(faps, list) or not all(isinstance(f, int) and not isinstance(f, bool) and 1 <= f <= 68
-                                                 for f in faps):
-            raise ValueError("FAP numbers")
-        if not isinstance(frames, list) or not frames:
-            raise ValueError("no frames")
-        for row in frames:
-            if not isinstance(row, list) or len(row) != len(faps) or not all(
-                    isinstance(v, (int, float)) and not isinstance(v, bool) and v == v and abs(v) < 1e9 for v in row):
-                raise ValueError("a frame that is not one number per FAP")
-        if isinstance(seconds, (int, float)) and abs(len(frames) - seconds * fps) > 2:
-            raise ValueError(f"{len(frames)} frames for a video of {seconds:g} s")
+        _check_head_frames(json.loads(body), seconds)
     except (ValueError, KeyError, TypeError, RecursionError) as error:
         return f"are not head frames a page can play ({error})"
     return body
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _check_head_frames(document: dict, seconds: object) -> None:
+    """Raise ValueError (or KeyError, TypeError) unless ``document`` is head frames a page can play."""
+    from ..head.web import HEAD_FRAMES_FORMAT
+
+    fps, faps, frames = document["fps"], document["faps"], document["frames"]
+    if document.get("format") != HEAD_FRAMES_FORMAT:
+        raise ValueError(f"format {document.get('format')!r}")
+    if not _is_number(fps) or not 1 <= fps <= 1000:
+        raise ValueError(f"frame rate {fps!r}")
+    if not isinstance(faps, list) or not all(isinstance(f, int) and _is_number(f) and 1 <= f <= 68 for f in faps):
+        raise ValueError("FAP numbers")
+    if not isinstance(frames, list) or not frames:
+        raise ValueError("no frames")
+    for row in frames:
+        if not isinstance(row, list) or len(row) != len(faps) or not all(
+                _is_number(v) and v == v and abs(v) < 1e9 for v in row):
+            raise ValueError("a frame that is not one number per FAP")
+    if _is_number(seconds) and abs(len(frames) - seconds * fps) > 2:
+        raise ValueError(f"{len(frames)} frames for a video of {seconds:g} s")
 
 
 class StudyServer:

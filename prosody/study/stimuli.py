@@ -198,35 +198,9 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
         photo's proportions); the photo is kept as ``OUT/face.png`` and the ballot's WebGL head is made from it.
     """
     folder, out = Path(recordings), Path(output)
-    photo: Any = None
-    if face is not None:  # read, and its face found, before any video is drawn
-        from ..evaluation.preview import resolve_face
-
-        photo = resolve_face(face)
-        if isinstance(photo, str):
-            raise ConfigError(f"the stimuli's face is a photo (JPEG or PNG), not {face!r}")
+    photo = _stimuli_photo(face)
     photo_digest = _image_sha256(photo.image) if photo is not None else None
-    missing = [name for name in plan.conditions if name not in conditions]
-    if missing:
-        raise ConfigError(f"the plan names condition(s) {', '.join(missing)} that are not defined: give them in a "
-                          "conditions file (--conditions FILE.json)")
-    if not folder.is_dir():
-        raise ConfigError(f"{folder}: not a folder of recordings")
-    truth_needed = any(conditions[name].needs_truth for name in plan.conditions)
-    inputs: dict[str, tuple[Path, Path | None]] = {}
-    problems = []
-    for stimulus in plan.stimuli:
-        audio = find_recording(folder, stimulus)
-        truth = find_truth(folder, stimulus) if truth_needed else None
-        if audio is None:
-            problems.append(f"no recording {stimulus}.wav (or {', '.join(AUDIO_EXTENSIONS[1:4])}, ...)")
-        elif truth_needed and truth is None:
-            problems.append(f"no recorded motion {stimulus}.head.csv (or .fap) for the truth condition")
-        else:
-            inputs[stimulus] = (audio, truth)
-    if problems:
-        raise ConfigError(f"{folder}: " + "; ".join(problems[:10])
-                          + (f"; and {len(problems) - 10} more" if len(problems) > 10 else ""))
+    inputs = _stimulus_inputs(plan, folder, conditions)
     out.mkdir(parents=True, exist_ok=True)
     try:
         old = read_manifest(out)["videos"]
@@ -248,45 +222,93 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
     for done, (stimulus, name) in enumerate(needed, start=1):
         audio, truth = inputs[stimulus]
         condition = conditions[name]
-        audio_sha = _sha256(audio)
-        settings = json.dumps({"options": condition.options, "audio": audio_sha, "width": width,
+        settings = json.dumps({"options": condition.options, "audio": _sha256(audio), "width": width,
                                **({"face": photo_digest} if photo_digest is not None else {}),
                                "truth": _sha256(truth) if truth is not None and condition.needs_truth else None},
                               sort_keys=True)
         key = video_key(stimulus, name)
-        path = out / stimulus / f"{name}.mp4"
         previous = old.get(key)
-        motion = path.with_name(f"{name}.head.json")
-        kept = (not force and isinstance(previous, dict) and previous.get("settings") == settings and path.is_file()
-                and previous.get("sha256") == _sha256(path) and motion.is_file()
-                and previous.get("motion_sha256") == _sha256(motion))
-        if kept:
-            manifest["videos"][key] = previous
-        else:
-            kwargs: dict[str, Any] = dict(condition.settings)
-            if condition.needs_truth:
-                kwargs["ground_truth"] = truth
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                stream = convert(audio, **kwargs)
-            for warning in caught:  # said once each, naming the video they are about
-                warnings.warn(f"{key}: {warning.message}", warning.category, stacklevel=2)
-            path.parent.mkdir(parents=True, exist_ok=True)
-            write_preview(stream, path, audio=audio, width=width, strip=False, captioned=False,
-                          face=photo if photo is not None else "head")
-            # the same frames for the page's WebGL head: the values the video shows (brows drawn as large)
-            frames = head_frames_document(head_values(stream, brow_scale=BROW_VIEW_SCALE), fps=stream.fps)
-            with atomic_write(motion, newline="\n") as handle:
-                json.dump(frames, handle, separators=(",", ":"))
-            manifest["videos"][key] = {"file": f"{stimulus}/{name}.mp4", "sha256": _sha256(path),
-                                       "motion": f"{stimulus}/{name}.head.json", "motion_sha256": _sha256(motion),
-                                       "seconds": round(stream.n_frames / stream.fps, 3), "settings": settings}
+        kept = not force and _still_complete(previous, settings, out / stimulus, name)
+        manifest["videos"][key] = previous if kept else _draw_video(
+            audio, truth, condition, out, stimulus, name, width=width, photo=photo, settings=settings)
         _write_manifest(out, manifest, old, needed[done:])
         if on_video is not None:
             on_video(stimulus, name, not kept)
         if progress is not None:
             progress(done, len(needed))
     return manifest
+
+
+def _stimuli_photo(face: Any) -> Any:
+    """The photo head of ``face`` (read, and its face found, before any video is drawn), or None."""
+    if face is None:
+        return None
+    from ..evaluation.preview import resolve_face
+
+    photo = resolve_face(face)
+    if isinstance(photo, str):
+        raise ConfigError(f"the stimuli's face is a photo (JPEG or PNG), not {face!r}")
+    return photo
+
+
+def _stimulus_inputs(plan: StudyPlan, folder: Path, conditions: Mapping[str, StudyCondition],
+                     ) -> dict[str, tuple[Path, Path | None]]:
+    """Each stimulus's recording and (where a condition is ``truth``) its recorded motion; all problems at once."""
+    missing = [name for name in plan.conditions if name not in conditions]
+    if missing:
+        raise ConfigError(f"the plan names condition(s) {', '.join(missing)} that are not defined: give them in a "
+                          "conditions file (--conditions FILE.json)")
+    if not folder.is_dir():
+        raise ConfigError(f"{folder}: not a folder of recordings")
+    truth_needed = any(conditions[name].needs_truth for name in plan.conditions)
+    inputs: dict[str, tuple[Path, Path | None]] = {}
+    problems = []
+    for stimulus in plan.stimuli:
+        audio = find_recording(folder, stimulus)
+        truth = find_truth(folder, stimulus) if truth_needed else None
+        if audio is None:
+            problems.append(f"no recording {stimulus}.wav (or {', '.join(AUDIO_EXTENSIONS[1:4])}, ...)")
+        elif truth_needed and truth is None:
+            problems.append(f"no recorded motion {stimulus}.head.csv (or .fap) for the truth condition")
+        else:
+            inputs[stimulus] = (audio, truth)
+    if problems:
+        raise ConfigError(f"{folder}: " + "; ".join(problems[:10])
+                          + (f"; and {len(problems) - 10} more" if len(problems) > 10 else ""))
+    return inputs
+
+
+def _still_complete(previous: Any, settings: str, folder: Path, name: str) -> bool:
+    """Whether an earlier run's video and head frames were made with these settings and are unchanged."""
+    path, motion = folder / f"{name}.mp4", folder / f"{name}.head.json"
+    return (isinstance(previous, dict) and previous.get("settings") == settings and path.is_file()
+            and previous.get("sha256") == _sha256(path) and motion.is_file()
+            and previous.get("motion_sha256") == _sha256(motion))
+
+
+def _draw_video(audio: Path, truth: Path | None, condition: StudyCondition, out: Path, stimulus: str, name: str,
+                *, width: int, photo: Any, settings: str) -> dict[str, Any]:
+    """Convert and draw one stimulus in one condition, with the head frames of the ballot's WebGL head; its
+    manifest entry."""
+    kwargs: dict[str, Any] = dict(condition.settings)
+    if condition.needs_truth:
+        kwargs["ground_truth"] = truth
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        stream = convert(audio, **kwargs)
+    for warning in caught:  # said once each, naming the video they are about
+        warnings.warn(f"{video_key(stimulus, name)}: {warning.message}", warning.category, stacklevel=3)
+    path = out / stimulus / f"{name}.mp4"
+    motion = path.with_name(f"{name}.head.json")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_preview(stream, path, audio=audio, width=width, strip=False, captioned=False,
+                  face=photo if photo is not None else "head")
+    # the same frames for the page's WebGL head: the values the video shows (brows drawn as large)
+    frames = head_frames_document(head_values(stream, brow_scale=BROW_VIEW_SCALE), fps=stream.fps)
+    with atomic_write(motion, newline="\n") as handle:
+        json.dump(frames, handle, separators=(",", ":"))
+    return {"file": f"{stimulus}/{name}.mp4", "sha256": _sha256(path), "motion": f"{stimulus}/{name}.head.json",
+            "motion_sha256": _sha256(motion), "seconds": round(stream.n_frames / stream.fps, 3), "settings": settings}
 
 
 def _image_sha256(image: Any) -> str:
