@@ -171,6 +171,8 @@ def test_ctrl_c_flushes_the_last_frames_and_writes_the_file_whole(tmp_path, stop
     (["stream", "x.wav", "-o", "-", "--raw-rate", "16000"], "describe standard input"),
     (["stream", "x.wav", "-o", "-", "--condition", "truth"], "invalid choice"),
     (["stream", "x.wav", "-o", "-", "--model", "arx"], "not offered live"),
+    (["stream", "x.wav", "-o", "-", "--model", "pad"], "--model pad: Jia et al.'s gestures take a whole prosodic word"),
+    (["stream", "x.wav", "-o", "-", "--model", "pad-random"], "--model pad-random: Jia et al.'s random baseline"),
     (["stream", "x.wav", "-o", "-", "--format", "fap"], "--format names"),
     (["stream", "x.wav", "-o", "-", "--lookahead-ms", "-3"], "milliseconds"),
     (["stream", "x.wav", "-o", "-", "--listen", "here:port"], "HOST:PORT"),

@@ -105,9 +105,10 @@ def add_analysis_options(parser: argparse.ArgumentParser) -> None:
 
 def add_generator_options(parser: argparse.ArgumentParser, *, live: bool = False) -> None:
     if live:
-        parser.add_argument("--model", default=None, metavar="FILE",
-                            help="live head model: a file from 'prosody train --kind live' (default: the shipped "
-                                 "model that reads the most within --lookahead-ms)")
+        parser.add_argument("--model", default=None, metavar="NAME|FILE",
+                            help="live head model: 'prosodic' (the default: the shipped live head that reads the "
+                                 "most within --lookahead-ms) or a file from 'prosody train --kind live'; 'arx' "
+                                 "and 'pad' need whole recordings and are not offered live")
     else:
         parser.add_argument("--model", default=None, metavar="NAME|FILE",
                             help="head model for the speech-driven condition: 'prosodic' (the default: motion of "

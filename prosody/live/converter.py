@@ -54,9 +54,18 @@ def shipped_live_model_path(lookahead_ms: float) -> Path:
     return LIVE_MODELS_DIR / f"live_head_{int(lookahead_ms)}ms.json"
 
 
+#: The offline head models' names (``convert --model``) that have no live form, and why.
+OFFLINE_ONLY_MODELS = {
+    "arx": "Zavala Chmelicka's ARX model is fitted on whole recordings",
+    "pad": "Jia et al.'s gestures take a whole prosodic word, which a stream has not heard yet",
+    "pad-random": "Jia et al.'s random baseline takes a whole prosodic word, which a stream has not heard yet",
+}
+
+
 def live_head_model(model: LiveHeadModel | str | os.PathLike[str] | None, *, lookahead_ms: float) -> LiveHeadModel:
-    """The live head model to stream with: the given one, a file, or the shipped model that reads the most
-    look-ahead within ``lookahead_ms``."""
+    """The live head model to stream with: the given one, a file, or (None or ``"prosodic"``, the name ``convert``
+    gives the default head) the shipped model that reads the most look-ahead within ``lookahead_ms``. The other
+    names of ``convert --model`` are refused with the reason (:data:`OFFLINE_ONLY_MODELS`)."""
     if isinstance(model, LiveHeadModel):
         return model
     if model is None or os.fspath(model) == "prosodic":
@@ -64,9 +73,10 @@ def live_head_model(model: LiveHeadModel | str | os.PathLike[str] | None, *, loo
         if not usable:
             raise ConfigError(f"lookahead_ms must be >= 0, got {lookahead_ms!r}")
         return LiveHeadModel.load(shipped_live_model_path(max(usable)))
-    if os.fspath(model) == "arx":
-        raise ConfigError("the thesis's ARX model is fitted on whole recordings and is not offered live; stream "
-                          "with the default head, or a model from 'prosody train --kind live'")
+    if os.fspath(model) in OFFLINE_ONLY_MODELS:
+        raise ConfigError(f"model={os.fspath(model)}: {OFFLINE_ONLY_MODELS[os.fspath(model)]}, so it is not "
+                          "offered live; stream with the live head (prosodic, the default) or a model from "
+                          "'prosody train --kind live'")
     return LiveHeadModel.from_dict(read_model_json(model), source=str(model))
 
 
