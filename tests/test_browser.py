@@ -246,6 +246,7 @@ def test_the_input_sound_plays_and_the_face_moves_in_step_with_it(frame_server, 
     _wait_for(browser, "return window.prosodyStats.shownFrame === 59", 10)
 
 
+@pytest.mark.slow
 def test_page_draws_a_photo_head_as_the_cpu_renderer_does(browser, tmp_path):
     """stream --listen --face PHOTO: the page's WebGL head is the photo head, as PhotoRenderer draws it."""
     pytest.importorskip("mediapipe", reason="the face landmarker (pip install 'visual-prosody[track]')")

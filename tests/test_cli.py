@@ -166,6 +166,7 @@ def test_compare_refuses_an_input_inside_its_output_folder_under_a_name_it_write
     assert "under a name the command writes" not in capsys.readouterr().err and elsewhere.read_text() == "x"
 
 
+@pytest.mark.slow
 def test_quiet_says_only_errors_and_json_messages_are_one_object_a_line(tmp_path, speech) -> None:
     import json
 

@@ -329,6 +329,7 @@ def test_a_glb_refuses_values_no_face_shows(value: float, tmp_path: Path) -> Non
     assert not (tmp_path / "x.glb").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.shared_data
 @pytest.mark.parametrize("relative", ["greta/1-Welcome_1.fap", "xface-new/joy.fap", "SEMAINE-3.1/bari21_1.fap",
                                       "vreng/anger.fap"])

@@ -184,6 +184,7 @@ def test_an_aligner_that_gives_up_is_said_truthfully(monkeypatch):
     assert not any("%" in str(w.message) for w in caught) and len(phones) > 10
 
 
+@pytest.mark.slow
 def test_transcript_words_and_a_transcript_that_does_not_fit(tmp_path):
     assert transcript_words("It's 5 o'clock -- isn't it?") == ["it's", "5", "o'clock", "isn't", "it"]
     audio = load_audio(_sample("arctic_a0009.wav"))

@@ -79,6 +79,7 @@ def test_the_face_units_are_measured_on_the_face_in_the_photo(head) -> None:
     assert all(abs(angle) < 8 for angle in head.pose_deg), head.pose_deg
 
 
+@pytest.mark.slow
 def test_the_same_face_scaled_in_the_photo_keeps_its_face_units(render_photo) -> None:
     """Units are in the head's centimetres: a photo of the same face at 0.6 of the size measures the same."""
     small = np.asarray(Image.fromarray(render_photo).resize((288, 288), Image.Resampling.LANCZOS))
@@ -194,6 +195,7 @@ def test_a_face_too_small_or_turned_too_far_is_refused(render_photo) -> None:
         photo_head(turned)
 
 
+@pytest.mark.slow
 def test_lips_apart_and_several_faces_are_said_in_notes(render_photo) -> None:
     apart = HeadRenderer(480, 480).render(_values(f3=500))
     assert any("lips are apart" in note for note in photo_head(apart).notes)

@@ -233,6 +233,7 @@ def test_side_by_side_panels_share_one_strip_scale_and_keep_their_own_motion(tmp
     assert not (tmp_path / "x.gif").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(find_ffmpeg() is None, reason="no ffmpeg on PATH and imageio-ffmpeg not installed")
 def test_compare_video_has_the_conditions_side_by_side_with_the_audio(tmp_path: Path) -> None:
     from conftest import segments
@@ -431,6 +432,7 @@ def test_jsonl_streams_whose_times_do_not_step_are_refused(tmp_path: Path, capsy
     assert err.count("\n") == 1 and "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_gifs_whose_frames_would_not_fit_in_memory_or_play_are_refused_before_drawing(tmp_path: Path) -> None:
     """A GIF at --width 3840 held about 36 MB a frame (66 GB at the 1,800 frames allowed); a 1000 fps GIF had
     delays of 0 ms, which players slow to 100 ms. Both are refused in one line, with what to do instead, and

@@ -186,6 +186,7 @@ def _conditions(plan):
     return _study_conditions(plan, None)
 
 
+@pytest.mark.slow
 @needs_ffmpeg
 def test_stimuli_are_made_once_and_checked(tmp_path, recordings) -> None:
     plan = _plan()
@@ -361,6 +362,7 @@ def test_a_refused_start_leaves_no_database(tmp_path, recordings, capsys) -> Non
     assert not list(tmp_path.glob("s.sqlite*"))
 
 
+@pytest.mark.slow
 # what an outside probe broke ---------------------------------------------------------------------------------
 @needs_ffmpeg
 def test_a_manifest_may_only_name_videos_in_its_folder_and_each_entry_is_checked(tmp_path, recordings,

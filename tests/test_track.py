@@ -186,6 +186,7 @@ def test_a_complete_output_is_skipped_and_force_redoes_it(tracked, capsys):
     assert record.stat().st_mtime_ns != before
 
 
+@pytest.mark.slow
 @needs_clip
 def test_a_mirrored_video_negates_yaw_and_roll(tracked, tmp_path):
     mirrored = tmp_path / "mirrored.mp4"
@@ -199,6 +200,7 @@ def test_a_mirrored_video_negates_yaw_and_roll(tracked, tmp_path):
         assert np.median(np.abs(original[axis][:n] + flipped[axis][:n])) < 0.02  # yaw and roll negated (rad)
 
 
+@pytest.mark.slow
 @needs_clip
 def test_a_rotation_flag_is_applied(tracked, tmp_path):
     turned = tmp_path / "turned.mp4"
@@ -235,6 +237,7 @@ def test_a_sound_that_starts_late_moves_the_curves(tracked, tmp_path):
         assert np.nanmax(np.abs(shifted[axis][:n] - original[axis][15:15 + n])) < 0.01
 
 
+@pytest.mark.slow
 @needs_clip
 def test_frames_without_a_face_become_empty_cells_and_the_reader_bridges_them(tmp_path):
     blanked = tmp_path / "blanked.mp4"
@@ -329,6 +332,7 @@ def test_the_users_own_wav_beside_the_video_is_never_replaced(tmp_path, capsys):
     _refuse_files_of_others(video, tmp_path / "clip", tmp_path / "clip.track.json", writes_wav=True)
 
 
+@pytest.mark.slow
 @needs_clip
 @pytest.mark.parametrize("container", ["webm", "matroska"])
 def test_a_silent_recording_without_a_length_in_its_header_is_timed_by_its_frames(tmp_path, container):

@@ -370,9 +370,8 @@ def add_parser(commands) -> None:
     serve.add_argument("--db", required=True, metavar="study.sqlite",
                        help="the answers' database (made if missing; must be of this plan)")
     serve.add_argument("--listen", default="127.0.0.1:8766", metavar="HOST:PORT",
-                       help="address to serve on, as 'stream --listen' takes it (default 127.0.0.1:8766, this "
-                            "machine only, one port above the live page's 8765 of the docs so both can run; "
-                            "0.0.0.0:PORT opens it to the network)")
+                       help="address to serve on (default 127.0.0.1:8766, this machine only, beside the live "
+                            "page's 8765 of the docs; 0.0.0.0:PORT opens it to the network)")
     serve.add_argument("--break-every", type=opt.whole_number(0, 10000, "0 to 10000"), default=20, metavar="N",
                        help="a break screen every N trials (default 20; 0: none)")
     serve.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
