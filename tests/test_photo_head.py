@@ -237,3 +237,33 @@ def test_preview_face_photo_makes_a_video_of_the_photos_size(tmp_path: Path, ren
                              capture_output=True, text=True, timeout=300)
     assert refused.returncode == 1 and refused.stderr.count("\n") == 1 and "no such photo" in refused.stderr
     assert not (tmp_path / "y.gif").exists()
+
+
+@pytest.mark.parametrize("pitch", [9, -9])
+def test_a_head_cut_by_the_photos_top_stays_a_head_when_it_nods(render_photo, pitch) -> None:
+    """A photo whose top edge cuts the hair: the person's grid goes on past the edge with the edge's own
+    colours, so a nod brings more hair into the frame, not the filled background (the canonical render's flat
+    grey) where the hair was: about 3 % of those pixels (95 % when the grid stopped at the edge)."""
+    grey = render_photo[0, 0].astype(float)
+    cut = np.ascontiguousarray(render_photo[60:])
+    head = photo_head(cut, name="cut.png")
+    assert head.person[0].any() and head.layer_uv[:, 1].min() < -10  # the grid reaches above the frame
+    frame = PhotoRenderer(head).render(_values(f48=_degrees(pitch), f49=_degrees(5)))
+    top = head.person[:12]
+    background_now = np.all(np.abs(frame[:12].astype(float) - grey) <= 6, axis=2) & top
+    assert background_now.sum() <= 0.05 * top.sum()
+
+
+def test_a_beard_does_not_grey_the_teeth(render_photo, head) -> None:
+    """The teeth and the mouth's inside are drawn in the photo's light, read from the face's brighter skin: a
+    dark beard over the lower face (the same light) leaves it nearly as it was, where the face's median
+    brightness would fall by half."""
+    from prosody.head.photo import photo_exposure
+
+    bearded = render_photo.copy()
+    nose_row = int(head.uv[head.rig.mesh.feature_points["9.15"], 1])
+    lower = np.zeros(bearded.shape[:2], bool)
+    lower[nose_row:] = head.person[nose_row:]
+    bearded[lower] = (bearded[lower] * 0.3).astype(np.uint8)
+    plain, dark = photo_exposure(head), photo_exposure(photo_head(bearded, name="bearded.png"))
+    assert dark >= 0.9 * plain

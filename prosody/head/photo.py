@@ -79,6 +79,11 @@ SKIN_FOLLOW_CM = 1.5
 #: The motion is seen as by a camera this far from the face (a video call's distance), laid over the photo's
 #: framing: the tracker reads turns rendered without perspective at 0.55-0.7 of their size, with it 0.7-1.2.
 CAMERA_DISTANCE_CM = 60.0
+#: How far the person's grid goes on past an edge of the photo that cuts the person, cm (a nod of 9 degrees moves
+#: the top of the head about 3 cm, a turn of 15 degrees its side about 4).
+CUT_REACH_CM = 6.0
+#: The percentile of the face's brightness that tells the photo's light (:func:`photo_exposure`).
+EXPOSURE_PERCENTILE = 90
 #: The mouth's inside is drawn as if this much further back, so the skin round the lips always hides it.
 MOUTH_DEPTH_BIAS_CM = 3.0
 #: The light that stays put while the head turns (towards the light, camera axes) and its ambient share.
@@ -420,8 +425,13 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
 
     height, width = size
     step = max(3.0, GRID_STEP * max(height, width))
-    columns = np.linspace(0, width, max(2, round(width / step)) + 1)
-    rows = np.linspace(0, height, max(2, round(height / step)) + 1)
+    # where the photo's edge cuts the person (hair at the top, a shoulder at a side), the grid goes on past it,
+    # its texture the edge's own: a turn or a nod brings more of the person into view, not the background
+    reach = CUT_REACH_CM * scale
+    top, bottom = (reach if person[0].any() else 0.0), (reach if person[-1].any() else 0.0)
+    left, right = (reach if person[:, 0].any() else 0.0), (reach if person[:, -1].any() else 0.0)
+    columns = np.linspace(-left, width + right, max(2, round((width + left + right) / step)) + 1)
+    rows = np.linspace(-top, height + bottom, max(2, round((height + top + bottom) / step)) + 1)
     grid_x, grid_y = np.meshgrid(columns, rows)
     uv = np.column_stack([grid_x.ravel(), grid_y.ravel()])
     n_rows, n_columns = len(rows), len(columns)
@@ -500,14 +510,19 @@ def _inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
 
 
 def photo_exposure(head: PhotoHead) -> float:
-    """How bright the face is in the photo beside the 3D head's skin colour (0.4-1.2): the mouth's inside,
-    teeth and tongue are drawn that much darker or lighter, to sit in the photo's light."""
+    """How bright the light on the face is in the photo beside the 3D head's skin colour (0.4-1.2): the mouth's
+    inside, teeth and tongue are drawn that much darker or lighter, to sit in the photo's light.
+
+    The light is read from the face's brighter skin (the :data:`EXPOSURE_PERCENTILE` th percentile of its
+    landmarks' brightness): a beard, a moustache or a shadowed half of the face would darken a median, and grey
+    the teeth of a well-lit face."""
     from .mesh import SKIN
 
     grey = np.array([0.299, 0.587, 0.114])
     at = np.clip(np.round(head.uv[:N_FACE_VERTICES]).astype(int), 0, [head.width - 1, head.height - 1])
     face = head.image[at[:, 1], at[:, 0]].astype(float) / 255.0
-    return float(np.clip(np.median(face @ grey) / (np.asarray(SKIN) @ grey), 0.4, 1.2))
+    lit = float(np.percentile(face @ grey, EXPOSURE_PERCENTILE))
+    return float(np.clip(lit / (np.asarray(SKIN) @ grey), 0.4, 1.2))
 
 
 class PhotoRenderer:
