@@ -106,7 +106,8 @@ class StreamingAnalyser:
         self._next_frame = 0
         self._finished = False
         self._peak_block = max(1, int(round(_PEAK_BLOCK_S * self.sample_rate_hz)))
-        self._peak_blocks: deque[tuple[int, float]] = deque()  # (block index, peak) of complete blocks
+        # (block index, peak) of the complete blocks that can still be the window's loudest, loudest first
+        self._peak_blocks: deque[tuple[int, float]] = deque()
         self._peak_scanned = 0  # samples folded into the block peaks
 
     @property
@@ -153,7 +154,11 @@ class StreamingAnalyser:
         while self._peak_scanned + block <= min(end, self._received):
             index = self._peak_scanned // block
             chunk = self._read(self._peak_scanned, block)
-            self._peak_blocks.append((index, float(np.max(np.abs(chunk), initial=0.0))))
+            peak = float(np.max(np.abs(chunk), initial=0.0))
+            # kept in falling order: a block no louder than a later one can never be the window's loudest
+            while self._peak_blocks and self._peak_blocks[-1][1] <= peak:
+                self._peak_blocks.pop()
+            self._peak_blocks.append((index, peak))
             self._peak_scanned += block
         oldest = (end - int(PEAK_WINDOW_S * self.sample_rate_hz)) // block
         while self._peak_blocks and self._peak_blocks[0][0] < oldest:
@@ -164,7 +169,7 @@ class StreamingAnalyser:
         only, however it arrived)."""
         self._fold_peaks(end)
         partial = self._read(self._peak_scanned, max(0, end - self._peak_scanned))
-        return max(max((peak for _, peak in self._peak_blocks), default=0.0),
+        return max(self._peak_blocks[0][1] if self._peak_blocks else 0.0,
                    float(np.max(np.abs(partial), initial=0.0)))
 
     def _frame(self, k: int) -> tuple[float, float]:
@@ -299,6 +304,7 @@ class RunningMedian:
         self._counts = np.zeros(int(math.ceil((high - low) / resolution)) + 1)
         self._decay = 0.5 ** (1.0 / half_life) if half_life else 1.0
         self.count = 0
+        self._median: float | None = None
 
     def add(self, value: float) -> None:
         """Add a value (it counts with full weight; older ones fade by the half-life).
@@ -315,6 +321,7 @@ class RunningMedian:
         index = int(np.clip(np.rint((value - self.low) / self.resolution), 0, self._counts.size - 1))
         self._counts[index] += 1.0
         self.count += 1
+        self._median = None
 
     @property
     def value(self) -> float:
@@ -322,12 +329,14 @@ class RunningMedian:
         before any value."""
         if self.count == 0:
             return math.nan
-        cumulative = np.cumsum(self._counts)
-        half = cumulative[-1] / 2
-        lower = int(np.searchsorted(cumulative, half - 1e-9 * cumulative[-1]))
-        upper = int(np.searchsorted(cumulative, half + 1e-9 * cumulative[-1], side="right"))
-        upper = min(upper, self._counts.size - 1)
-        return self.low + self.resolution * 0.5 * (lower + upper)
+        if self._median is None:  # worked out once after each value added, however often it is read
+            cumulative = np.cumsum(self._counts)
+            half = cumulative[-1] / 2
+            lower = int(np.searchsorted(cumulative, half - 1e-9 * cumulative[-1]))
+            upper = int(np.searchsorted(cumulative, half + 1e-9 * cumulative[-1], side="right"))
+            upper = min(upper, self._counts.size - 1)
+            self._median = self.low + self.resolution * 0.5 * (lower + upper)
+        return self._median
 
 
 class CausalF0Bridge:
