@@ -125,7 +125,7 @@ def main() -> int:
     print(f"live: prosody stream fed {LATENCY_AUDIO_S:.0f} s of real speech at real-time pace in "
           f"{CHUNK_S * 1000:.0f} ms pieces (16 kHz PCM on a pipe)")
     print("  look-ahead   delay median    p95     max    CPU (one core)   (aims: median <= 150 ms, "
-          "p95 <= 200 ms, CPU <= 10 %)")
+          "p95 <= 200 ms, CPU <= 8 %)")
     for lookahead_ms in (0, 100, 200):
         result = latency(samples, lookahead_ms)
         print(f"  {lookahead_ms:5.0f} ms   {result['median']:8.0f} ms {result['p95']:6.0f} ms {result['max']:6.0f} ms"
