@@ -281,3 +281,19 @@ def test_model_files_record_their_training_audio_and_compare_uses_it(shared_data
     other = find_pairs(shared_data / "talking-heads")[3][0]
     assert compare(other, model=str(tmp_path / "model.json"), seeds=1).metrics[
         "model_trained_on_this_recording"] is False
+
+
+def test_every_head_model_is_a_head_model_and_says_what_it_is() -> None:
+    """One protocol for the three kinds: the dispatch reads what each model says of itself (its kind, whether the
+    seed matters, its rest pose), never which class it is."""
+    from prosody.motion.head_models import HeadModel, is_stochastic, load_head_model, resolve_head_model, rest_pose
+
+    expected = {"prosodic": True, "arx": False, "pad": True, "pad-random": True}
+    for name, stochastic in expected.items():
+        model = load_head_model(name)
+        assert isinstance(model, HeadModel) and resolve_head_model(model) is model
+        assert is_stochastic(model) is stochastic and model.kind == name.removesuffix("-random")
+        pose = rest_pose(model)
+        assert sorted(pose) == [48, 49, 50]
+        assert (any(pose.values()) if name == "arx" else not any(pose.values()))  # only the ARX free run drifts
+    assert not isinstance(object(), HeadModel)

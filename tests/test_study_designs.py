@@ -376,6 +376,7 @@ def test_a_ballot_of_many_classes_draws_a_bounded_figure_and_nothing_before_a_fa
     assert sorted(path.name for path in tmp_path.iterdir()) == ["many.csv", "plan.csv"]
 
 
+@pytest.mark.slow
 def test_many_conditions_are_analysed_quickly_without_every_pair() -> None:
     import time
 

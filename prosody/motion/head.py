@@ -17,6 +17,7 @@ import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -282,6 +283,9 @@ class ArxHeadModel:
         """Eigenvalues of the free run's companion matrix (all inside the unit circle for a stable model)."""
         self._check_fitted()
         return companion_poles(self.a_)
+
+    #: The same motion for every seed (the model is a deterministic free run).
+    stochastic: ClassVar[bool] = False
 
     def rest_pose_au(self) -> np.ndarray:
         """The pose the model settles to when every input sits at its recording's average (per-recording

@@ -43,6 +43,7 @@ import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -364,6 +365,8 @@ class PadHeadModel:
 
     kind = "pad"
     fps_ = 30.0  # any rate works: the PWs are found on the features' own grid
+    #: The motion depends on the seed (each PW's mean pose and side are drawn).
+    stochastic: ClassVar[bool] = True
 
     def __init__(self, pleasure: float = 0.0, coefficients: Sequence[Sequence[float]] | None = None,
                  randomized: bool = False, states: Sequence = ()) -> None:
@@ -378,6 +381,10 @@ class PadHeadModel:
         if len(chosen) != 3 or any(len(axis) != 6 or not all(math.isfinite(c) for c in axis) for axis in chosen):
             raise ConfigError("coefficients must be three rows (pitch, yaw, roll) of six finite numbers C1..C6")
         self.coefficients_ = tuple(tuple(float(c) for c in axis) for axis in chosen)
+
+    def rest_pose_au(self) -> np.ndarray:
+        """The pose the gestures are about: the rest pose itself, AU (3,) of zeros."""
+        return np.zeros(len(HEAD_FAPS))
 
     def generate(self, features: Features, *, seed: int = 0) -> dict[int, np.ndarray]:
         """Head pitch, yaw and roll (FAP 48-50, AU) of a recording."""

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Callable, Sequence
+from typing import ClassVar
 
 import numpy as np
 
@@ -507,6 +508,13 @@ class ProsodicHeadModel(OfflineHeadSettings):
         if self.burst_power > 0:
             motion = shape_head(motion, fps=self.fps_, expressivity=Expressivity(power=self.burst_power))
         return motion
+
+    #: The motion depends on the seed (its coloured noise).
+    stochastic: ClassVar[bool] = True
+
+    def rest_pose_au(self) -> np.ndarray:
+        """The pose the motion is about: the rest pose itself, AU (3,) of zeros."""
+        return np.zeros(len(HEAD_FAPS))
 
     def generate(self, features: Features, *, seed: int = 0) -> dict[int, np.ndarray]:
         """Head motion for a recording: FAP number (48, 49, 50) -> curve in AU. Same seed, same motion."""
