@@ -14,7 +14,6 @@ import audio_features
 import prosody
 
 
-
 def _has_examples(name: str) -> bool:
     spec = importlib.util.find_spec(name)
     return spec is not None and spec.origin is not None and ">>> " in Path(spec.origin).read_text()
