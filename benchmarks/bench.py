@@ -119,8 +119,8 @@ def stage_times(path: Path, out: Path) -> dict[str, float]:
     from prosody.fap.fapfile import write_fap
     from prosody.fap.stream import FapStream
     from prosody.motion.eyebrows import accent_raises, eyebrow_raises
-    from prosody.motion.head import default_model
-    from prosody.motion.head_models import default_head_model
+    from prosody.motion.heads.arx import default_model
+    from prosody.motion.heads.models import default_head_model
     from prosody.motion.perlin import perlin_curves
 
     times: dict[str, float] = {}
@@ -141,8 +141,8 @@ def stage_times(path: Path, out: Path) -> dict[str, float]:
     times["prosodic head (default)"], head = _timed(lambda: prosodic.generate(features, seed=0))
     times["Perlin"], _ = _timed(lambda: perlin_curves(features.n_frames, fps=features.fps, seed=0))
     from audio_features.phones import recognise_phones
-    from prosody.motion.lips import shape_faps, shapes_from_phones
-    from prosody.motion.mouth_model import AcousticMouthModel
+    from prosody.motion.face.lips import shape_faps, shapes_from_phones
+    from prosody.motion.face.mouth_model import AcousticMouthModel
 
     times["phones (PocketSphinx phone loop)"], phones = _timed(lambda: recognise_phones(audio))
     times["visemes and dominance blending"], _ = _timed(

@@ -22,8 +22,8 @@ import numpy as np
 
 from experiments.common import record, talking_heads
 from experiments.head_loso import TRACKED, speakers
-from prosody.motion.pad_head import AU_PER_DEGREE, prosodic_words
-from prosody.motion.training import find_pairs, load_training_set
+from prosody.motion.heads.pad import AU_PER_DEGREE, prosodic_words
+from prosody.motion.heads.training import find_pairs, load_training_set
 
 SHUFFLES = 500
 DESCRIPTORS = ("pitch range (st)", "loudness range (dB)", "syllable rate (/s)", "voiced share")

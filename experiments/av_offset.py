@@ -21,7 +21,7 @@ import numpy as np
 
 from experiments.common import record, shipped_settings, talking_heads
 from experiments.head_loso import TRACKED, speakers
-from prosody.motion.training import find_pairs, held_out_prosodic, load_training_set
+from prosody.motion.heads.training import find_pairs, held_out_prosodic, load_training_set
 
 SEEDS = 5
 

@@ -54,8 +54,8 @@ def data_folder(name: str, *, needs: str) -> Path:
 def shipped_settings() -> dict:
     """The settings of the shipped default head (``prosody/motion/models/default_head.json``), which
     cross-validation chose: the benchmarks fit the prosodic generator with them."""
-    from prosody.motion.head_models import default_head_model
-    from prosody.motion.speech_head import ProsodicHeadModel
+    from prosody.motion.heads.models import default_head_model
+    from prosody.motion.heads.prosodic import ProsodicHeadModel
 
     model = default_head_model()
     return {name: getattr(model, name) for name in ProsodicHeadModel.SETTINGS}

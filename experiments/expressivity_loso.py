@@ -23,8 +23,8 @@ from experiments.common import talking_heads as default_data
 from prosody.measures import average_head_metrics, head_metrics
 from prosody.motion.controls import shift_offsets, shifted_features
 from prosody.motion.expressivity import Expressivity, shape_head
-from prosody.motion.speech_head import ProsodicHeadModel
-from prosody.motion.training import find_pairs, load_training_set
+from prosody.motion.heads.prosodic import ProsodicHeadModel
+from prosody.motion.heads.training import find_pairs, load_training_set
 
 SEEDS = 5
 SETTINGS = (

@@ -28,8 +28,8 @@ from experiments.common import data_folder, record
 from experiments.mouth_loco import FPS, HEADER, measured, row
 from experiments.mouth_videos_loso import TRACKED, load_clips
 from experiments.rhubarb_side_by_side import played
-from prosody.motion.face import lip_curves
-from prosody.motion.lips import inner_opening
+from prosody.motion.face.layer import lip_curves
+from prosody.motion.face.lips import inner_opening
 
 COMMANDS = {"b": "bin", "l": "lay", "p": "place", "s": "set"}
 COLOURS = {"b": "blue", "g": "green", "r": "red", "w": "white"}

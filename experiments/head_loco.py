@@ -26,22 +26,22 @@ from experiments.common import record, shipped_settings, talking_heads
 from experiments.common import talking_heads as default_data
 from prosody.measures import average_head_metrics, head_metrics
 from prosody.motion.controls import shift_offsets, shifted_features
-from prosody.motion.head import ArxHeadModel, arx_inputs
-from prosody.motion.pad_head import PadHeadModel, arousal_amplitudes, fit_arousal
-from prosody.motion.perlin import perlin_curves
-from prosody.motion.speech_head import ProsodicHeadModel
-from prosody.motion.training import (
+from prosody.motion.heads.arx import ArxHeadModel, arx_inputs
+from prosody.motion.heads.pad import PadHeadModel, arousal_amplitudes, fit_arousal
+from prosody.motion.heads.prosodic import ProsodicHeadModel
+from prosody.motion.heads.training import (
     find_pairs,
     held_out_prosodic,
     load_training_set,
     select_prosodic,
 )
+from prosody.motion.perlin import perlin_curves
 
 
 def _shipped_arx_orders() -> dict:
     import json
 
-    from prosody.motion.head import DEFAULT_MODEL_PATH
+    from prosody.motion.heads.arx import DEFAULT_MODEL_PATH
 
     shipped = json.loads(Path(DEFAULT_MODEL_PATH).read_text())
     return {**shipped["orders"], "ridge": float(shipped["ridge"])}

@@ -32,8 +32,8 @@ import numpy as np
 from experiments.common import TRACKED_VIDEOS, record, shipped_settings, talking_heads, tracked_videos
 from experiments.head_loco import seeded_measures
 from prosody.measures import average_head_metrics, head_metrics
+from prosody.motion.heads.training import find_pairs, held_out_prosodic, load_training_set
 from prosody.motion.perlin import perlin_curves
-from prosody.motion.training import find_pairs, held_out_prosodic, load_training_set
 
 SEEDS = 5
 TRACKED = TRACKED_VIDEOS
@@ -102,7 +102,7 @@ def main(argv: list[str]) -> int:
           "recorded | control: speed-envelope r (chance spread) "
           "| control: pitch r (chance spread) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
-    from prosody.motion.head_models import load_head_model
+    from prosody.motion.heads.models import load_head_model
 
     shipped = load_head_model("prosodic")
     unseen = [i for i, name in enumerate(data.names) if source[name] == "talking-videos"]

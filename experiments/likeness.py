@@ -37,8 +37,8 @@ import numpy as np
 from experiments.common import TRACKED_VIDEOS, data_folder, record, tracked_videos
 from experiments.mouth_videos_loso import speakers
 from prosody.measures import mouth_metrics
+from prosody.motion.face.lips import MNS_PER_EYE_WIDTH, inner_opening
 from prosody.motion.ground_truth import read_brows_csv, read_mouth_csv
-from prosody.motion.lips import MNS_PER_EYE_WIDTH, inner_opening
 from prosody.motion.settings import LIP_METHODS, FaceSettings
 
 FPS = 30.0
@@ -96,7 +96,7 @@ def clips(limit: int | None) -> list[dict]:
 def held_out_models(chosen: list[dict], folder: Path) -> dict[str, Path]:
     """Per speaker, an acoustic mouth model fitted without that speaker's clips, saved in ``folder``."""
     from experiments.mouth_videos_loso import heads_training, load_clips
-    from prosody.motion.mouth_model import AcousticMouthModel
+    from prosody.motion.face.mouth_model import AcousticMouthModel
 
     heads = heads_training()
     training = load_clips()

@@ -27,9 +27,9 @@ from experiments.common import record, talking_heads
 from experiments.head_loco import default_data
 from experiments.head_loso import TRACKED, row, speakers
 from prosody.motion.eyebrows import AccentRule, EyebrowRule, brow_raises
-from prosody.motion.live import live_brows
-from prosody.motion.live_training import held_out_live, load_streamed, nested_held_out_live, speaker_folds
-from prosody.motion.training import find_pairs
+from prosody.motion.heads.live import live_brows
+from prosody.motion.heads.live_training import held_out_live, load_streamed, nested_held_out_live, speaker_folds
+from prosody.motion.heads.training import find_pairs
 
 LOOKAHEADS_MS = (0, 100, 200, 300, 500)
 

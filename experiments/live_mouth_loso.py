@@ -15,13 +15,13 @@ import numpy as np
 from experiments.common import record
 from experiments.mouth_loco import default_data, speaker_of
 from prosody.measures import mouth_metrics
-from prosody.motion.ground_truth import read_mouth_csv
-from prosody.motion.lips import inner_opening, shape_faps
-from prosody.motion.mouth_model import (
+from prosody.motion.face.lips import inner_opening, shape_faps
+from prosody.motion.face.mouth_model import (
     SHIPPED_LIVE_MOUTH_MS,
     LiveMouthModel,
     live_mouth_clips,
 )
+from prosody.motion.ground_truth import read_mouth_csv
 
 
 def main(folder: Path) -> None:

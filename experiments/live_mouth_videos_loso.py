@@ -1,6 +1,6 @@
 """The live lips on the 30 speakers of the talking videos, each held out (``make evaluate``).
 
-The live acoustic mouth model (:class:`prosody.motion.mouth_model.LiveMouthModel`, 0 and 100 ms look-ahead) is
+The live acoustic mouth model (:class:`prosody.motion.face.mouth_model.LiveMouthModel`, 0 and 100 ms look-ahead) is
 fitted either on the seven talking-heads clips alone or on them and the other speakers of the talking videos
 (as ``experiments/mouth_videos_loso.py`` tracks them), then streams each held-out clip from its start, as
 ``prosody stream`` does. Means over speakers of the opening r (with the control: the lips shifted in time, and
@@ -17,8 +17,8 @@ import numpy as np
 from audio_features.spectral import cepstra
 from experiments.common import data_folder, record
 from experiments.mouth_videos_loso import FPS, load_clips, measured, summary
-from prosody.motion.lips import MouthShape, inner_opening, shape_faps
-from prosody.motion.mouth_model import SHIPPED_LIVE_MOUTH_MS, LiveMouthModel, live_mouth_clips
+from prosody.motion.face.lips import MouthShape, inner_opening, shape_faps
+from prosody.motion.face.mouth_model import SHIPPED_LIVE_MOUTH_MS, LiveMouthModel, live_mouth_clips
 
 
 def streamed(model: LiveMouthModel, clip: dict) -> dict[int, np.ndarray]:

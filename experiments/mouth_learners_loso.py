@@ -23,8 +23,8 @@ import numpy as np
 
 from experiments.common import data_folder, record
 from experiments.mouth_videos_loso import FPS, heads_training, load_clips, measured, summary_table
-from prosody.motion.lips import MouthShape, inner_opening, shape_faps
-from prosody.motion.mouth_model import AcousticMouthModel
+from prosody.motion.face.lips import MouthShape, inner_opening, shape_faps
+from prosody.motion.face.mouth_model import AcousticMouthModel
 
 
 class NetworkMouthModel(AcousticMouthModel):

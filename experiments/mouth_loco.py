@@ -1,5 +1,5 @@
 """Leave-one-speaker-out table of the mouth measures on video-tracked mouths (``make evaluate``), and the fit
-of the viseme shapes that ``prosody/motion/lips.py`` ships.
+of the viseme shapes that ``prosody/motion/face/lips.py`` ships.
 
 For each speaker, the viseme shapes (opening, rounding, spread) are fitted on the other speakers' clips and
 the lips of the held-out speaker's clips are generated and measured (mouth-opening r at the best lag within
@@ -38,8 +38,7 @@ from audio_features.phones import Phone, recognise_phones
 from experiments.common import record
 from experiments.common import talking_heads as default_data
 from prosody.measures import average_mouth_metrics, mouth_metrics, relative_closures
-from prosody.motion.ground_truth import read_mouth_csv
-from prosody.motion.lips import (
+from prosody.motion.face.lips import (
     MNS_PER_EYE_WIDTH,
     VISEMES,
     fit_shapes,
@@ -49,7 +48,8 @@ from prosody.motion.lips import (
     viseme_of,
     viseme_weights,
 )
-from prosody.motion.mouth_model import AcousticMouthModel, mouth_training_clip
+from prosody.motion.face.mouth_model import AcousticMouthModel, mouth_training_clip
+from prosody.motion.ground_truth import read_mouth_csv
 
 FPS = 30.0
 #: What a player of Rhubarb's cues shows, as (opening MNS, rounding): each shape at the visemes' size.

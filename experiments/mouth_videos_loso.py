@@ -36,9 +36,9 @@ from audio_features.phones import recognise_phones
 from experiments.common import TRACKED_VIDEOS, data_folder, record, tracked_videos
 from experiments.mouth_loco import measured
 from prosody.measures import opening_agreement
+from prosody.motion.face.lips import inner_opening, shape_faps, shapes_from_phones
+from prosody.motion.face.mouth_model import HEADS_MOUTH_MODEL_PATH, AcousticMouthModel, mouth_training_clip
 from prosody.motion.ground_truth import read_mouth_csv
-from prosody.motion.lips import inner_opening, shape_faps, shapes_from_phones
-from prosody.motion.mouth_model import HEADS_MOUTH_MODEL_PATH, AcousticMouthModel, mouth_training_clip
 
 FPS = 30.0
 TRACKED = TRACKED_VIDEOS

@@ -1,5 +1,5 @@
 """Eq. 2's arousal coefficients (C4-C6, at P = 0) fitted to recorded head motion, leave one speaker out
-(``make evaluate``; the fit is ``prosody train --kind pad``, ``prosody.motion.pad_head.fit_arousal``).
+(``make evaluate``; the fit is ``prosody train --kind pad``, ``prosody.motion.heads.pad.fit_arousal``).
 
 Jia et al. (2013) does not print C1-C6. The recordings here carry no emotion labels, so pleasure cannot be fitted;
 the arousal part can: each prosodic word (PW) the pad model finds in the audio has an arousal A in {0, 0.5, 1}
@@ -11,7 +11,7 @@ speakers:
 - r, over all held-out stretches, between Amp(0, A) and the recorded amplitude, beside the same r with each
   speaker's A values shuffled among its own stretches (the chance level: mean and spread of 200 shuffles);
 - the mean absolute error of Amp(0, A), beside that of the default coefficients (Table 3's amplitude at
-  A = 0.5, see ``prosody.motion.pad_head``) and that of one constant for speech and one for pauses (fitted
+  A = 0.5, see ``prosody.motion.heads.pad``) and that of one constant for speech and one for pauses (fitted
   the same way), which ignores A.
 
 Usage: python -m experiments.pad_fit [--no-tracked]  (the talking-heads clips, and the talking-videos clips
@@ -27,8 +27,8 @@ import numpy as np
 
 from experiments.common import record, talking_heads
 from experiments.head_loso import TRACKED, speakers
-from prosody.motion.pad_head import FIT_MIN_FRAMES, arousal_amplitudes, fit_arousal, held_out_arousal
-from prosody.motion.training import find_pairs, load_training_set
+from prosody.motion.heads.pad import FIT_MIN_FRAMES, arousal_amplitudes, fit_arousal, held_out_arousal
+from prosody.motion.heads.training import find_pairs, load_training_set
 
 
 def main(argv: list[str]) -> int:

@@ -36,9 +36,9 @@ from experiments.mouth_videos_loso import (
     reference_table,
     summary_table,
 )
-from prosody.motion.face import COMBINED_CLOSED_MNS
-from prosody.motion.lips import VISEME_FAP, inner_opening, shape_faps, shapes_from_phones
-from prosody.motion.mouth_model import AcousticMouthModel
+from prosody.motion.face.layer import COMBINED_CLOSED_MNS
+from prosody.motion.face.lips import VISEME_FAP, inner_opening, shape_faps, shapes_from_phones
+from prosody.motion.face.mouth_model import AcousticMouthModel
 
 CUES = REPO / "out" / "rhubarb-cues"
 RECOGNISERS = ("pocketSphinx", "phonetic")

@@ -6,8 +6,10 @@ The package is in layers, each importing only those before it:
 - :mod:`prosody.fap`: the FAP table and units, streams, the .fap reader and writer, the exporters;
 - :mod:`prosody.head`: the 3D head (mesh, rig, renderer, glTF, WebGL model);
 - :mod:`prosody.measures`: how motion is measured against recorded motion;
-- :mod:`prosody.motion`: the eyebrow rules, Perlin noise, the head models, the lips and expressions, recorded
-  motion, the conditions, training, and the causal generators of the live path;
+- :mod:`prosody.motion`: the eyebrow rules, Perlin noise, recorded motion and the expressivity controls; its
+  rooms :mod:`prosody.motion.face` (lips, expressions, PAD states) and :mod:`prosody.motion.heads` (the head
+  models behind one protocol, offline and live, and their training); then the settings groups and the
+  conditions that join them;
 - :mod:`prosody.tracking`: videos made into recorded motion;
 - :mod:`prosody.evaluation`: comparisons, reports, plots, previews, the head's closed loop;
 - :mod:`prosody.jobs`: one recording (:func:`prosody.jobs.pipeline.convert`), folders

@@ -22,7 +22,10 @@ def _interrupted() -> int:
 
 
 def main() -> int:
-    """Run the ``prosody`` command on ``sys.argv``; returns its exit code."""
+    """Run the ``prosody`` command on ``sys.argv``; returns its exit code.
+
+    Once the command has finished, Ctrl-C is ignored: the work is done and said, and an interrupt during the
+    interpreter's own shutdown would otherwise end the process by SIGINT instead of the command's exit code."""
     try:
         from .cli.app import main as command
     except KeyboardInterrupt:
@@ -32,7 +35,13 @@ def main() -> int:
         if "KeyboardInterrupt" not in f"{error!r} {error.__context__!r} {error.__cause__!r}":
             raise
         return _interrupted()
-    return command()
+    try:
+        code = command()
+    finally:
+        import signal
+
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return code
 
 
 if __name__ == "__main__":

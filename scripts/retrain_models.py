@@ -12,7 +12,7 @@ Each model of ``prosody/motion/models/`` is refitted on ``../shared/data/talking
   talking-heads clips and the talking videos, tracked first by ``prosody track`` into
   ``out/talking-videos-tracked`` (as ``experiments/mouth_videos_loso.py`` tracks them; about 20 minutes once);
 - ``live_head_<MS>ms.json``: ``prosody train --kind live --lookahead-ms MS --cv`` (minutes each);
-- ``live_mouth_<MS>ms.json``: :class:`prosody.motion.mouth_model.LiveMouthModel` fitted on every clip of the
+- ``live_mouth_<MS>ms.json``: :class:`prosody.motion.face.mouth_model.LiveMouthModel` fitted on every clip of the
   talking-heads clips and the tracked talking videos.
 
 Each refit is compared with the shipped file number by number (relative 1e-9: the last digit follows the
@@ -61,7 +61,7 @@ def _with_tracked_videos(fit: Callable[..., None]) -> Callable[[Path, Path], Non
 
 def _live_mouth(milliseconds: int) -> Callable[..., None]:
     def fit(data: Path, out: Path, extra: tuple[str, ...] = ()) -> None:
-        from prosody.motion.mouth_model import LiveMouthModel, live_mouth_clips
+        from prosody.motion.face.mouth_model import LiveMouthModel, live_mouth_clips
 
         folders = [data, *(Path(folder) for flag, folder in zip(extra[::2], extra[1::2], strict=True)
                            if flag == "--data")]
@@ -74,7 +74,7 @@ def _live_mouth(milliseconds: int) -> Callable[..., None]:
 def recipes() -> dict[str, Callable[[Path, Path], None]]:
     """Shipped file name -> how it is refitted."""
     from prosody.live.converter import SHIPPED_LOOKAHEADS_MS
-    from prosody.motion.mouth_model import SHIPPED_LIVE_MOUTH_MS
+    from prosody.motion.face.mouth_model import SHIPPED_LIVE_MOUTH_MS
 
     made = {"default_head.json": _train("--kind", "prosodic", "--cv"),
             "default_arx.json": _train("--kind", "arx", "--cv"),

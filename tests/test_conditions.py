@@ -227,7 +227,7 @@ def test_train_command_on_synthetic_pairs(tmp_path, rng) -> None:
     _write_head_csv(data / "bad.head.csv", np.zeros(10), np.zeros(10), np.zeros(10))
     out = tmp_path / "model.json"
     assert main(["train", "--data", str(data), "-o", str(out), "--kind", "arx", "--na", "1", "--nb", "2"]) == 0
-    from prosody.motion.head import ArxHeadModel
+    from prosody.motion.heads.arx import ArxHeadModel
 
     model = ArxHeadModel.load(out)
     assert [clip.name for clip in model.training_] == ["clip0", "clip1", "clip2"]
@@ -239,8 +239,8 @@ def test_train_command_on_synthetic_pairs(tmp_path, rng) -> None:
     assert main(["train", "--data", str(data), "-o", str(tmp_path / "p.json"), "--na", "2"]) == 2
     assert not (tmp_path / "p.json").exists()
     assert main(["train", "--data", str(data), "-o", str(tmp_path / "p.json")]) == 0
-    from prosody.motion.head_models import load_head_model
-    from prosody.motion.speech_head import ProsodicHeadModel
+    from prosody.motion.heads.models import load_head_model
+    from prosody.motion.heads.prosodic import ProsodicHeadModel
 
     prosodic = load_head_model(tmp_path / "p.json")
     assert isinstance(prosodic, ProsodicHeadModel)

@@ -23,7 +23,7 @@ from prosody.motion.expressivity import (
     shape_brows,
     shape_head,
 )
-from prosody.motion.head_models import load_head_model, rest_pose
+from prosody.motion.heads.models import load_head_model, rest_pose
 
 FPS = 30.0
 HEAD = (48, 49, 50)

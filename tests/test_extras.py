@@ -20,7 +20,7 @@ def test_a_present_module_passes_and_a_missing_one_names_its_extra(monkeypatch) 
 
 
 def test_training_without_statsmodels_says_which_extra(monkeypatch, tmp_path) -> None:
-    from prosody.motion.training import train
+    from prosody.motion.heads.training import train
 
     monkeypatch.setitem(sys.modules, "statsmodels", None)
     with pytest.raises(MissingExtraError, match=r"visual-prosody\[stats\]"):

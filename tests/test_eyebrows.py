@@ -131,7 +131,7 @@ def test_an_octave_jump_of_a_few_frames_raises_no_brow_offline_or_live():
     # Praat's octave errors on a low voice last up to three frames, 17-20 semitones above the speaker's median
     # (reagan_clip1 at 21.77 s: 380, 353, 317 Hz on a voice near 118 Hz); a 5-frame median keeps three
     from prosody.motion.eyebrows import AccentRule, accent_raises
-    from prosody.motion.live import live_brows
+    from prosody.motion.heads.live import live_brows
 
     f0 = np.full(90, 118.0)
     f0[40:43] = (380.0, 353.0, 317.0)

@@ -208,7 +208,7 @@ def test_grids_and_frames_of_impossible_size_are_refused(tmp_path) -> None:
 
 def test_arx_fit_refuses_widths_its_files_cannot_hold(tmp_path) -> None:
     from prosody.errors import ConfigError, ModelError
-    from prosody.motion.head import ArxHeadModel
+    from prosody.motion.heads.arx import ArxHeadModel
 
     with pytest.raises(ConfigError, match="inputs must be"):
         ArxHeadModel().fit_arrays([np.zeros((50, 4))], [np.zeros((50, 3))])
@@ -480,8 +480,8 @@ def test_model_numbers_beyond_any_fit_and_motion_beyond_a_turn_are_refused(tmp_p
     from prosody.errors import GroundTruthError, ModelError
     from prosody.live.converter import live_head_model, shipped_live_model_path
     from prosody.motion.ground_truth import read_head_csv
-    from prosody.motion.head import ArxHeadModel
-    from prosody.motion.head_models import ARX_MODEL_PATH, load_head_model
+    from prosody.motion.heads.arx import ArxHeadModel
+    from prosody.motion.heads.models import ARX_MODEL_PATH, load_head_model
 
     live = json.loads(shipped_live_model_path(100).read_text())
     key = next(k for k, v in live.items() if isinstance(v, list) and v and isinstance(v[0], float))
@@ -506,7 +506,7 @@ def test_a_byte_order_mark_is_accepted_in_every_text_input(tmp_path) -> None:
 
     from prosody.fap.fapfile import read_fap
     from prosody.motion.ground_truth import read_head_csv
-    from prosody.motion.head_models import ARX_MODEL_PATH, load_head_model
+    from prosody.motion.heads.models import ARX_MODEL_PATH, load_head_model
 
     bom = b"\xef\xbb\xbf"
     (tmp_path / "x.head.csv").write_bytes(bom + b"frame,time_s,rx_rad,ry_rad,rz_rad\n0,0.0,0.01,0,0\n1,0.0333,0,0,0\n")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from prosody.errors import ConfigError, GroundTruthError, ModelError
-from prosody.motion.head import DEFAULT_MODEL_PATH, ArxHeadModel, default_model, spectral_radius, trailing_mean
+from prosody.motion.heads.arx import DEFAULT_MODEL_PATH, ArxHeadModel, default_model, spectral_radius, trailing_mean
 
 TRUE_A = np.array([
     [[0.5, 0.1, 0.0], [0.0, 0.4, 0.1], [0.05, 0.0, 0.3]],
@@ -148,8 +148,8 @@ def test_shipped_default_model() -> None:
 @pytest.mark.shared_data
 def test_training_on_real_clips_beats_perlin_left_out(shared_data) -> None:
     from prosody.measures import pearson
+    from prosody.motion.heads.training import find_pairs, leave_one_out, load_training_set
     from prosody.motion.perlin import perlin_curves
-    from prosody.motion.training import find_pairs, leave_one_out, load_training_set
 
     data = load_training_set(find_pairs(shared_data / "talking-heads"), report=lambda message: None)
     assert len(data.names) == 7
@@ -167,7 +167,7 @@ def test_training_on_real_clips_beats_perlin_left_out(shared_data) -> None:
 
 
 def test_diagnostics_of_a_simulated_system_poles_and_white_residuals(rng) -> None:
-    from prosody.motion.training import TrainingSet, diagnostics
+    from prosody.motion.heads.training import TrainingSet, diagnostics
 
     inputs, outputs, _, _ = _simulate(rng, n=3000, noise_std=0.5)
     model = ArxHeadModel(na=2, nb=2, nk=1, ridge=0.0, input_normalization="global").fit_arrays(inputs, outputs)
@@ -211,9 +211,9 @@ def test_train_reproduces_the_shipped_model(shared_data, tmp_path, kind, shipped
     ship = json.loads((REPO / "prosody" / "motion" / "models" / shipped).read_text())
     argv = ["train", "--data", str(shared_data / "talking-heads"), "-o", str(out), "--kind", kind]
     if kind == "live":
-        from prosody.motion.live import LiveHeadModel
-        from prosody.motion.live_training import fit_live, load_streamed
-        from prosody.motion.training import find_pairs
+        from prosody.motion.heads.live import LiveHeadModel
+        from prosody.motion.heads.live_training import fit_live, load_streamed
+        from prosody.motion.heads.training import find_pairs
 
         chosen = ship.pop("cross_validation")["settings"]
         if all(getattr(LiveHeadModel(), key) == value for key, value in chosen.items() if key != "lookahead_s"):
@@ -240,7 +240,7 @@ def test_train_reproduces_the_shipped_model(shared_data, tmp_path, kind, shipped
 
 
 def test_folds_hold_out_a_speaker_s_recordings_together(tmp_path) -> None:
-    from prosody.motion.training import TrainingSet, read_speakers
+    from prosody.motion.heads.training import TrainingSet, read_speakers
 
     (tmp_path / "speakers.csv").write_text("recording,speaker\nobama_1,Obama\nobama_2,Obama\n")
     table = read_speakers(tmp_path)
@@ -264,9 +264,9 @@ def test_model_files_record_their_training_audio_and_compare_uses_it(shared_data
     import shutil
 
     from prosody.evaluation.compare import compare
+    from prosody.motion.heads.prosodic import ProsodicHeadModel
+    from prosody.motion.heads.training import find_pairs, load_training_set
     from prosody.motion.model_files import audio_digest
-    from prosody.motion.speech_head import ProsodicHeadModel
-    from prosody.motion.training import find_pairs, load_training_set
 
     pairs = find_pairs(shared_data / "talking-heads")[:2]
     data = load_training_set(pairs, report=lambda message: None)
@@ -286,7 +286,7 @@ def test_model_files_record_their_training_audio_and_compare_uses_it(shared_data
 def test_every_head_model_is_a_head_model_and_says_what_it_is() -> None:
     """One protocol for the three kinds: the dispatch reads what each model says of itself (its kind, whether the
     seed matters, its rest pose), never which class it is."""
-    from prosody.motion.head_models import HeadModel, is_stochastic, load_head_model, resolve_head_model, rest_pose
+    from prosody.motion.heads.models import HeadModel, is_stochastic, load_head_model, resolve_head_model, rest_pose
 
     expected = {"prosodic": True, "arx": False, "pad": True, "pad-random": True}
     for name, stochastic in expected.items():

@@ -11,7 +11,7 @@ from audio_features.audio import Audio
 from audio_features.espeak import EspeakError, align_transcript, languages, phone_classes, speak
 from prosody.cli import main
 from prosody.errors import ConfigError, ParameterError
-from prosody.motion.face import lip_curves
+from prosody.motion.face.layer import lip_curves
 
 pytest.importorskip("espeakng_loader", reason="eSpeak NG (pip install espeakng-loader)")
 

@@ -14,7 +14,7 @@ from audio_features.phones import Phone, TranscriptWarning, recognise_phones, tr
 from prosody.cli import main
 from prosody.errors import ConfigError
 from prosody.fap.fapfile import read_fap
-from prosody.motion.expressions import (
+from prosody.motion.face.expressions import (
     EXPRESSIONS,
     ExpressionSegment,
     add_brow_raises,
@@ -22,8 +22,8 @@ from prosody.motion.expressions import (
     mix_with_lips,
     parse_expressions,
 )
-from prosody.motion.face import lip_curves
-from prosody.motion.lips import (
+from prosody.motion.face.layer import lip_curves
+from prosody.motion.face.lips import (
     LIP_FAPS,
     OPENING_SCALE,
     VISEME_FAP,
@@ -407,7 +407,7 @@ def test_a_mouth_model_with_other_context_offsets_is_one_line(tmp_path, speech, 
     from pathlib import Path
 
     from prosody.cli import main
-    from prosody.motion.mouth_model import DEFAULT_MOUTH_MODEL_PATH
+    from prosody.motion.face.mouth_model import DEFAULT_MOUTH_MODEL_PATH
 
     payload = json.loads(Path(DEFAULT_MOUTH_MODEL_PATH).read_text()) | {"context_s": context}
     model = tmp_path / "mouth.json"
@@ -422,7 +422,7 @@ def test_combined_lips_are_the_mean_of_both_mouths_with_the_visemes_closures_kep
     from conftest import REPO
 
     from audio_features import load_audio
-    from prosody.motion.face import COMBINED_CLOSED_MNS, lip_curves
+    from prosody.motion.face.layer import COMBINED_CLOSED_MNS, lip_curves
 
     audio = load_audio(REPO / "samples" / "arctic_a0009.wav")
     n = 93

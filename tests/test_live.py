@@ -1,4 +1,4 @@
-"""Causal generators (prosody.motion.live) and the live converter (prosody.live.converter): they agree with
+"""Causal generators (prosody.motion.heads.live) and the live converter (prosody.live.converter): they agree with
 the offline generators where they can, never read past their look-ahead, and keep a person's size."""
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from audio_features.streaming import stream_file
 from prosody.errors import ConfigError
 from prosody.live.converter import SHIPPED_LOOKAHEADS_MS, LiveConverter, live_head_model, shipped_live_model_path
 from prosody.motion.eyebrows import EyebrowRule, accent_raises, eyebrow_raises
-from prosody.motion.lips import LIP_FAPS
-from prosody.motion.live import (
+from prosody.motion.face.lips import LIP_FAPS
+from prosody.motion.heads.live import (
     LiveAccentBrows,
     LiveHeadModel,
     LivePerlin,
@@ -181,7 +181,7 @@ def test_live_head_follows_the_drive_it_was_trained_on(rng):
 
 
 def test_live_head_pitch_follows_the_prediction_as_fast_as_the_predicted_speed_lets_it(rng):
-    from prosody.motion.live import _Synthesis
+    from prosody.motion.heads.live import _Synthesis
 
     f0s, energies, motions = _simulated_training(rng)
     # the pitch axis all prediction (no noise on it): it is the followed prediction times a fixed scale
@@ -329,8 +329,8 @@ def test_a_stream_never_reads_more_future_than_asked(lookahead_ms, frames):
 def test_live_cross_validation_holds_out_a_speakers_recordings_together(monkeypatch, tmp_path):
     import soundfile
 
-    from prosody.motion import live_training
-    from prosody.motion.live_training import StreamedRecording, held_out_live, load_streamed, speaker_folds
+    from prosody.motion.heads import live_training
+    from prosody.motion.heads.live_training import StreamedRecording, held_out_live, load_streamed, speaker_folds
 
     def recording(name: str, speaker: str) -> StreamedRecording:
         return StreamedRecording(name, np.full(90, 120.0), np.full(90, 60.0), np.zeros((90, 3)), speaker)
@@ -358,7 +358,7 @@ def test_live_cross_validation_holds_out_a_speakers_recordings_together(monkeypa
         rows = "\n".join(f"{k},{k / 30:.4f},0,0,0" for k in range(30))
         (tmp_path / f"{name}.head.csv").write_text("frame,time_s,rx_rad,ry_rad,rz_rad\n" + rows + "\n")
     (tmp_path / "speakers.csv").write_text("recording,speaker\nobama_1,Obama\nobama_2,Obama\n")
-    from prosody.motion.training import find_pairs
+    from prosody.motion.heads.training import find_pairs
 
     loaded = load_streamed(find_pairs(tmp_path), report=lambda line: None)
     assert [r.speaker for r in loaded] == ["Obama", "Obama"] and speaker_folds(loaded) == [[0, 1]]
@@ -371,7 +371,12 @@ def test_an_expression_streams_as_convert_mixes_it(tmp_path):
     from conftest import REPO
 
     from prosody.live.converter import LiveConverter
-    from prosody.motion.expressions import add_brow_raises, expression_curves, mix_with_lips, parse_expressions
+    from prosody.motion.face.expressions import (
+        add_brow_raises,
+        expression_curves,
+        mix_with_lips,
+        parse_expressions,
+    )
 
     samples, rate = soundfile.read(REPO / "samples" / "arctic_a0009.wav")
     plain = LiveConverter(rate)

@@ -28,8 +28,8 @@ from prosody.motion.conditions import Condition
 from prosody.motion.controls import fitted_features, shift_offsets, shifted_features
 from prosody.motion.eyebrows import BROW_SCALE, AccentRule, EyebrowRule, NoRaiseWarning, accent_raises, brow_raises
 from prosody.motion.ground_truth import ENS_PER_EYE_WIDTH, read_brows_csv, read_motion
-from prosody.motion.head_models import SHIPPED_MODELS, default_head_model, load_head_model, rest_pose
-from prosody.motion.speech_head import ProsodicHeadModel, follow, speech_presence
+from prosody.motion.heads.models import SHIPPED_MODELS, default_head_model, load_head_model, rest_pose
+from prosody.motion.heads.prosodic import ProsodicHeadModel, follow, speech_presence
 
 SR = 16000
 FPS = 30.0
@@ -529,7 +529,7 @@ def test_the_generators_numpy_lowpass_matches_scipys_butterworth(rng) -> None:
     with the 4th-order zero-phase Butterworth that the measures use."""
     from scipy.signal import butter, sosfiltfilt
 
-    from prosody.motion.speech_head import smooth_speed_envelope, zero_phase_lowpass
+    from prosody.motion.heads.prosodic import smooth_speed_envelope, zero_phase_lowpass
 
     walk = np.cumsum(rng.standard_normal((900, 3)), axis=0) * 1e-3
     reference = sosfiltfilt(butter(4, 4.0, fs=FPS, output="sos"), walk, axis=0)

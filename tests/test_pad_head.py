@@ -7,8 +7,8 @@ import pytest
 from conftest import make_features
 
 from prosody.errors import ConfigError
-from prosody.motion.head_models import load_head_model
-from prosody.motion.pad_head import (
+from prosody.motion.heads.models import load_head_model
+from prosody.motion.heads.pad import (
     AU_PER_DEGREE,
     TABLE3_AMPLITUDE_DEG,
     TABLE3_AVERAGE_DEG,
@@ -117,7 +117,7 @@ def test_pad_is_a_named_head_model():
 
 # PAD in: the state over time, the face's partial expressions, and the gestures ------------------------------
 def test_pad_states_parse_from_text_and_files(tmp_path):
-    from prosody.motion.pad import PadSegment, pad_at, parse_pad
+    from prosody.motion.face.pad import PadSegment, pad_at, parse_pad
 
     assert parse_pad("0.5,-0.25,1") == [PadSegment(0.5, -0.25, 1.0)]
     for bad in ("0.5,0.2", "a,b,c", "2,0,0", "nan,0,0"):
@@ -136,7 +136,7 @@ def test_pad_states_parse_from_text_and_files(tmp_path):
 def test_pad_face_map_is_linear_and_replaceable(tmp_path):
     import json
 
-    from prosody.motion.pad import DEFAULT_FACE_MAP, face_targets, read_face_map
+    from prosody.motion.face.pad import DEFAULT_FACE_MAP, face_targets, read_face_map
 
     assert face_targets(0, 0, 0) == {fap: 0.0 for entry in DEFAULT_FACE_MAP.values() for fap in entry["faps"]}
     one, two = face_targets(0.2, 0.4, -0.2), face_targets(0.4, 0.8, -0.4)
@@ -155,8 +155,8 @@ def test_pad_face_map_is_linear_and_replaceable(tmp_path):
 
 
 def test_timed_pad_shows_on_the_face_in_its_stretch_only():
-    from prosody.motion.face import face_layer
-    from prosody.motion.pad import PadSegment, face_targets
+    from prosody.motion.face.layer import face_layer
+    from prosody.motion.face.pad import PadSegment, face_targets
 
     layer = face_layer(None, 150, fps=30, lips=None, pad=[PadSegment(0, 1, 0, 2.0, 3.0)])
     raise_ = layer.curves[31]
@@ -165,7 +165,7 @@ def test_timed_pad_shows_on_the_face_in_its_stretch_only():
 
 
 def test_pad_state_drives_the_gestures():
-    from prosody.motion.pad import PadSegment
+    from prosody.motion.face.pad import PadSegment
 
     features = _accent_features()
     calm = PadHeadModel().with_states([PadSegment(0, -1, 0)]).generate(features, seed=0)[48]
@@ -184,7 +184,7 @@ def test_eq2_arousal_coefficients_are_recovered_from_motion_made_with_them(share
     # a simulated system with known coefficients: motion generated with C4-C6 = (2, 3, 4) on real speech, where
     # the pose drawn per PW and the boundary smoothing blur each stretch's peak-to-peak
     from audio_features import extract_features
-    from prosody.motion.pad_head import arousal_amplitudes, fit_arousal
+    from prosody.motion.heads.pad import arousal_amplitudes, fit_arousal
 
     features = extract_features(shared_data / "talking-heads" / "Obama_clip1.wav")
     true = [(2.0, 3.0, 4.0, 2.0, 3.0, 4.0)] * 3
@@ -211,8 +211,8 @@ def test_train_kind_pad_writes_a_model_that_model_file_reads(shared_data, tmp_pa
     import json
 
     from prosody.cli import main
-    from prosody.motion.pad_head import arousal_amplitudes, fit_arousal
-    from prosody.motion.training import find_pairs, load_training_set
+    from prosody.motion.heads.pad import arousal_amplitudes, fit_arousal
+    from prosody.motion.heads.training import find_pairs, load_training_set
 
     out = tmp_path / "pad.json"
     folder = shared_data / "talking-heads"
@@ -236,10 +236,10 @@ def test_train_kind_pad_writes_a_model_that_model_file_reads(shared_data, tmp_pa
 def test_a_pad_map_may_name_only_faps_3_to_68(tmp_path, fap):
     import json
 
-    from prosody.motion.pad import read_face_map
+    from prosody.motion.face.pad import read_face_map
 
     path = tmp_path / "map.json"
-    from prosody.motion.pad import FACE_MAP_FORMAT
+    from prosody.motion.face.pad import FACE_MAP_FORMAT
 
     path.write_text(json.dumps({"format": FACE_MAP_FORMAT,
                                 "parameters": {"smile": {"weights": [1, 0, 0], "faps": {str(fap): 10}}}}))

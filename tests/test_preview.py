@@ -321,7 +321,7 @@ def test_eyelids_open_and_close_the_characters_left_eye_by_fap_19_and_21(closing
 
 def test_the_mouth_at_rest_is_straight_and_joy_and_sadness_bend_it_their_ways():
     from prosody.evaluation.preview import FacePose, FaceRenderer
-    from prosody.motion.expressions import EXPRESSIONS
+    from prosody.motion.face.expressions import EXPRESSIONS
 
     renderer = FaceRenderer(WIDTH)
 

@@ -17,7 +17,7 @@ from audio_features import NoVoicedFramesWarning, extract_features
 from prosody.cli import main
 from prosody.errors import BallotError, FapFormatError, ModelError
 from prosody.fap.fapfile import read_fap
-from prosody.motion.head import DEFAULT_MODEL_PATH, ArxHeadModel
+from prosody.motion.heads.arx import DEFAULT_MODEL_PATH, ArxHeadModel
 from prosody.study.ballots import parse_ballots
 
 # irregular files are read with a warning each (asserted where it matters): not errors in these tests
@@ -187,7 +187,7 @@ def _nested_paths(payload, prefix=()):
 @FUZZ
 @given(data=st.data())
 def test_fuzz_nested_fields_of_both_model_kinds(tmp_path, data) -> None:
-    from prosody.motion.head_models import PROSODIC_MODEL_PATH, load_head_model
+    from prosody.motion.heads.models import PROSODIC_MODEL_PATH, load_head_model
 
     source = data.draw(st.sampled_from([PROSODIC_MODEL_PATH, DEFAULT_MODEL_PATH]))
     payload = json.loads(source.read_text())

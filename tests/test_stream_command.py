@@ -22,7 +22,7 @@ from conftest import REPO, segments
 from prosody.cli import main
 from prosody.fap.fapfile import read_fap
 from prosody.live.converter import LiveFrame
-from prosody.motion.lips import LIP_FAPS
+from prosody.motion.face.lips import LIP_FAPS
 
 PROSODY = [sys.executable, "-m", "prosody"]
 SAMPLE = REPO / "samples" / "arctic_a0009.wav"

@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
 
 def add_parser(commands) -> None:
     """Add the command to the subcommands of ``prosody``."""
-    from ..motion.face import LIP_METHODS
+    from ..motion.face.lips import LIP_METHODS
 
     batch = commands.add_parser(
         "batch", help="convert and compare every audio file of a folder tree",

@@ -134,7 +134,7 @@ def add_motion_options(parser: argparse.ArgumentParser, *, live: bool = False) -
     add_channel_options(parser)
     add_expressivity_options(parser)
     if live:
-        from ..motion.expressions import EXPRESSIONS
+        from ..motion.face.expressions import EXPRESSIONS
 
         parser.add_argument("--lips", dest="live_lips", default="acoustic", choices=["acoustic", "none"],
                             help="lips from the live acoustic mouth model (default; the same in every condition), "
@@ -213,8 +213,8 @@ def expressivity(args: argparse.Namespace):
 
 
 def add_face_options(parser: argparse.ArgumentParser) -> None:
-    from ..motion.expressions import EXPRESSIONS
-    from ..motion.face import LIP_METHODS
+    from ..motion.face.expressions import EXPRESSIONS
+    from ..motion.face.lips import LIP_METHODS
 
     face = parser.add_argument_group(
         "lips and expressions", "The lips move with the speech in every condition alike: phones recognised by "

@@ -12,7 +12,7 @@ from . import options as opt
 
 def run(args: argparse.Namespace) -> int:
     from ..errors import ConfigError
-    from ..motion.training import train
+    from ..motion.heads.training import train
 
     orders = {"na": args.na, "nb": args.nb, "nk": args.nk, "ridge": args.ridge}
     if args.kind == "live" and len(args.data) > 1:
@@ -20,7 +20,7 @@ def run(args: argparse.Namespace) -> int:
     if args.lookahead_ms is not None and args.kind != "live":
         raise ConfigError("--lookahead-ms sets the live head model's look-ahead: add --kind live")
     if args.kind == "mouth":
-        from ..motion.mouth_model import train_mouth
+        from ..motion.face.mouth_model import train_mouth
 
         given = [f"--{name}" for name, value in orders.items() if value is not None] + (["--cv"] if args.cv else [])
         if given:
@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
         train_mouth(args.data, args.output, fps=args.fps, report=msg.say)
         return opt.EXIT_OK
     if args.kind == "live":
-        from ..motion.live_training import train_live
+        from ..motion.heads.live_training import train_live
 
         given = [f"--{name}" for name, value in orders.items() if value is not None]
         if given:
@@ -41,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
         given = [f"--{name}" for name, value in orders.items() if value is not None]
         if given:
             raise ConfigError(f"{', '.join(given)} set(s) the ARX model's orders: add --kind arx")
-    from ..motion.head import ARX_DEFAULTS
+    from ..motion.heads.arx import ARX_DEFAULTS
 
     orders = {name: ARX_DEFAULTS[name] if value is None else value for name, value in orders.items()}
     train(args.data, args.output, kind=args.kind, cv=args.cv, fps=args.fps,
@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
 
 def add_parser(commands) -> None:
     """Add the command to the subcommands of ``prosody``."""
-    from ..motion.training import MODEL_KINDS
+    from ..motion.heads.training import MODEL_KINDS
 
     train = commands.add_parser(
         "train", help="train a head-motion model on paired recordings",

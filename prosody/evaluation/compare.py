@@ -52,15 +52,16 @@ from ..motion.conditions import (
 from ..motion.controls import shift_offsets, shifted_features
 from ..motion.expressivity import Expressivity
 from ..motion.eyebrows import BrowRule, EyebrowRaises, NoRaiseWarning, brow_raises, warn_if_no_raise
-from ..motion.face import make_face, stream_mouth
+from ..motion.face.layer import stream_mouth
 from ..motion.ground_truth import RecordedMouth, fit_to_grid, mouth_beside, read_motion, read_mouth_csv
-from ..motion.head_models import HeadModel, is_stochastic, resolve_head_model, rest_pose
+from ..motion.heads.models import HeadModel, is_stochastic, resolve_head_model, rest_pose
 from ..motion.settings import (
     AnalysisSettings,
     ChannelSettings,
     FaceSettings,
     MotionSettings,
     SettingsFields,
+    make_face,
     settings_groups,
 )
 from ..validate import valid_seeds

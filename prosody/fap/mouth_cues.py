@@ -6,7 +6,7 @@ puckered (UW, OW, W); the extended G (upper teeth on the lower lip: F, V), H (lo
 (idle: closed and relaxed, in pauses). Without the extended shapes Rhubarb shows G as A, H as C and X as A.
 
 Where the stream says which viseme is spoken (MPEG-4's FAP 1, which lips made from phones carry:
-``prosody.motion.lips.VISEME_FAP``), each frame takes that viseme's shape (:data:`VISEME_SHAPES`), as Rhubarb takes
+``prosody.motion.face.lips.VISEME_FAP``), each frame takes that viseme's shape (:data:`VISEME_SHAPES`), as Rhubarb takes
 each phone's: /p b m/ and silence A, /f v/ G, the other consonants and /i/ B, /e/ C, /a/ D, /o/ and /u/ F; and A
 wherever the lips themselves are closed (an opening below :data:`CLOSED_MNS`), as they are about a /p/ by
 coarticulation, but for /f v/ (G, the lower lip under the teeth, is nearly closed).
@@ -15,7 +15,7 @@ Otherwise (the acoustic lips, a file of lip FAPs) each frame's shape is read fro
 opening ``FAP 3 - FAP 4 - FAP 5`` in MNS and the rounding ``(FAP 16 + FAP 17) / 2`` over :data:`PUCKER_MNS`. An
 opening below :data:`CLOSED_MNS` is A; any other frame takes the shape of :data:`SHAPE_SIZES` nearest to it, a
 rounding of :data:`ROUNDING_WEIGHT` counting as much as 100 MNS of opening (both times :data:`OPENING_SCALE`).
-The sizes are the project's visemes' (``prosody.motion.lips``: /a/ 330 MNS, /e/ 260, /i/ and the consonants
+The sizes are the project's visemes' (``prosody.motion.face.lips``: /a/ 330 MNS, /e/ 260, /i/ and the consonants
 110-190, /p b m/ 0, all times :data:`OPENING_SCALE`; /u/ rounded 0.2, /o/ and /r/ 0.1-0.12), so a player that
 draws each shape at that size shows the lips as near as six shapes can; from lip FAPs alone G is never given
 (they do not tell the lower lip under the teeth, /f v/, 45 MNS open, from a mouth half closed).
@@ -57,7 +57,7 @@ SHAPES = ("A", "B", "C", "D", "E", "F", "G", "H", "X")
 #: Rhubarb's shape names in the Preston Blair set (its ``--datUsePrestonBlair``).
 PRESTON_BLAIR = {"A": "MBP", "B": "etc", "C": "E", "D": "AI", "E": "O", "F": "U", "G": "FV", "H": "L",
                  "X": "rest"}
-#: The visemes' openings are their hand-set sizes times this (``prosody.motion.lips.OPENING_SCALE``, people's
+#: The visemes' openings are their hand-set sizes times this (``prosody.motion.face.lips.OPENING_SCALE``, people's
 #: size): the shapes' sizes below scale with them, so the cues are the same at any scale.
 OPENING_SCALE = 1.75
 #: Below this opening (MNS, half of B's) the lips are closed: A, whatever their rounding.

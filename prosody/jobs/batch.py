@@ -113,7 +113,7 @@ class BatchOptions:
 
             check_language(self.language)
         if self.expression is not None:
-            from ..motion.expressions import parse_expressions
+            from ..motion.face.expressions import parse_expressions
 
             if not isinstance(self.expression, str) or self.expression.lower().endswith(".csv"):
                 raise ConfigError(f"a batch's expression is NAME[:INTENSITY] for every recording, got "
@@ -210,7 +210,7 @@ def _settings(options: BatchOptions, ground_truth: Path | None, audio: str) -> d
     """What makes an output folder current: the options, the paths, and the content of every input."""
     model = options.model
     if model is not None:
-        from ..motion.head_models import SHIPPED_MODELS
+        from ..motion.heads.models import SHIPPED_MODELS
 
         model = str(SHIPPED_MODELS.get(model, model))
     transcript = transcript_file(audio) if options.transcripts and transcript_file(audio).is_file() else None
@@ -432,7 +432,7 @@ def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,
     if not (isinstance(jobs, int) and jobs >= 1):
         raise ConfigError(f"jobs must be a whole number >= 1, got {jobs!r}")
     if options.model is not None:
-        from ..motion.head_models import SHIPPED_MODELS, load_head_model
+        from ..motion.heads.models import SHIPPED_MODELS, load_head_model
 
         load_head_model(options.model)  # a bad model is one error up front, not one per file
         if options.model not in SHIPPED_MODELS:
@@ -560,7 +560,7 @@ def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions,
     from ..motion.conditions import head_motion
     from ..motion.controls import fitted_features
     from ..motion.ground_truth import fit_to_grid, read_motion
-    from ..motion.head_models import is_stochastic, resolve_head_model
+    from ..motion.heads.models import is_stochastic, resolve_head_model
 
     usable = [o for o in outcomes if o.metrics is not None and (Path(o.output) / FEATURES_FILE).is_file()]
     if len(usable) < 2 or Condition.SPEECH_DRIVEN.value not in options.conditions:

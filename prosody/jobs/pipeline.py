@@ -16,12 +16,12 @@ from ..fap.fapfile import read_fap
 from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS
 from ..motion.conditions import Condition, check_condition, condition_stream
-from ..motion.face import FaceLayer, make_face
+from ..motion.face.layer import FaceLayer
+from ..motion.face.pad import parse_pad
 from ..motion.ground_truth import fit_to_grid, read_motion
-from ..motion.head_models import resolve_head_model, rest_pose
+from ..motion.heads.models import resolve_head_model, rest_pose
+from ..motion.heads.pad import PadHeadModel
 from ..motion.limits import warn_if_bent, within_human_limits
-from ..motion.pad import parse_pad
-from ..motion.pad_head import PadHeadModel
 from ..motion.perlin import PerlinSettings
 from ..motion.settings import (
     CHANNELS,
@@ -31,6 +31,7 @@ from ..motion.settings import (
     FaceSettings,
     MotionSettings,
     SettingsFields,
+    make_face,
     settings_groups,
 )
 

@@ -27,12 +27,18 @@ from ..errors import ConfigError
 from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
 from ..motion.conditions import Condition
-from ..motion.expressions import ExpressionSegment, add_brow_raises, expressions_at, mix_with_lips, parse_expressions
 from ..motion.expressivity import BrowShaper, Expressivity, HeadShaper
+from ..motion.face.expressions import (
+    ExpressionSegment,
+    add_brow_raises,
+    expressions_at,
+    mix_with_lips,
+    parse_expressions,
+)
+from ..motion.face.lips import LIP_FAPS, shape_faps
+from ..motion.heads.live import DEFAULT_LOOKAHEAD_MS, LiveHeadModel, LivePerlin, live_brows
 from ..motion.limits import limit_frame
-from ..motion.lips import LIP_FAPS, shape_faps
-from ..motion.live import DEFAULT_LOOKAHEAD_MS, LiveHeadModel, LivePerlin, live_brows
-from ..motion.model_files import read_model_json
+from ..motion.model_files import MODELS_DIR, read_model_json
 from ..motion.settings import (
     CHANNELS,
     AnalysisSettings,
@@ -46,7 +52,7 @@ if TYPE_CHECKING:  # the keywords' types, for a type checker
     from typing_extensions import Unpack
 
 #: Shipped live head models by the look-ahead they read, in ms.
-LIVE_MODELS_DIR = Path(__file__).resolve().parents[1] / "motion" / "models"
+LIVE_MODELS_DIR = MODELS_DIR
 SHIPPED_LOOKAHEADS_MS = (0, 100, 200, 300, 500)
 
 
@@ -158,7 +164,7 @@ class LiveConverter:
         off = channels.disabled_faps()
         self._mouth = None
         if live_lips and not set(LIP_FAPS) <= off:
-            from ..motion.mouth_model import SHIPPED_LIVE_MOUTH_MS, LiveMouthModel, live_mouth_path
+            from ..motion.face.mouth_model import SHIPPED_LIVE_MOUTH_MS, LiveMouthModel, live_mouth_path
 
             usable = max(ms for ms in SHIPPED_LIVE_MOUTH_MS if ms <= lookahead_ms + 1e-9)
             self._mouth = LiveMouthModel.load(live_mouth_path(usable)).start(sample_rate_hz, fps=self.analyser.fps)
@@ -250,7 +256,7 @@ class LiveConverter:
         return frames
 
     def _with_expression(self, faps: dict[int, float], time_s: float) -> dict[int, float]:
-        """One frame's FAPs with the expression mixed in as offline (:class:`prosody.motion.face.FaceLayer`):
+        """One frame's FAPs with the expression mixed in as offline (:class:`prosody.motion.face.layer.FaceLayer`):
         by Jia et al.'s Eq. 14 with the lips, under the prosodic brow raises, alone elsewhere."""
         shown = {fap: curve for fap, curve in expressions_at(self._expression, np.array([time_s])).items()
                  if fap in self.faps}

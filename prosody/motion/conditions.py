@@ -14,7 +14,7 @@ from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, PROSODY_FAPS
 from .expressivity import Expressivity, shape_brows, shape_head
 from .eyebrows import BrowRule, EyebrowRaises, brow_raises, warn_if_no_raise
-from .head_models import HeadModel, resolve_head_model, rest_pose
+from .heads.models import HeadModel, resolve_head_model, rest_pose
 from .perlin import PerlinSettings, perlin_curves
 
 

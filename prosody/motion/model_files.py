@@ -14,6 +14,8 @@ from audio_features.inputs import open_input, reading
 from ..errors import ModelError
 
 #: Largest model file read (the shipped ones are well under 100 kB).
+#: The folder of the shipped models (head and mouth models, JSON).
+MODELS_DIR = Path(__file__).resolve().with_name("models")
 MAX_MODEL_BYTES = 16 << 20
 #: Largest magnitude of a number a model file may hold (the shipped models' largest is 1e4); beyond it the
 #: arithmetic of generation overflows, so the file is damaged or hostile.

@@ -38,10 +38,11 @@ from audio_features import DEFAULT_F0_CEILING_HZ, DEFAULT_F0_FLOOR_HZ, DEFAULT_F
 from ..errors import ConfigError
 from ..fap.table import EYEBROW_FAPS, HEAD_FAPS
 from ..validate import valid_seed
-from .expressions import ExpressionSegment
 from .expressivity import Expressivity
-from .lips import LIP_FAPS
-from .pad import PadSegment
+from .face.expressions import ExpressionSegment, parse_expressions
+from .face.layer import FaceLayer, face_layer
+from .face.lips import LIP_FAPS, LIP_METHODS
+from .face.pad import PadSegment, parse_pad, read_face_map
 
 if TYPE_CHECKING:  # named in an annotation only
     from .eyebrows import BrowRule
@@ -50,9 +51,6 @@ if TYPE_CHECKING:  # named in an annotation only
 CHANNELS = {"pitch": HEAD_FAPS[:1], "yaw": HEAD_FAPS[1:2], "roll": HEAD_FAPS[2:], "brows": EYEBROW_FAPS,
             "lips": LIP_FAPS}
 
-#: Ways of making lips: from recognised phones (visemes, the default), from the spectrum (acoustic), or both
-#: (combined: their mean, the visemes' closures kept).
-LIP_METHODS = ("visemes", "acoustic", "combined")
 
 Group = TypeVar("Group", bound=type)
 
@@ -141,7 +139,7 @@ class FaceSettings:
         None, "str or sequence of PadSegment, optional",
         "An emotional state: ``P,A,D`` for the whole recording, a CSV file of timed states, or segments. It shows on "
         "the face as Jia et al.'s partial expressions (brows raised or squeezed, eyes opened), and it drives "
-        "``model=\"pad\"``'s gestures (see :mod:`prosody.motion.pad`).")
+        "``model=\"pad\"``'s gestures (see :mod:`prosody.motion.face.pad`).")
     pad_map: str | os.PathLike[str] | None = setting(
         None, "path, optional", "A JSON file replacing the default map of PAD states to partial expressions.")
 
@@ -374,3 +372,32 @@ def settings_groups(function: str, fields: Mapping[str, Any], *, analysis: objec
     if left:
         raise TypeError(f"{function}() got an unexpected keyword argument {next(iter(left))!r}")
     return groups
+
+
+def make_face(audio: str | os.PathLike[str], features, face: FaceSettings,
+              channels: ChannelSettings | None = None) -> FaceLayer | None:
+    """The lips and expression layer of a recording on its features' grid (None when there is neither).
+
+    ``face`` says what it shows (see :class:`prosody.motion.settings.FaceSettings`); the lips' gain of
+    ``channels`` scales the lips, and the lips left out there are not made.
+    """
+    segments = parse_expressions(face.expression) if isinstance(face.expression, str) else list(face.expression or ())
+    states = parse_pad(face.pad) if isinstance(face.pad, str) else list(face.pad or ())
+    face_map = read_face_map(face.pad_map)
+    channels = channels or ChannelSettings()
+    lips = None if "lips" in channels.disabled else face.lips
+    if lips is None and not segments and not states:
+        return None
+    transcript = face.transcript
+    if transcript is not None and os.path.isfile(transcript):
+        from audio_features.phones import read_transcript
+
+        transcript = read_transcript(transcript)
+    model = None
+    if face.mouth_model is not None and lips in ("acoustic", "combined"):
+        from .face.mouth_model import AcousticMouthModel
+
+        model = AcousticMouthModel.load(face.mouth_model)
+    return face_layer(audio, features.n_frames, fps=features.fps, lips=lips, transcript=transcript,
+                      lip_gain=channels.gain("lips"), expressions=segments, mouth_model=model,
+                      pad=states, pad_map=face_map, language=face.language)

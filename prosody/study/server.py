@@ -51,7 +51,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from ..live.server import normalize_origin, trusted_host
-from ..study.designs import StudyPlan
+from .designs import StudyPlan
 from .stimuli import check_stimuli
 from .store import StudyStore, StudyStoreError
 

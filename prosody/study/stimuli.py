@@ -44,7 +44,7 @@ from ..evaluation.preview import BROW_VIEW_SCALE, head_values, write_preview
 from ..head.web import head_frames_document
 from ..jobs.pipeline import convert
 from ..motion.conditions import Condition
-from ..study.designs import StudyPlan
+from .designs import StudyPlan
 
 STIMULI_FORMAT = "visual-prosody-study-stimuli"
 CONDITIONS_FORMAT = "visual-prosody-study-conditions"
@@ -90,7 +90,7 @@ def _read_json(path: str | os.PathLike[str], what: str) -> dict:
 
 def read_condition_options(path: str | os.PathLike[str]) -> dict[str, tuple[str, str]]:
     """A conditions file: ``{name: (label, options)}`` in the file's order (names checked as plans check them)."""
-    from ..study.ballots import condition_name
+    from .ballots import condition_name
 
     payload = _read_json(path, "study conditions file")
     if payload.get("format") != CONDITIONS_FORMAT or payload.get("version") != FORMAT_VERSION:

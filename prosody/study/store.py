@@ -29,9 +29,9 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import ConfigError, ProsodyError
-from ..study.ballots import BALLOT_COLUMNS
-from ..study.designs import CONDITION_COLUMNS, StudyPlan, participant_trials
-from ..study.ratings import IDENTIFICATION_COLUMNS, MOS_COLUMNS, SCORES
+from .ballots import BALLOT_COLUMNS
+from .designs import CONDITION_COLUMNS, StudyPlan, participant_trials
+from .ratings import IDENTIFICATION_COLUMNS, MOS_COLUMNS, SCORES
 
 STORE_FORMAT = "visual-prosody-study-db"
 STORE_VERSION = 1

@@ -27,14 +27,14 @@ import numpy as np
 
 from audio_features import Features
 
-from ..dsp import HEAD_LOWPASS_HZ, SPEED_ENVELOPE_S, centred_moving_average
-from ..errors import ConfigError, ModelError
-from ..fap.table import HEAD_FAPS, RADIANS_PER_AU
-from ..validate import valid_seed
-from .expressivity import Expressivity, shape_head
-from .head_settings import OfflineHeadSettings
-from .model_files import MAX_MODEL_MAGNITUDE, TrainingClip, write_model_json
-from .regression import SPECTRUM_FRAMES, finite_number, ridge_fit, shaping_filter
+from ...dsp import HEAD_LOWPASS_HZ, SPEED_ENVELOPE_S, centred_moving_average
+from ...errors import ConfigError, ModelError
+from ...fap.table import HEAD_FAPS, RADIANS_PER_AU
+from ...validate import valid_seed
+from ..expressivity import Expressivity, shape_head
+from ..model_files import MAX_MODEL_MAGNITUDE, TrainingClip, write_model_json
+from ..regression import SPECTRUM_FRAMES, finite_number, ridge_fit, shaping_filter
+from .settings import OfflineHeadSettings
 
 MODEL_FORMAT = "visual-prosody-head"
 MODEL_VERSION = 1
@@ -337,7 +337,7 @@ class ProsodicHeadModel(OfflineHeadSettings):
             names: Sequence[str] | None = None) -> ProsodicHeadModel:
         """Fit on recordings: their features and recorded head motion, shape (n_frames, 3) in AU (the
         resting pose, e.g. each recording's median, already removed)."""
-        from ..dsp import lowpass_head, speed_envelope  # training may import scipy.signal
+        from ...dsp import lowpass_head, speed_envelope  # training may import scipy.signal
 
         self.check_settings()
         if len(features) != len(motion_au) or not features:
@@ -419,7 +419,7 @@ class ProsodicHeadModel(OfflineHeadSettings):
     def regression_residuals(self, features: Features, motion_au: np.ndarray) -> dict[str, np.ndarray]:
         """Residuals of the two fitted regressions on one recording: the speed envelope (relative to its mean)
         and the pitch (in units of its spread), recorded less predicted, before any gating."""
-        from ..dsp import lowpass_head, speed_envelope
+        from ...dsp import lowpass_head, speed_envelope
 
         self._check_fitted()
         radians = np.asarray(motion_au, float) * RADIANS_PER_AU

@@ -3,7 +3,7 @@
 Spectral features (:mod:`audio_features.spectral`: 13 MFCCs and the log energy) are read at 13 offsets from
 0.3 s before to 0.3 s after each frame, standardised over the recording (so the recording level and the
 channel do not matter), and mapped by ridge regressions to the three mouth-shape tracks of
-:mod:`prosody.motion.lips` (opening in MNS above the closed mouth, rounding, spread), which the same geometry
+:mod:`prosody.motion.face.lips` (opening in MNS above the closed mouth, rounding, spread), which the same geometry
 turns into lip FAPs. It is trained on recordings with a video-tracked ``<clip>.mouth.csv``
 (``experiments/mouth_loco.py`` measures it on speakers left out).
 """
@@ -20,10 +20,10 @@ import numpy as np
 from audio_features import Audio
 from audio_features.spectral import N_SPECTRAL, cepstra, on_grid
 
-from ..errors import ModelError
-from ..fap.table import DISTANCE_UNITS_PER_REFERENCE
+from ...errors import ModelError
+from ...fap.table import DISTANCE_UNITS_PER_REFERENCE
+from ..model_files import MAX_MODEL_MAGNITUDE, MODELS_DIR, read_model_json, write_model_json
 from .lips import MNS_PER_EYE_WIDTH, MouthShape
-from .model_files import MAX_MODEL_MAGNITUDE, read_model_json, write_model_json
 
 MODEL_FORMAT = "visual-prosody-mouth-model"
 MODEL_VERSION = 1
@@ -44,9 +44,9 @@ DIP_HALF_FRAMES = 2
 CONTEXT_S = tuple(np.round(np.arange(-0.3, 0.301, 0.05), 3))
 #: The shipped acoustic mouth model: trained on the talking-heads clips and the tracked talking videos (37 speakers;
 #: held out by speaker it reads 0.31 where the one trained on the talking-heads clips alone reads 0.26).
-DEFAULT_MOUTH_MODEL_PATH = os.path.join(os.path.dirname(__file__), "models", "mouth_acoustic_videos.json")
+DEFAULT_MOUTH_MODEL_PATH = str(MODELS_DIR / "mouth_acoustic_videos.json")
 #: The acoustic mouth model trained on the talking-heads clips alone (reproducible from the shared data alone).
-HEADS_MOUTH_MODEL_PATH = os.path.join(os.path.dirname(__file__), "models", "mouth_acoustic.json")
+HEADS_MOUTH_MODEL_PATH = str(MODELS_DIR / "mouth_acoustic.json")
 
 
 @dataclass(frozen=True, eq=False)
@@ -216,8 +216,8 @@ def train_mouth(folders: str | os.PathLike[str] | Sequence[str | os.PathLike[str
 
     from audio_features import AUDIO_EXTENSIONS, load_audio
 
-    from ..errors import ConfigError, GroundTruthError
-    from .ground_truth import read_mouth_csv
+    from ...errors import ConfigError, GroundTruthError
+    from ..ground_truth import read_mouth_csv
 
     roots = [Path(folders)] if isinstance(folders, (str, os.PathLike)) else [Path(f) for f in folders]
     clips = []
@@ -258,7 +258,7 @@ LOUD_EVERY_FRAMES = 10
 
 
 def live_mouth_path(lookahead_ms: int) -> str:
-    return os.path.join(os.path.dirname(__file__), "models", f"live_mouth_{lookahead_ms}ms.json")
+    return str(MODELS_DIR / f"live_mouth_{lookahead_ms}ms.json")
 
 
 class RunningStandardizer:
@@ -442,7 +442,7 @@ def live_mouth_clips(folder: str | os.PathLike[str], *,
 
     from audio_features import AUDIO_EXTENSIONS, load_audio
 
-    from .ground_truth import read_mouth_csv
+    from ..ground_truth import read_mouth_csv
 
     pairs = []
     for audio_path in sorted(p for p in Path(folder).iterdir() if p.suffix.lower() in AUDIO_EXTENSIONS):

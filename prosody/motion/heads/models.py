@@ -10,19 +10,18 @@ generator, ``visual-prosody-arx`` for the ARX model, ``visual-prosody-pad`` for 
 from __future__ import annotations
 
 import os
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
-from ..errors import ModelError
-from ..fap.table import HEAD_FAPS
-from .head import DEFAULT_MODEL_PATH as ARX_MODEL_PATH
-from .head import MODEL_FORMAT as ARX_FORMAT
-from .head import ArxHeadModel
-from .model_files import read_model_json
-from .pad_head import MODEL_FORMAT as PAD_FORMAT
-from .pad_head import PadHeadModel
-from .speech_head import MODEL_FORMAT as PROSODIC_FORMAT
-from .speech_head import ProsodicHeadModel
+from ...errors import ModelError
+from ...fap.table import HEAD_FAPS
+from ..model_files import MODELS_DIR, read_model_json
+from .arx import DEFAULT_MODEL_PATH as ARX_MODEL_PATH
+from .arx import MODEL_FORMAT as ARX_FORMAT
+from .arx import ArxHeadModel
+from .pad import MODEL_FORMAT as PAD_FORMAT
+from .pad import PadHeadModel
+from .prosodic import MODEL_FORMAT as PROSODIC_FORMAT
+from .prosodic import ProsodicHeadModel
 
 if TYPE_CHECKING:
     import numpy as np
@@ -60,7 +59,7 @@ MODEL_KINDS: dict[str, Any] = {PROSODIC_FORMAT: ProsodicHeadModel, ARX_FORMAT: A
                                PAD_FORMAT: PadHeadModel}
 #: Models made from their settings, by name: Jia et al.'s PAD-driven gestures and its random baseline.
 NAMED_MODELS = {"pad": lambda: PadHeadModel(), "pad-random": lambda: PadHeadModel(randomized=True)}
-PROSODIC_MODEL_PATH = Path(__file__).with_name("models") / "default_head.json"
+PROSODIC_MODEL_PATH = MODELS_DIR / "default_head.json"
 #: Shipped models by name: ``prosodic`` (the default) and ``arx`` (the thesis's model).
 SHIPPED_MODELS = {"prosodic": PROSODIC_MODEL_PATH, "arx": ARX_MODEL_PATH}
 

@@ -1,7 +1,7 @@
 """The settings of the prosodic head models, declared once: each one's name, default and range.
 
-:class:`HeadSettings` holds what the offline generator (:class:`prosody.motion.speech_head.ProsodicHeadModel`)
-and its live form (:class:`prosody.motion.live.LiveHeadModel`) share; :class:`OfflineHeadSettings` and
+:class:`HeadSettings` holds what the offline generator (:class:`prosody.motion.heads.prosodic.ProsodicHeadModel`)
+and its live form (:class:`prosody.motion.heads.live.LiveHeadModel`) share; :class:`OfflineHeadSettings` and
 :class:`LiveHeadSettings` extend it with their own and change the defaults cross-validation chose for each. The
 models are these classes with a fit: their constructors, the ``settings`` of their files and the checks of
 both come from the fields here.
@@ -21,7 +21,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from ..validate import valid_number
+from ...validate import valid_number
 
 
 def setting(default: float, low: float, high: float) -> Any:

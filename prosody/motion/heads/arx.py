@@ -16,23 +16,22 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
-from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
 
 from audio_features import DEFAULT_FPS, Features
 
-from ..errors import ConfigError, ModelError
-from ..fap.table import HEAD_FAPS
-from .model_files import MAX_MODEL_MAGNITUDE, TrainingClip, read_model_json, write_model_json
+from ...errors import ConfigError, ModelError
+from ...fap.table import HEAD_FAPS
+from ..model_files import MAX_MODEL_MAGNITUDE, MODELS_DIR, TrainingClip, read_model_json, write_model_json
 
 MODEL_FORMAT = "visual-prosody-arx"
 MODEL_VERSION = 1
 INPUT_NAMES = ("energy_db", "f0_conditioned_hz", "energy_x_f0", "energy_db_mean_1s", "f0_conditioned_hz_mean_1s")
 #: Largest spectral radius accepted for the free-running model (1 would not decay).
 MAX_SPECTRAL_RADIUS = 0.995
-DEFAULT_MODEL_PATH = Path(__file__).with_name("models") / "default_arx.json"
+DEFAULT_MODEL_PATH = MODELS_DIR / "default_arx.json"
 #: Largest ridge penalty (it is raised tenfold until the model is stable: far below overflow).
 MAX_RIDGE = 1e6
 #: Default orders and ridge penalty of the ARX model (the model, training and the command share them).
@@ -412,5 +411,5 @@ class ArxHeadModel:
 
 def default_model() -> ArxHeadModel:
     """The thesis's ARX model as shipped with the package (trained on the seven talking-head clips; see
-    docs/evaluation.md). The default speech-driven head is :func:`prosody.motion.head_models.default_head_model`."""
+    docs/evaluation.md). The default speech-driven head is :func:`prosody.motion.heads.models.default_head_model`."""
     return ArxHeadModel.load(DEFAULT_MODEL_PATH)

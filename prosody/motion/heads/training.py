@@ -1,6 +1,6 @@
 """Training head models on a folder of paired recordings (audio + recorded head motion).
 
-Two kinds: ``prosodic`` (the default generator, :mod:`prosody.motion.speech_head`), whose settings
+Two kinds: ``prosodic`` (the default generator, :mod:`prosody.motion.heads.prosodic`), whose settings
 cross-validation chooses by the held-out speed-envelope and pitch correlations, each read against the
 mismatched-audio control; and ``arx`` (the thesis's model), whose orders it chooses by free-run error as
 before, now reporting the same head measures beside it.
@@ -20,13 +20,13 @@ import numpy as np
 
 from audio_features import AUDIO_EXTENSIONS, DEFAULT_FPS, Features, extract_features
 
-from ..errors import ConfigError, GroundTruthError, ProsodyError, require_extra
-from ..fap.table import HEAD_FAPS
-from ..measures import average_head_metrics, head_matrix, head_metrics, mean_of, pearson
-from .controls import shift_offsets, shifted_features
-from .ground_truth import fit_to_grid, read_motion
-from .head import DEFAULT_NA, DEFAULT_NB, DEFAULT_NK, DEFAULT_RIDGE, ArxHeadModel, arx_inputs
-from .speech_head import ProsodicHeadModel
+from ...errors import ConfigError, GroundTruthError, ProsodyError, require_extra
+from ...fap.table import HEAD_FAPS
+from ...measures import average_head_metrics, head_matrix, head_metrics, mean_of, pearson
+from ..controls import shift_offsets, shifted_features
+from ..ground_truth import fit_to_grid, read_motion
+from .arx import DEFAULT_NA, DEFAULT_NB, DEFAULT_NK, DEFAULT_RIDGE, ArxHeadModel, arx_inputs
+from .prosodic import ProsodicHeadModel
 
 #: Where training reports its progress when no ``report`` callable is given (the library never prints).
 _LOG = logging.getLogger("prosody.training")
@@ -354,8 +354,8 @@ def train(directory: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], 
         are stored in the model file. ``arx``: the thesis's model; with ``cv`` the orders and the ridge
         penalty are chosen over :data:`DEFAULT_ORDER_GRID` by free-run error, otherwise ``na``, ``nb``,
         ``nk``, ``ridge`` are used as given. ``pad``: Jia et al.'s gestures with Eq. 2's arousal coefficients
-        fitted to the recordings (:func:`prosody.motion.pad_head.fit_arousal`); with ``cv`` their held-out
-        figures (:func:`prosody.motion.pad_head.held_out_arousal`) are stored in the model file.
+        fitted to the recordings (:func:`prosody.motion.heads.pad.fit_arousal`); with ``cv`` their held-out
+        figures (:func:`prosody.motion.heads.pad.held_out_arousal`) are stored in the model file.
     """
     if kind not in MODEL_KINDS:
         raise ConfigError(f"kind must be one of {', '.join(MODEL_KINDS)}, got {kind!r}")
@@ -429,8 +429,8 @@ def _train_loaded(data: TrainingSet, directory: str | os.PathLike[str], output: 
 def _train_pad(data: TrainingSet, output: str | os.PathLike[str], *, cv: bool, fps: float, extra: dict,
                report: Callable[[str], None]):
     """Jia et al.'s gestures with C1-C6 fitted to the recordings' amplitude per PW and pause (see ``train``)."""
-    from .model_files import TrainingClip
-    from .pad_head import PadHeadModel, amplitude, arousal_amplitudes, fit_arousal, held_out_arousal
+    from ..model_files import TrainingClip
+    from .pad import PadHeadModel, amplitude, arousal_amplitudes, fit_arousal, held_out_arousal
 
     per_recording = [arousal_amplitudes(f, m) for f, m in zip(data.features, data.motion_au, strict=True)]
     arousal = np.concatenate([a for a, _ in per_recording])

@@ -1,4 +1,4 @@
-"""Training and leave-one-speaker-out measurement of the live head (:class:`prosody.motion.live.LiveHeadModel`).
+"""Training and leave-one-speaker-out measurement of the live head (:class:`prosody.motion.heads.live.LiveHeadModel`).
 
 The live model is trained on the acoustic frames the live analysis gives
 (:func:`audio_features.streaming.stream_file`), the same ones it will see when streaming.
@@ -17,11 +17,11 @@ import numpy as np
 from audio_features import DEFAULT_FPS
 from audio_features.streaming import stream_file
 
-from ..errors import ConfigError, GroundTruthError, ProsodyError
-from ..fap.table import HEAD_FAPS
-from ..measures import average_head_metrics, head_matrix, head_metrics
-from .controls import shift_offsets
-from .ground_truth import fit_to_grid, read_motion
+from ...errors import ConfigError, GroundTruthError, ProsodyError
+from ...fap.table import HEAD_FAPS
+from ...measures import average_head_metrics, head_matrix, head_metrics
+from ..controls import shift_offsets
+from ..ground_truth import fit_to_grid, read_motion
 from .live import DEFAULT_LOOKAHEAD_MS, LiveHeadModel
 from .training import CV_SEEDS, HeldOut, find_pairs, held_out_summary, signed
 

@@ -9,7 +9,7 @@ Wu et al. (2006) matched its targets to JAFFE photographs without publishing the
 recording.
 
 Over time (:func:`expression_curves`), each segment (start, end, expression, intensity) has the dominance of
-:func:`prosody.motion.lips.dominance` (1 inside it, decaying at :data:`ONSET_THETA` per second outside), and a
+:func:`prosody.motion.face.lips.dominance` (1 inside it, decaying at :data:`ONSET_THETA` per second outside), and a
 neutral face has a small constant dominance everywhere: the display reaches 87 % of its intensity 0.25 s
 before the segment starts and fades the same way after it ends, and neighbouring expressions blend.
 
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 from .lips import dominance
 
 #: The six expressions' FAP targets at intensity 1 (FAP -> value in its FAPU). Each lip corner is set on the

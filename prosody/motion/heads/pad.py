@@ -49,10 +49,10 @@ import numpy as np
 
 from audio_features import Features
 
-from ..errors import ConfigError
-from ..fap.table import HEAD_FAPS
-from ..fap.units import AU_PER_DEGREE
-from .model_files import TrainingClip
+from ...errors import ConfigError
+from ...fap.table import HEAD_FAPS
+from ...fap.units import AU_PER_DEGREE
+from ..model_files import TrainingClip
 
 #: Table 3 of Jia et al. (2013): amplitude means, in degrees, per axis (pitch, yaw, roll).
 TABLE3_AMPLITUDE_DEG = (9.83, 3.41, 3.35)
@@ -359,7 +359,7 @@ class PadHeadModel:
     randomized : bool
         The paper's random baseline: amplitude, pose and peak drawn at random.
     states : sequence of PadSegment
-        A PAD state over time (:mod:`prosody.motion.pad`): where one covers a PW's peak, its P replaces
+        A PAD state over time (:mod:`prosody.motion.face.pad`): where one covers a PW's peak, its P replaces
         ``pleasure`` and its A shifts the PW's arousal by ``A / 2`` (within 0..1; pauses stay at -0.5).
     """
 
@@ -401,7 +401,7 @@ class PadHeadModel:
             peak = (length // 2 if word is None else word.peak - lo)
             pleasure = self.pleasure
             if self.states and word is not None:
-                from .pad import pad_at
+                from ..face.pad import pad_at
 
                 pleasure, shift, _ = pad_at(self.states, word.peak / fps)
                 arousal = min(1.0, max(0.0, arousal + shift / 2))
@@ -431,7 +431,7 @@ class PadHeadModel:
 
     def save(self, path: str | os.PathLike[str], *, extra: dict | None = None) -> None:
         """Write the model as JSON (``--model FILE`` reads it), with ``extra`` fields such as held-out figures."""
-        from .model_files import write_model_json
+        from ..model_files import write_model_json
 
         payload = self.to_dict()
         if self.training_:
@@ -440,7 +440,7 @@ class PadHeadModel:
 
     @classmethod
     def from_dict(cls, payload: object, *, source: str = "<dict>") -> PadHeadModel:
-        from ..errors import ModelError
+        from ...errors import ModelError
 
         try:
             if not isinstance(payload, Mapping):

@@ -2,7 +2,7 @@
 
 PAD is given for the whole recording (``"P,A,D"``, each -1..1) or timed, as a CSV file with the columns
 ``start_s,end_s,pleasure,arousal,dominance``. Jia et al.'s questionnaire (Eq. 13) gives PAD from twelve answers:
-:func:`prosody.motion.pad_head.pad_from_questionnaire`.
+:func:`prosody.motion.heads.pad.pad_from_questionnaire`.
 
 Two things follow from it:
 
@@ -15,7 +15,7 @@ Two things follow from it:
   by the amounts given at 1), in a JSON file a user can replace (``--pad-map``). Its directions follow the
   expressions PAD places at its corners: aroused and submissive states (fear, surprise: A+, D-) raise the
   brows; displeased, aroused and dominant ones (anger: P-, A+, D+) squeeze them; arousal opens the eyes.
-  Timed states are blended over time as expressions are (see :mod:`prosody.motion.expressions`).
+  Timed states are blended over time as expressions are (see :mod:`prosody.motion.face.expressions`).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 from .expressions import blend_targets, read_timed_rows
 
 #: Columns of a timed PAD file.

@@ -38,10 +38,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..errors import ConfigError
-from ..fap.table import Fap
+from ...errors import ConfigError
+from ...fap.table import Fap
 
 #: Lip FAPs this module writes.
+#: Ways of making lips: from recognised phones (visemes, the default), from the spectrum (acoustic), or both
+#: (combined: their mean, the visemes' closures kept).
+LIP_METHODS = ("visemes", "acoustic", "combined")
 LIP_FAPS = (3, 4, 5, 6, 7, 8, 9, 10, 11, 16, 17, 51, 52, 53, 54, 55, 56, 57, 58)
 #: MPEG-4's high-level viseme FAP: lips made from phones also carry the number of the viseme said at each frame
 #: (its ``viseme_select1``), which mouth cues read (``prosody.fap.mouth_cues``). The .fap writer leaves it out,

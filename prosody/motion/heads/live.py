@@ -29,16 +29,15 @@ import numpy as np
 
 from audio_features.streaming import CausalF0Bridge, RunningMedian
 
-from ..dsp import HEAD_LOWPASS_HZ
-from ..errors import ConfigError
-from ..fap.table import EYEBROW_FAPS, HEAD_FAPS, RADIANS_PER_AU
-from ..validate import valid_seed
-from .eyebrows import AccentRule, BrowRule, EyebrowRule
-from .head_settings import LiveHeadSettings
-from .model_files import TrainingClip, read_model_json, write_model_json
-from .perlin import CHANNEL_KEYS, EYEBROW_STD_ENS, HEAD_OFFSETS_FRAMES, HEAD_STD_AU, PerlinSettings, fractal_noise
-from .regression import SPECTRUM_FRAMES, ridge_fit, shaping_filter
-from .speech_head import (
+from ...dsp import HEAD_LOWPASS_HZ
+from ...errors import ConfigError
+from ...fap.table import EYEBROW_FAPS, HEAD_FAPS, RADIANS_PER_AU
+from ...validate import valid_seed
+from ..eyebrows import AccentRule, BrowRule, EyebrowRule
+from ..model_files import TrainingClip, read_model_json, write_model_json
+from ..perlin import CHANNEL_KEYS, EYEBROW_STD_ENS, HEAD_OFFSETS_FRAMES, HEAD_STD_AU, PerlinSettings, fractal_noise
+from ..regression import SPECTRUM_FRAMES, ridge_fit, shaping_filter
+from .prosodic import (
     ENVELOPE_FEATURES,
     FEATURE_NAMES,
     LOUDNESS_RANGE_DB,
@@ -49,6 +48,7 @@ from .speech_head import (
     read_prosodic_model,
     windowed_features,
 )
+from .settings import LiveHeadSettings
 
 #: Look-ahead of the live head and brows by default, in ms (the measured trade: see docs/live.md).
 DEFAULT_LOOKAHEAD_MS = 100.0
@@ -294,7 +294,7 @@ def live_brows(rule: BrowRule | None, *, fps: float, lookahead: int) -> LiveAcce
 
 # head: prosodic features ------------------------------------------------------------------------------------
 class LiveProsodicFeatures:
-    """The per-frame prosodic features of :func:`prosody.motion.speech_head.prosodic_features`, causally.
+    """The per-frame prosodic features of :func:`prosody.motion.heads.prosodic.prosodic_features`, causally.
 
     Frame ``j``'s features are given out when frame ``j + 1`` arrives (the changes are central differences):
     loudness relative to the running median level, pitch relative to the running median F0, the pitch
@@ -389,7 +389,7 @@ class LiveHeadModel(LiveHeadSettings):
     """The prosodic head generator in causal form: head pitch, yaw and roll (FAP 48-50, AU) from audio up
     to ``lookahead_s`` after each frame.
 
-    As :class:`prosody.motion.speech_head.ProsodicHeadModel`: two ridge regressions read windowed prosodic
+    As :class:`prosody.motion.heads.prosodic.ProsodicHeadModel`: two ridge regressions read windowed prosodic
     features and predict the head's speed envelope and its pitch; coloured noise with the recorded velocity
     spectrum is rescaled frame by frame to the predicted speed and integrated with a leak back to rest, and
     the predicted pitch is mixed into the pitch axis. Here the features are those of
@@ -403,7 +403,7 @@ class LiveHeadModel(LiveHeadSettings):
     lookahead_s : float in [0, 2], in s
         Audio after each frame the model reads: the smallest look-ahead a stream needs to use it.
     lookbehind_s, step_s, ridge, pitch_share, leak_s, pitch_leak_s, idle_ratio, envelope_power
-        As :class:`prosody.motion.speech_head.ProsodicHeadModel` (files written before ``envelope_power``
+        As :class:`prosody.motion.heads.prosodic.ProsodicHeadModel` (files written before ``envelope_power``
         existed read as 1).
     pitch_follow_s : float in [0, 2], in s
         The head's pitch follows the predicted pitch with this time constant at the average predicted speed,
@@ -443,7 +443,7 @@ class LiveHeadModel(LiveHeadSettings):
             *, fps: float, names: Sequence[str] | None = None) -> LiveHeadModel:
         """Fit on recordings given as their acoustic frames (streamed F0 with NaN where unvoiced, and
         energy) and recorded head motion (n_frames, 3) in AU, resting pose removed."""
-        from ..dsp import lowpass_head, speed_envelope
+        from ...dsp import lowpass_head, speed_envelope
 
         self.check_settings()
         if not (len(f0_hz) == len(energy_db) == len(motion_au)) or not f0_hz:
@@ -662,7 +662,7 @@ class _Synthesis:
         pitch_part = model.pitch_share * pitch / model.pitch_prediction_spread_
         if not parts:
             # the head follows the predicted pitch as fast as the predicted speed lets it (one step of
-            # prosody.motion.speech_head.follow)
+            # prosody.motion.heads.prosodic.follow)
             if self._follow_frames > 0:
                 self._followed += (pitch_part - self._followed) * -math.expm1(-envelope / self._follow_frames)
                 pitch_part = self._followed

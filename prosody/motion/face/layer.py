@@ -6,18 +6,16 @@ ones, so that only prosody differs between them (as the thesis kept the recorded
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError
-from ..fap.stream import FapStream
-from .expressions import ExpressionSegment, add_brow_raises, expression_curves, mix_with_lips, parse_expressions
-from .lips import OPENING_SCALE, MouthShape, inner_opening, shape_faps, shapes_from_phones
-from .pad import PadSegment, pad_face_curves, parse_pad, read_face_map
-from .settings import LIP_METHODS, ChannelSettings, FaceSettings
+from ...errors import ConfigError
+from ...fap.stream import FapStream
+from .expressions import ExpressionSegment, add_brow_raises, expression_curves, mix_with_lips
+from .lips import LIP_METHODS, OPENING_SCALE, MouthShape, inner_opening, shape_faps, shapes_from_phones
+from .pad import PadSegment, pad_face_curves
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,8 +37,8 @@ def face_layer(audio, n_frames: int, *, fps: float, lips: str | None = "visemes"
                mouth_model=None, pad: Sequence[PadSegment] = (), pad_map=None,
                language: str | None = None) -> FaceLayer:
     """The lips (``lips``: one of :data:`LIP_METHODS`, or None), the expressions and the partial expressions of a PAD
-    state (:mod:`prosody.motion.pad`) of a recording, mixed by Jia et al.'s Eq. 14 (see
-    :mod:`prosody.motion.expressions`)."""
+    state (:mod:`prosody.motion.face.pad`) of a recording, mixed by Jia et al.'s Eq. 14 (see
+    :mod:`prosody.motion.face.expressions`)."""
     curves: dict[int, np.ndarray] = {}
     if lips is not None:
         curves = lip_curves(audio, n_frames, fps=fps, method=lips, transcript=transcript, gain=lip_gain,
@@ -52,35 +50,6 @@ def face_layer(audio, n_frames: int, *, fps: float, lips: str | None = "visemes"
     if shown:
         curves = mix_with_lips(curves, shown)
     return FaceLayer(curves)
-
-
-def make_face(audio: str | os.PathLike[str], features, face: FaceSettings,
-              channels: ChannelSettings | None = None) -> FaceLayer | None:
-    """The lips and expression layer of a recording on its features' grid (None when there is neither).
-
-    ``face`` says what it shows (see :class:`prosody.motion.settings.FaceSettings`); the lips' gain of
-    ``channels`` scales the lips, and the lips left out there are not made.
-    """
-    segments = parse_expressions(face.expression) if isinstance(face.expression, str) else list(face.expression or ())
-    states = parse_pad(face.pad) if isinstance(face.pad, str) else list(face.pad or ())
-    face_map = read_face_map(face.pad_map)
-    channels = channels or ChannelSettings()
-    lips = None if "lips" in channels.disabled else face.lips
-    if lips is None and not segments and not states:
-        return None
-    transcript = face.transcript
-    if transcript is not None and os.path.isfile(transcript):
-        from audio_features.phones import read_transcript
-
-        transcript = read_transcript(transcript)
-    model = None
-    if face.mouth_model is not None and lips in ("acoustic", "combined"):
-        from .mouth_model import AcousticMouthModel
-
-        model = AcousticMouthModel.load(face.mouth_model)
-    return face_layer(audio, features.n_frames, fps=features.fps, lips=lips, transcript=transcript,
-                      lip_gain=channels.gain("lips"), expressions=segments, mouth_model=model,
-                      pad=states, pad_map=face_map, language=face.language)
 
 
 def stream_mouth(stream: FapStream) -> tuple[np.ndarray, np.ndarray] | None:
