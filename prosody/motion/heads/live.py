@@ -19,6 +19,7 @@ the F0 bridge, an accent's peak), these use what has been heard so far:
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import os
@@ -36,7 +37,7 @@ from ...validate import valid_seed
 from ..eyebrows import AccentRule, BrowRule, EyebrowRule
 from ..model_files import TrainingClip, read_model_json, write_model_json
 from ..perlin import CHANNEL_KEYS, EYEBROW_STD_ENS, HEAD_OFFSETS_FRAMES, HEAD_STD_AU, PerlinSettings, fractal_noise
-from ..regression import SPECTRUM_FRAMES, ridge_fit, shaping_filter
+from ..regression import SPECTRUM_FRAMES, TimingFit
 from .prosodic import (
     ENVELOPE_FEATURES,
     FEATURE_NAMES,
@@ -443,7 +444,6 @@ class LiveHeadModel(LiveHeadSettings):
             *, fps: float, names: Sequence[str] | None = None) -> LiveHeadModel:
         """Fit on recordings given as their acoustic frames (streamed F0 with NaN where unvoiced, and
         energy) and recorded head motion (n_frames, 3) in AU, resting pose removed."""
-        from ...dsp import lowpass_head, speed_envelope
 
         self.check_settings()
         if not (len(f0_hz) == len(energy_db) == len(motion_au)) or not f0_hz:
@@ -455,36 +455,19 @@ class LiveHeadModel(LiveHeadSettings):
         presence = [trailing_presence(~np.isnan(f), fps=fps, lookahead=self.lookahead_frames(fps),
                                       window_s=self.presence_window_s) for f in f0_hz]
         offsets, smoothing = self.offsets_frames(fps), self.smoothing_frames(fps)
-        envelope_rows, envelope_targets, pitch_rows, pitch_targets, velocities, speeds, spreads = ([] for _ in range(7))
-        kept = []
-        for i, (features, motion) in enumerate(zip(per_frame, motion_au, strict=True)):
-            motion = np.asarray(motion, float)
-            if motion.shape != (features.shape[0], len(HEAD_FAPS)):
-                raise ConfigError(f"a recording has {features.shape[0]} frames of audio but motion of shape "
-                                  f"{motion.shape}; expected ({features.shape[0]}, 3)")
-            radians = motion * RADIANS_PER_AU
-            envelope = speed_envelope(radians, fps=fps)
-            pitch = lowpass_head(radians, fps=fps)[:, 0]
-            if envelope.mean() <= 0 or pitch.std() <= 0:
-                continue  # a still recording teaches nothing about timing
-            kept.append(i)
-            envelope_rows.append(windowed_features(features[:, ENVELOPE_FEATURES], offsets, smoothing_frames=smoothing))
-            envelope_targets.append(envelope / envelope.mean())
-            pitch_rows.append(windowed_features(features[:, PITCH_FEATURES], offsets, smoothing_frames=smoothing))
-            pitch_targets.append((pitch - pitch.mean()) / pitch.std())
-            velocities.append(np.diff(radians, axis=0))
-            speeds.append(envelope.mean())
-            spreads.append(radians.std(axis=0))
-        if not kept:
-            raise ConfigError("every training recording is still: nothing to learn")
-        self.envelope_weights_, self.envelope_mean_, self.envelope_std_ = ridge_fit(
-            np.vstack(envelope_rows), np.concatenate(envelope_targets), self.ridge)
-        self.pitch_weights_, self.pitch_mean_, self.pitch_std_ = ridge_fit(
-            np.vstack(pitch_rows), np.concatenate(pitch_targets), self.ridge)
-        self.filters_ = np.vstack([shaping_filter([v[:, axis] for v in velocities], fps)
-                                   for axis in range(len(HEAD_FAPS))])
-        self.velocity_scale_ = np.sqrt(np.mean([np.mean(v**2, axis=0) for v in velocities], axis=0)) * fps
-        self.speed_rad_s_ = float(np.mean(speeds))
+        timing = TimingFit(fps)
+
+        def designs(features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return (windowed_features(features[:, ENVELOPE_FEATURES], offsets, smoothing_frames=smoothing),
+                    windowed_features(features[:, PITCH_FEATURES], offsets, smoothing_frames=smoothing))
+
+        kept = [i for i, (features, motion) in enumerate(zip(per_frame, motion_au, strict=True))
+                if timing.add(motion, features.shape[0], functools.partial(designs, features))]
+        fitted = timing.fit(self.ridge)
+        self.envelope_weights_, self.envelope_mean_, self.envelope_std_ = fitted.envelope
+        self.pitch_weights_, self.pitch_mean_, self.pitch_std_ = fitted.pitch
+        self.filters_, self.velocity_scale_, self.speed_rad_s_ = fitted[2:]
+        spreads = timing.spreads
         self.spread_au_ = np.mean(spreads, axis=0) / RADIANS_PER_AU
         self._calibrate([self.drive(per_frame[i], presence[i]) for i in kept], spreads)
         names = list(names) if names is not None else [f"recording {i}" for i in range(len(f0_hz))]

@@ -18,6 +18,7 @@ The motion is a displacement from the rest pose (0 on every axis): the pose a sp
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from collections.abc import Callable, Sequence
@@ -33,7 +34,7 @@ from ...fap.table import HEAD_FAPS, RADIANS_PER_AU
 from ...validate import valid_seed
 from ..expressivity import Expressivity, shape_head
 from ..model_files import MAX_MODEL_MAGNITUDE, TrainingClip, write_model_json
-from ..regression import SPECTRUM_FRAMES, finite_number, ridge_fit, shaping_filter
+from ..regression import SPECTRUM_FRAMES, TimingFit, finite_number
 from .settings import OfflineHeadSettings
 
 MODEL_FORMAT = "visual-prosody-head"
@@ -337,8 +338,6 @@ class ProsodicHeadModel(OfflineHeadSettings):
             names: Sequence[str] | None = None) -> ProsodicHeadModel:
         """Fit on recordings: their features and recorded head motion, shape (n_frames, 3) in AU (the
         resting pose, e.g. each recording's median, already removed)."""
-        from ...dsp import lowpass_head, speed_envelope  # training may import scipy.signal
-
         self.check_settings()
         if len(features) != len(motion_au) or not features:
             raise ConfigError("need the same, non-zero number of feature sets and motion recordings")
@@ -346,36 +345,14 @@ class ProsodicHeadModel(OfflineHeadSettings):
         if len(rates) != 1:
             raise ConfigError(f"training recordings have different frame rates {sorted(rates)!r}")
         fps = rates.pop()
-        envelope_rows, envelope_targets, pitch_rows, pitch_targets, velocities = [], [], [], [], []
-        speeds, spreads = [], []
+        timing = TimingFit(fps)
         for feature_set, motion in zip(features, motion_au, strict=True):
-            motion = np.asarray(motion, float)
-            if motion.shape != (feature_set.n_frames, len(HEAD_FAPS)):
-                raise ConfigError(f"a recording has {feature_set.n_frames} frames of audio but motion of shape "
-                                  f"{motion.shape}; expected ({feature_set.n_frames}, 3)")
-            radians = motion * RADIANS_PER_AU
-            envelope = speed_envelope(radians, fps=fps)
-            pitch = lowpass_head(radians, fps=fps)[:, 0]
-            design_envelope, design_pitch = self._design(feature_set)
-            if envelope.mean() <= 0 or pitch.std() <= 0:
-                continue  # a still recording teaches nothing about timing
-            envelope_rows.append(design_envelope)
-            envelope_targets.append(envelope / envelope.mean())
-            pitch_rows.append(design_pitch)
-            pitch_targets.append((pitch - pitch.mean()) / pitch.std())
-            velocities.append(np.diff(radians, axis=0))
-            speeds.append(envelope.mean())
-            spreads.append(radians.std(axis=0))
-        if not envelope_rows:
-            raise ConfigError("every training recording is still: nothing to learn")
-        self.envelope_weights_, self.envelope_mean_, self.envelope_std_ = ridge_fit(
-            np.vstack(envelope_rows), np.concatenate(envelope_targets), self.ridge)
-        self.pitch_weights_, self.pitch_mean_, self.pitch_std_ = ridge_fit(
-            np.vstack(pitch_rows), np.concatenate(pitch_targets), self.ridge)
-        self.filters_ = np.vstack([shaping_filter([v[:, axis] for v in velocities], fps)
-                                   for axis in range(len(HEAD_FAPS))])
-        self.velocity_scale_ = np.sqrt(np.mean([np.mean(v**2, axis=0) for v in velocities], axis=0)) * fps
-        self.speed_rad_s_ = float(np.mean(speeds))
+            timing.add(motion, feature_set.n_frames, functools.partial(self._design, feature_set))
+        fitted = timing.fit(self.ridge)
+        self.envelope_weights_, self.envelope_mean_, self.envelope_std_ = fitted.envelope
+        self.pitch_weights_, self.pitch_mean_, self.pitch_std_ = fitted.pitch
+        self.filters_, self.velocity_scale_, self.speed_rad_s_ = fitted[2:]
+        spreads = timing.spreads
         self.fps_ = float(fps)
         # calibration over the training recordings and a few seeds: each part at unit spread, then the
         # whole at the recorded average spread per axis (a person's size)
