@@ -90,7 +90,8 @@ pytest_runtest_setup = pytest.hookimpl(wrapper=True)(_watch_shared_reads)
 # make test-fast leaves out the tests marked slow: a test that takes 2 s or more must carry the marker, so that the
 # fast tier stays fast. Time is counted as this process's processor time (all its threads), which a loaded machine
 # barely changes; a test that waits (servers, browsers, pacing, subprocesses) is held to a looser limit in wall
-# time. The subprocesses' own time is not counted: a child that ends during a later test would be charged to it.
+# time. The subprocesses' own time is not counted: a child that ends during a later test would be charged to it;
+# nor is the time Numba spends compiling (once per machine: a fresh checkout's first run compiles).
 # PROSODY_SLOW_CPU_S lowers the limit to find the tests near it (those within a quarter of it are marked too,
 # so that a slower machine does not fail them).
 SLOW_CPU_S = float(os.environ.get("PROSODY_SLOW_CPU_S", "2.0"))
@@ -99,11 +100,44 @@ SLOW_WALL_S = 10.0
 
 
 
+class CompileTime:
+    """Seconds Numba spent compiling (the rasteriser, librosa's DTW) while a test ran: paid once per machine and
+    cached after, so a fresh checkout's first run is not held against the test that happened to compile."""
+
+    seconds = 0.0
+
+    @classmethod
+    def install(cls) -> None:
+        try:
+            from numba.core import event
+        except ImportError:  # pragma: no cover - numba is a dependency of the package
+            return
+
+        class Timer(event.Listener):
+            depth, started = 0, 0.0
+
+            def on_start(self, _event) -> None:
+                if self.depth == 0:
+                    self.started = time.perf_counter()
+                self.depth += 1
+
+            def on_end(self, _event) -> None:
+                self.depth -= 1
+                if self.depth == 0:
+                    cls.seconds += time.perf_counter() - self.started
+
+        event.register("numba:compiler_lock", Timer())  # held for the whole of each compilation
+
+
+CompileTime.install()
+
+
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_call(item: pytest.Item):
-    cpu, wall = time.process_time(), time.perf_counter()
+    cpu, wall, compiling = time.process_time(), time.perf_counter(), CompileTime.seconds
     result = yield from _watch_shared_reads(item)
-    cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+    compiling = CompileTime.seconds - compiling
+    cpu, wall = time.process_time() - cpu - compiling, time.perf_counter() - wall - compiling
     if item.get_closest_marker("slow") is None and (cpu >= SLOW_CPU_S or wall >= SLOW_WALL_S):
         pytest.fail(f"{item.nodeid} took {cpu:.1f} s of processor time ({wall:.1f} s in all) without "
                     f"@pytest.mark.slow: mark it, or make it quicker (limits {SLOW_CPU_S:g} s and {SLOW_WALL_S:g} s)",
