@@ -19,12 +19,18 @@ The package is in layers, each importing only those before it:
 - :mod:`prosody.cli`: the ``prosody`` command, one module per command.
 """
 
-from importlib import metadata as _metadata
 
-try:
-    __version__ = _metadata.version("visual-prosody")  # one source: pyproject.toml
-except _metadata.PackageNotFoundError:  # pragma: no cover - running from a source tree never installed
-    __version__ = "0+unknown"
+
+def _version() -> str:
+    """The installed release (one source: pyproject.toml); read when first asked for, since reading a
+    distribution's metadata costs a command about 35 ms of start-up."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("visual-prosody")
+    except metadata.PackageNotFoundError:  # pragma: no cover - running from a source tree never installed
+        return "0+unknown"
+
 
 #: The public facade: ``from prosody import convert`` and so on, each imported when first asked for, so that
 #: ``import prosody`` stays cheap.
@@ -49,6 +55,9 @@ __all__ = ["__version__", *_FACADE]
 
 
 def __getattr__(name: str):
+    if name == "__version__":
+        globals()["__version__"] = version = _version()
+        return version
     if name in _FACADE:
         from importlib import import_module
 
