@@ -11,7 +11,8 @@ A function takes a group both ways: as one object (``convert(audio, face=FaceSet
 its fields, one keyword each (``convert(audio, lips="acoustic")``); keywords override the object's fields. Its
 signature says so in the source: each group a parameter with its defaults, and ``**fields:
 Unpack[SettingsFields]``, the typed dictionary of every field, so a type checker sees every keyword and its
-type; :func:`overridden` applies the keywords to each group.
+type; :func:`overridden` applies the keywords to each group. :func:`make_face` makes a recording's face (lips,
+expression, PAD state) from its face group.
 
 Examples
 --------
