@@ -171,3 +171,24 @@ def test_json_and_json_lines_are_read_back_for_preview(tmp_path, stream) -> None
     (tmp_path / "bad.jsonl").write_text('{"frame": 0}\n')
     with pytest.raises(FapFormatError, match="not a stream this package wrote"):
         read_stream_json(tmp_path / "bad.jsonl")
+
+
+def test_read_stream_reads_back_every_stream_this_package_writes(stream, tmp_path) -> None:
+    """One reader for the streams the package writes and reads back, by ending: .fap, the json export and the
+    JSON lines of a live stream (the preview draws them all); a .csv export is refused in one line."""
+    from prosody.fap.exporters import is_stream_file, read_stream
+
+    for ending in (".fap", ".json"):
+        path = tmp_path / f"s{ending}"
+        write_stream(stream, path)
+        back = read_stream(path)
+        assert is_stream_file(path) and back.n_frames == stream.n_frames and back.fps == stream.fps
+        np.testing.assert_allclose(back.curve(48), stream.curve(48), atol=0.5)  # the .fap keeps integers
+    lines = tmp_path / "live.jsonl"
+    lines.write_text("".join(json.dumps({"frame": k, "time_s": k / 30, "faps": {"48": 10.0 * k}}) + "\n"
+                             for k in range(5)))
+    live = read_stream(lines)
+    assert live.n_frames == 5 and live.fps == pytest.approx(30) and live.curve(48)[4] == 40.0
+    assert not is_stream_file(tmp_path / "talk.wav")
+    with pytest.raises(ConfigError, match="not read back"):
+        read_stream(tmp_path / "s.csv")

@@ -109,7 +109,9 @@ def run(args: argparse.Namespace) -> int:
     opt.check_motion_options(args)
     if args.audio is not None and not args.no_audio:
         check_sound_file(args.audio)
-    if Path(args.input).suffix.lower() in (".fap", ".json", ".jsonl"):
+    from ..fap.exporters import is_stream_file, read_stream
+
+    if is_stream_file(args.input):
         given = opt.making_options_given(args)
         if given:
             from ..errors import ConfigError
@@ -119,14 +121,8 @@ def run(args: argparse.Namespace) -> int:
     scales = strip_scales(args.strip_scale)
     face = preview_face(args.face)  # a photo is read, and its face found, before the audio
     audio = args.audio
-    if Path(args.input).suffix.lower() == ".fap":
-        from ..fap.fapfile import read_fap
-
-        stream = read_fap(args.input).stream
-    elif Path(args.input).suffix.lower() in (".json", ".jsonl"):
-        from ..fap.exporters import read_stream_json
-
-        stream = read_stream_json(args.input)
+    if is_stream_file(args.input):
+        stream = read_stream(args.input)
     elif Path(args.input).suffix.lower() == ".csv":
         from ..errors import ConfigError
 

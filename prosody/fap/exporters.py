@@ -149,6 +149,56 @@ def _frame_rate(fps: float) -> float:
     return fps
 
 
+#: The file endings of the streams :func:`read_stream` reads back.
+STREAM_ENDINGS = (".fap", ".json", ".jsonl")
+
+
+def is_stream_file(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` names a stream :func:`read_stream` reads (by its ending), not a recording.
+
+    Parameters
+    ----------
+    path : path
+
+    Returns
+    -------
+    bool
+    """
+    return Path(path).suffix.lower() in STREAM_ENDINGS
+
+
+def read_stream(path: str | os.PathLike[str]) -> FapStream:
+    """A FAP stream from a file, whatever this package reads: a ``.fap`` (any player's; see
+    :func:`prosody.fap.fapfile.read_fap`), the ``json`` export or the JSON lines of ``prosody stream``
+    (:func:`read_stream_json`).
+
+    Parameters
+    ----------
+    path : path
+        A file ending in one of :data:`STREAM_ENDINGS`.
+
+    Returns
+    -------
+    FapStream
+
+    Raises
+    ------
+    ConfigError
+        Another ending: a ``.csv`` export is not read back.
+    FapFormatError
+        A file of its ending that is not such a stream.
+    """
+    ending = Path(path).suffix.lower()
+    if ending == ".fap":
+        from .fapfile import read_fap
+
+        return read_fap(path).stream
+    if ending in (".json", ".jsonl"):
+        return read_stream_json(path)
+    raise ConfigError(f"{path}: not a stream this package reads back ({', '.join(STREAM_ENDINGS)}); a .csv export "
+                      "is not read back (convert to .json)")
+
+
 def read_stream_json(path: str | os.PathLike[str]) -> FapStream:
     """Read back a stream this package wrote: the ``json`` export, or the JSON lines of ``prosody stream``
     (``{"frame", "time_s", "faps": {"<n>": value}}`` per line, frame rate from the times).
