@@ -99,3 +99,30 @@ def read_model_json(path: str | os.PathLike[str], *, shipped: tuple[str, ...] = 
         raise ModelError(f"{name}: not JSON (line {error.lineno}: {error.msg})") from None
     except RecursionError:
         raise ModelError(f"{name}: JSON nested too deeply to be a model file") from None
+
+
+def model_payload(payload: object, *, format_name: str, source: str, version: int | None = None) -> dict:
+    """``payload`` (a model file's data) if its ``"format"`` is ``format_name`` and, when given, its ``"version"``
+    is ``version``; else :class:`ModelError` naming ``source``. Each reader then checks its own fields.
+
+    Parameters
+    ----------
+    payload : object
+        What the file held.
+    format_name : str
+        The format the reader reads.
+    source : str
+        The file, as messages name it.
+    version : int, optional
+        The version this release reads.
+
+    Returns
+    -------
+    dict
+    """
+    if not isinstance(payload, dict) or payload.get("format") != format_name:
+        raise ModelError(f"{source}: not a {format_name} model file (no \"format\": \"{format_name}\")")
+    if version is not None and payload.get("version") != version:
+        raise ModelError(f"{source}: model version {payload.get('version')!r} is not supported (this release "
+                         f"reads version {version})")
+    return payload

@@ -22,7 +22,7 @@ from audio_features.spectral import N_SPECTRAL, cepstra, on_grid
 
 from ...errors import ModelError
 from ...fap.table import DISTANCE_UNITS_PER_REFERENCE
-from ..model_files import MAX_MODEL_MAGNITUDE, MODELS_DIR, read_model_json, write_model_json
+from ..model_files import MAX_MODEL_MAGNITUDE, MODELS_DIR, model_payload, read_model_json, write_model_json
 from .lips import MNS_PER_EYE_WIDTH, MouthShape
 
 MODEL_FORMAT = "visual-prosody-mouth-model"
@@ -165,13 +165,8 @@ class AcousticMouthModel:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str] = DEFAULT_MOUTH_MODEL_PATH) -> AcousticMouthModel:
-        payload = read_model_json(path)
         name = str(path)
-        if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
-            raise ModelError(f"{name}: not a mouth model file (format {MODEL_FORMAT!r})")
-        if payload.get("version") != MODEL_VERSION:
-            raise ModelError(f"{name}: mouth model version {payload.get('version')!r}; this release reads "
-                             f"version {MODEL_VERSION}")
+        payload = model_payload(read_model_json(path), format_name=MODEL_FORMAT, source=name, version=MODEL_VERSION)
         try:
             weights = np.array(payload["weights"], dtype=float)
             ridge = float(payload["ridge"])

@@ -24,7 +24,14 @@ from audio_features import DEFAULT_FPS, Features
 
 from ...errors import ConfigError, ModelError
 from ...fap.table import HEAD_FAPS
-from ..model_files import MAX_MODEL_MAGNITUDE, MODELS_DIR, TrainingClip, read_model_json, write_model_json
+from ..model_files import (
+    MAX_MODEL_MAGNITUDE,
+    MODELS_DIR,
+    TrainingClip,
+    model_payload,
+    read_model_json,
+    write_model_json,
+)
 
 MODEL_FORMAT = "visual-prosody-arx"
 MODEL_VERSION = 1
@@ -348,11 +355,7 @@ class ArxHeadModel:
         def fail(problem: str) -> ModelError:
             return ModelError(f"{source}: {problem}")
 
-        if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
-            raise fail(f"not a {MODEL_FORMAT} model file (no \"format\": \"{MODEL_FORMAT}\")")
-        if payload.get("version") != MODEL_VERSION:
-            raise fail(f"model version {payload.get('version')!r} is not supported (this release reads "
-                       f"version {MODEL_VERSION})")
+        payload = model_payload(payload, format_name=MODEL_FORMAT, source=source, version=MODEL_VERSION)
         try:
             orders = payload["orders"]
             model = cls(int(orders["na"]), int(orders["nb"]), int(orders["nk"]),

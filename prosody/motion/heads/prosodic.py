@@ -33,7 +33,7 @@ from ...errors import ConfigError, ModelError
 from ...fap.table import HEAD_FAPS, RADIANS_PER_AU
 from ...validate import valid_seed
 from ..expressivity import Expressivity, shape_head
-from ..model_files import MAX_MODEL_MAGNITUDE, TrainingClip, write_model_json
+from ..model_files import MAX_MODEL_MAGNITUDE, TrainingClip, model_payload, write_model_json
 from ..regression import SPECTRUM_FRAMES, TimingFit, finite_number
 from .settings import OfflineHeadSettings
 
@@ -190,8 +190,7 @@ def read_prosodic_model(cls, payload: object, *, source: str, kind: str, unsuppo
     def fail(problem: str) -> ModelError:
         return ModelError(f"{source}: {problem}")
 
-    if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
-        raise fail(f"not a {MODEL_FORMAT} model file (no \"format\": \"{MODEL_FORMAT}\")")
+    payload = model_payload(payload, format_name=MODEL_FORMAT, source=source)
     if payload.get("version") != MODEL_VERSION or payload.get("kind") != kind:
         if payload.get("kind") == "prosodic-live" and kind != "prosodic-live":
             raise fail("a live head model (kind 'prosodic-live') is for 'prosody stream'; convert, compare and "
