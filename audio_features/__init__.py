@@ -12,6 +12,7 @@ from .errors import (
     AudioLoadError,
     NoVoicedFramesWarning,
     ParameterError,
+    ParameterNote,
     VisualProsodyError,
 )
 from .features import (
@@ -37,6 +38,7 @@ __all__ = [
     "Features",
     "NoVoicedFramesWarning",
     "ParameterError",
+    "ParameterNote",
     "Track",
     "condition_f0",
     "extract_features",

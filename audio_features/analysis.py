@@ -153,11 +153,13 @@ def analyse_grid(
     if not MIN_F0_FLOOR_HZ <= f0_floor_hz < f0_ceiling_hz:
         raise ParameterError(
             f"need {MIN_F0_FLOOR_HZ:g} <= f0_floor_hz < f0_ceiling_hz, got floor {f0_floor_hz!r} and ceiling "
-            f"{f0_ceiling_hz!r} (no voice is lower than {MIN_F0_FLOOR_HZ:g} Hz)"
+            f"{f0_ceiling_hz!r} (no voice is lower than {MIN_F0_FLOOR_HZ:g} Hz)",
+            parameter=("f0_floor_hz", "f0_ceiling_hz"),
         )
     if f0_ceiling_hz >= sample_rate_hz / 2:
         raise ParameterError(
-            f"f0_ceiling_hz={f0_ceiling_hz!r} must be below the Nyquist frequency {sample_rate_hz / 2!r} Hz"
+            f"f0_ceiling_hz={f0_ceiling_hz!r} must be below the Nyquist frequency {sample_rate_hz / 2!r} Hz",
+            parameter="f0_ceiling_hz",
         )
     n_frames = frame_count(n_samples / sample_rate_hz, fps=fps)
     dt, oversample = analysis_step(fps)

@@ -23,7 +23,31 @@ class AudioLoadError(AudioFeaturesError, ValueError):
 
 
 class ParameterError(AudioFeaturesError, ValueError):
-    """A parameter is outside its documented range (a usage error: the command exits with code 2)."""
+    """A parameter is outside its documented range (a usage error: the command exits with code 2).
+
+    ``parameter`` names, as data, the parameters the message speaks of by their Python names (one name or a
+    tuple): a command line says each by its own option instead (``f0_floor_hz`` -> ``--f0-floor``), from its
+    parser, without reading the message for names.
+
+    Examples
+    --------
+    >>> error = ParameterError("f0_floor_hz must be below f0_ceiling_hz", parameter=("f0_floor_hz", "f0_ceiling_hz"))
+    >>> error.parameters
+    ('f0_floor_hz', 'f0_ceiling_hz')
+    """
+
+    def __init__(self, *args: object, parameter: str | tuple[str, ...] | None = None) -> None:
+        super().__init__(*args)
+        self.parameters: tuple[str, ...] = (parameter,) if isinstance(parameter, str) else tuple(parameter or ())
+
+
+class ParameterNote(UserWarning):
+    """A warning about a parameter's value, naming the parameters it speaks of as :class:`ParameterError` does
+    (``parameter=``), so that a command line can say them by its options."""
+
+    def __init__(self, *args: object, parameter: str | tuple[str, ...] | None = None) -> None:
+        super().__init__(*args)
+        self.parameters: tuple[str, ...] = (parameter,) if isinstance(parameter, str) else tuple(parameter or ())
 
 
 class AnalysisError(AudioFeaturesError, RuntimeError):

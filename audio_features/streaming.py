@@ -87,7 +87,7 @@ class StreamingAnalyser:
         if not MIN_F0_FLOOR_HZ <= f0_floor_hz < f0_ceiling_hz < sample_rate_hz / 2:
             raise ParameterError(f"need {MIN_F0_FLOOR_HZ:g} <= f0_floor_hz < f0_ceiling_hz < "
                                  f"{sample_rate_hz / 2:g} Hz (Nyquist), got floor {f0_floor_hz!r} and ceiling "
-                                 f"{f0_ceiling_hz!r}")
+                                 f"{f0_ceiling_hz!r}", parameter=("f0_floor_hz", "f0_ceiling_hz"))
         if not intensity_min_pitch_hz > 0:
             raise ParameterError(f"intensity_min_pitch_hz must be > 0, got {intensity_min_pitch_hz!r}")
         if not 0 <= context_s <= 5:

@@ -15,7 +15,7 @@ from .errors import ParameterError
 def _frozen_array(values: object, *, dtype: type, name: str) -> np.ndarray:
     array: np.ndarray = np.array(values, dtype=dtype, copy=True)
     if array.ndim != 1:
-        raise ParameterError(f"{name} must be one-dimensional, got shape {array.shape!r}")
+        raise ParameterError(f"{name} must be one-dimensional, got shape {array.shape!r}", parameter=name)
     array.flags.writeable = False
     return array
 

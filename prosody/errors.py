@@ -10,11 +10,11 @@ packages' bad parameters. The CLI turns them into one line on stderr and an exit
 
 from __future__ import annotations
 
-from audio_features.errors import MissingExtraError, ParameterError, VisualProsodyError, require_extra
+from audio_features.errors import MissingExtraError, ParameterError, ParameterNote, VisualProsodyError, require_extra
 
 __all__ = ["BallotError", "ConfigError", "FapFormatError", "FapIrregularityWarning", "FapWriteError",
-           "GroundTruthError", "MissingExtraError", "ModelError", "ParameterError", "PhotoError", "PreviewError",
-           "ProsodyError", "TrackingError", "UnknownFapError", "VisualProsodyError", "require_extra"]
+           "GroundTruthError", "MissingExtraError", "ModelError", "ParameterError", "ParameterNote", "PhotoError",
+           "PreviewError", "ProsodyError", "TrackingError", "UnknownFapError", "VisualProsodyError", "require_extra"]
 
 
 class ProsodyError(VisualProsodyError):

@@ -52,7 +52,7 @@ def valid_whole(value: object, name: str, low: int, high: int | None = None) -> 
     if not (isinstance(value, numbers.Integral) and not isinstance(value, bool)
             and low <= int(value) and (high is None or int(value) <= high)):
         shown = f">= {low}" if high is None else f"from {low} to {high}"
-        raise ConfigError(f"{name} must be a whole number {shown}, got {value!r}")
+        raise ConfigError(f"{name} must be a whole number {shown}, got {value!r}", parameter=name)
     return int(value)
 
 
@@ -83,5 +83,5 @@ def valid_number(value: object, name: str, low: float, high: float) -> float:
     float
     """
     if not (is_number(value) and low <= float(value) <= high):  # type: ignore[arg-type]
-        raise ConfigError(f"{name} must be a number in [{low:g}, {high:g}], got {value!r}")
+        raise ConfigError(f"{name} must be a number in [{low:g}, {high:g}], got {value!r}", parameter=name)
     return float(value)  # type: ignore[arg-type]

@@ -251,32 +251,55 @@ def test_main_leaves_the_process_as_it_found_it(tmp_path, speech, capsys) -> Non
 
 
 CLI_MESSAGES = [
-    ("convert", "f0_floor_hz must be below f0_ceiling_hz, got 500", "--f0-floor must be below --f0-ceiling, got 500"),
-    ("compare", "needs recorded motion (ground_truth=FILE)", "needs recorded motion (--ground-truth FILE)"),
-    ("convert", "give output_format=NAME or a known ending", "give --format NAME or a known ending"),
-    ("stream", "from its extension (.fap); give output_format=NAME", "from its extension (.fap); give --format NAME"),
-    ("preview", "start_s= and duration_s= lie outside the stream", "--start and --duration lie outside the stream"),
-    ("convert", "resampled to 30 fps (give fps=25 to keep its rate)",
+    ("convert", "f0_floor_hz must be below f0_ceiling_hz, got 500", ("f0_floor_hz", "f0_ceiling_hz"),
+     "--f0-floor must be below --f0-ceiling, got 500"),
+    ("compare", "needs recorded motion (ground_truth=FILE)", ("ground_truth",),
+     "needs recorded motion (--ground-truth FILE)"),
+    ("convert", "give output_format=NAME or a known ending", ("output_format",),
+     "give --format NAME or a known ending"),
+    ("stream", "from its extension (.fap); give output_format=NAME", (),  # a phrase: stream's option has another name
+     "from its extension (.fap); give --format NAME"),
+    ("preview", "start_s= and duration_s= lie outside the stream", ("start_s", "duration_s"),
+     "--start and --duration lie outside the stream"),
+    ("convert", "resampled to 30 fps (give fps=25 to keep its rate)", ("fps",),
      "resampled to 30 fps (give --fps 25 to keep its rate)"),
-    ("convert", "seed must be a whole number; the model runs at fps 30",
+    ("convert", "seed must be a whole number; the model runs at fps 30", ("seed", "fps"),
      "seed must be a whole number; the model runs at fps 30"),
-    ("batch", "AccentRule(threshold_semitones=...) is 4; scheduler= is down",
+    ("batch", "AccentRule(threshold_semitones=...) is 4; scheduler= is down", ("scheduler",),
      "--accent-semitones ST is 4; --scheduler is down"),
-    ("batch", "needs recorded motion (ground_truth=FILE)", "needs recorded motion (ground_truth=FILE)"),  # no option
-    ("convert", "/data/seed=3/a.wav: not found", "/data/seed=3/a.wav: not found"),  # a path is left as it is
-    ("convert", "'f0_floor_hz' and a.f0_floor_hz", "'f0_floor_hz' and a.f0_floor_hz"),
+    ("batch", "needs recorded motion (ground_truth=FILE)", ("ground_truth",),
+     "needs recorded motion (ground_truth=FILE)"),  # batch has no such option
+    ("convert", "/data/seed=3/a.wav: not found", ("seed",), "/data/seed=3/a.wav: not found"),  # a path is left alone
+    ("convert", "'f0_floor_hz' and a.f0_floor_hz", ("f0_floor_hz",), "'f0_floor_hz' and a.f0_floor_hz"),
+    # only the parameters the message carries as data are renamed, never a word that looks like one
+    ("convert", "f0_floor_hz must be below f0_ceiling_hz", ("f0_ceiling_hz",),
+     "f0_floor_hz must be below --f0-ceiling"),
+    ("convert", "fps=25 and f0_floor_hz=50", (), "fps=25 and f0_floor_hz=50"),
 ]
 
 
-@pytest.mark.parametrize(("command", "said", "shown"), CLI_MESSAGES)
-def test_library_messages_name_the_commands_options_from_its_parser(command, said, shown):
+@pytest.mark.parametrize(("command", "said", "parameters", "shown"), CLI_MESSAGES)
+def test_library_messages_name_the_commands_options_from_its_parser(command, said, parameters, shown):
     import argparse
 
     from prosody.cli.app import build_parser
     from prosody.cli.messages import as_flags
 
     commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices
-    assert as_flags(said, commands[command]) == shown
+    assert as_flags(said, commands[command], parameters) == shown
+
+
+def test_an_error_carries_the_parameters_it_names_across_processes():
+    import pickle
+
+    from prosody.cli.app import build_parser
+    from prosody.cli.messages import said
+    from prosody.errors import ConfigError
+
+    error = pickle.loads(pickle.dumps(ConfigError("f0_floor_hz=20 is too low", parameter="f0_floor_hz")))
+    assert error.parameters == ("f0_floor_hz",)
+    assert said(error, build_parser("convert")._subparsers._group_actions[0].choices["convert"]) == \
+        "--f0-floor 20 is too low"
 
 
 def test_a_library_message_reaches_the_user_with_the_option_names(tmp_path, capsys):

@@ -113,3 +113,44 @@ def test_the_docs_tables_are_the_recorded_ones() -> None:
                                       "experiments.render")
     stale = filled("<!-- results: head_loco 1 -->\n| a | b |\n<!-- /results -->")
     assert "| a | b |" not in stale and BLOCK.search(stale)  # the check can fail
+
+
+ERROR_CLASSES = ("ConfigError", "ParameterError", "MissingExtraError", "ParameterNote", "BaseResampledWarning")
+
+
+def unnamed_parameters(source: str, parameters: set[str]) -> list[tuple[int, list[str]]]:
+    """The library's errors (and parameter notes) in ``source`` whose literal message names one of
+    ``parameters`` (as ``name=`` or, with an underscore, as a word) without carrying it as data
+    (``parameter=``): a command line could not say those by its options."""
+    missing = []
+    for node in ast.walk(ast.parse(source)):
+        if not (isinstance(node, ast.Call) and node.args
+                and ast.unparse(node.func).split(".")[-1] in ERROR_CLASSES):
+            continue
+        carried = next((k.value for k in node.keywords if k.arg == "parameter"), None)
+        said = set() if carried is None else {c.value for c in ast.walk(carried) if isinstance(c, ast.Constant)}
+        text = ast.unparse(node.args[0])
+        named = [m.group(1) for m in re.finditer(r"(?<![\w.{])([a-z][a-z0-9_]*)(=|\b)", text)
+                 if m.group(1) in parameters and (m.group(2) == "=" or "_" in m.group(1))]
+        if [name for name in named if name not in said] and not (carried is not None and not said):
+            missing.append((node.lineno, sorted(set(named) - said)))
+    return missing
+
+
+def test_library_errors_carry_the_parameters_they_name() -> None:
+    """A library error that names a parameter the command line has an option for carries that name as data,
+    so the command says the option (``prosody.cli.messages.said``) without reading the message for names."""
+    import argparse
+
+    from prosody.cli.app import build_parser
+    from prosody.cli.messages import flag_names
+
+    commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices
+    options = {name for command in commands.values() for name in flag_names(command)} - {"help", "quiet", "messages"}
+    found = {f"{path.relative_to(REPO)}:{line}": names
+             for package in ("prosody", "audio_features") for path in sorted((REPO / package).rglob("*.py"))
+             if "cli" not in path.parts for line, names in unnamed_parameters(path.read_text(), options)}
+    assert found == {}
+    said = 'raise ConfigError(f"f0_floor_hz={x} is low; lips=none", parameter="lips")'
+    assert unnamed_parameters(said, {"f0_floor_hz", "lips"}) == [(1, ["f0_floor_hz"])]  # the check can fail
+    assert unnamed_parameters('raise ConfigError(f"{name} must be > 0", parameter=name)', {"name"}) == []

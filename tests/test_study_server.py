@@ -211,11 +211,11 @@ def test_stimuli_are_made_once_and_checked(tmp_path, recordings) -> None:
 def test_stimuli_inputs_are_checked_before_drawing(tmp_path, recordings) -> None:
     plan = _plan(conditions=("none", "truth", "calm"))
     with pytest.raises(ConfigError, match="calm that are not defined"):
-        make_stimuli(plan, recordings, tmp_path / "out", {n: StudyCondition(n, n, BUILT_IN[n], {"condition": "none"})
+        make_stimuli(plan, recordings, tmp_path / "out", {n: StudyCondition(n, n, BUILT_IN["NO_PROSODY"])
                                                           for n in ("NO_PROSODY", "GROUND_TRUTH")})
-    conditions = {"NO_PROSODY": StudyCondition("NO_PROSODY", "x", "", {"condition": "none"}),
-                  "GROUND_TRUTH": StudyCondition("GROUND_TRUTH", "x", "", {"condition": "truth"}),
-                  "calm": StudyCondition("calm", "x", "", {"condition": "speech"})}
+    conditions = {"NO_PROSODY": StudyCondition("NO_PROSODY", "x", {"condition": "none"}),
+                  "GROUND_TRUTH": StudyCondition("GROUND_TRUTH", "x", {"condition": "truth"}),
+                  "calm": StudyCondition("calm", "x", {"condition": "speech"})}
     with pytest.raises(ConfigError, match=r"no recorded motion (a|b).head.csv .*no recorded motion (a|b).head.csv"):
         make_stimuli(plan, recordings, tmp_path / "out", conditions)
     with pytest.raises(ConfigError, match="no recording c.wav"):
@@ -248,6 +248,41 @@ def test_condition_files_take_convert_options(tmp_path, capsys) -> None:
         _study_conditions(plan, str(path))
     with pytest.raises(ConfigError, match="define it in a conditions file"):
         _study_conditions(plan, None)
+
+
+def test_condition_files_take_settings_and_the_library_reads_them(tmp_path) -> None:
+    """A condition's settings are data the library checks by its own rules, so a study runs from Python; the
+    same rule refuses the same mistake given as options or as settings."""
+    from prosody.study.stimuli import study_conditions
+
+    plan = _plan(conditions=("none", "truth", "calm"))
+    path = tmp_path / "c.json"
+
+    def conditions(entry: dict) -> dict:
+        path.write_text(json.dumps({"format": "visual-prosody-study-conditions", "version": 1,
+                                    "conditions": {"calm": entry}}))
+        return study_conditions(plan, path)
+
+    calm = conditions({"label": "Calm", "settings": {"expressivity": {"activation": 0.4}, "pad": "0.5,-0.3,0",
+                                                     "eyebrow_rule": {"rule": "accent", "threshold_semitones": 3},
+                                                     "fps": 25}})["calm"]
+    assert calm.settings["expressivity"].activation == 0.4 and calm.settings["condition"] == "speech"
+    assert calm.settings["eyebrow_rule"].threshold_semitones == 3 and calm.settings["fps"] == 25
+    built_in = study_conditions(plan, path)
+    assert built_in["NO_PROSODY"].settings == {"condition": "none"} and built_in["GROUND_TRUTH"].needs_truth
+    assert json.loads(calm.recipe)["pad"] == "0.5,-0.3,0"  # what the manifest records
+    for settings, message in (({"condition": "none", "model": "arx"}, "condition calm: model= is the head model"),
+                              ({"fpss": 25}, "unexpected keyword argument 'fpss'"),
+                              ({"ground_truth": "x.csv"}, "found per stimulus"),
+                              ({"eyebrow_rule": {"rule": "loud"}}, "eyebrow_rule needs"),
+                              ({"expressivity": {"activation": 2}}, "activation"),
+                              ({"lips": "acoustic", "transcript": "hello"}, "transcript= is read by the visemes")):
+        with pytest.raises(ConfigError, match=message):
+            conditions({"settings": settings})
+    with pytest.raises(ConfigError, match="given as command-line options"):
+        conditions({"options": "--activation 0.4"})  # options are the command's to read
+    with pytest.raises(ConfigError, match="\"settings\" or \"options\""):
+        conditions({"options": "--activation 0.4", "settings": {}})
 
 
 # the server -------------------------------------------------------------------------------------------------------

@@ -67,7 +67,7 @@ def _add_message_options(parser: argparse.ArgumentParser) -> None:
         return
     for action in subparsers:
         for sub in action.choices.values():
-            sub.set_defaults(parser=sub)  # its options name the library's parameters in messages (as_flags)
+            sub.set_defaults(parser=sub)  # its options name the library's parameters in messages (msg.said)
             _add_message_options(sub)
 
 
@@ -78,11 +78,11 @@ def _run(handler: Callable[[argparse.Namespace], int], args: argparse.Namespace)
         paths.check_paths(args)
         return handler(args)
     except ParameterError as error:  # prosody's ConfigError too
-        msg.MESSAGES.emit("error", f"prosody {args.command}: error: {msg.as_flags(str(error), args.parser)}",
+        msg.MESSAGES.emit("error", f"prosody {args.command}: error: {msg.said(error, args.parser)}",
                           exit=opt.EXIT_USAGE)
         return opt.EXIT_USAGE
     except VisualProsodyError as error:
-        msg.MESSAGES.emit("error", f"prosody {args.command}: error: {msg.as_flags(str(error), args.parser)}",
+        msg.MESSAGES.emit("error", f"prosody {args.command}: error: {msg.said(error, args.parser)}",
                           exit=opt.EXIT_FAILURE)
         return opt.EXIT_FAILURE
     except BrokenPipeError:
@@ -145,7 +145,7 @@ def _main(argv: Sequence[str] | None) -> int:
 
         def show(message, category, filename, lineno, file=None, line=None):
             # a warning is a note to the user, one line, not a source listing
-            said = msg.as_flags(str(message), getattr(args, "parser", None))
+            said = msg.said(message, getattr(args, "parser", None))
             msg.MESSAGES.emit("warning", f"prosody {args.command}: warning: {said}")
 
         def terminated(signum, frame):

@@ -9,7 +9,7 @@ import json
 import os
 import re
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 
@@ -124,25 +124,34 @@ def flag_names(parser: argparse.ArgumentParser) -> dict[str, str]:
     return {action.dest: max(action.option_strings, key=len) for action in parser._actions if action.option_strings}
 
 
-def as_flags(message: str, parser: argparse.ArgumentParser | None = None) -> str:
-    """A library message as the command line says it: the few Python phrases of :data:`_PHRASES`, then each
-    parameter the command has an option for, named by that option (``f0_floor_hz`` -> ``--f0-floor``,
-    ``ground_truth=FILE`` -> ``--ground-truth FILE``). Without ``parser``, the message is left as it is.
-    Parameters without an underscore (``fps``, ``seed``) are renamed only as ``name=VALUE``: as words they are
-    also plain English."""
+def as_flags(message: str, parser: argparse.ArgumentParser | None = None,
+             parameters: Sequence[str] = ()) -> str:
+    """A library message as the command line says it: the few Python phrases of :data:`_PHRASES`, then each of
+    ``parameters`` (the names the error or warning carries as data, :attr:`ParameterError.parameters`) that the
+    command has an option for, named by that option (``f0_floor_hz`` -> ``--f0-floor``, ``ground_truth=FILE`` ->
+    ``--ground-truth FILE``). No other word of the message is taken for a parameter. Without ``parser``, the
+    message is left as it is. A name without an underscore (``fps``, ``seed``) is renamed only as
+    ``name=VALUE``: as a word it is also plain English."""
     if parser is None:
         return message
     for python, flag in _PHRASES:
         message = message.replace(python, flag)
-    for name, flag in sorted(flag_names(parser).items(), key=lambda item: -len(item[0])):
-        def as_option(match: re.Match, flag: str = flag) -> str:
+    flags = flag_names(parser)
+    for name in sorted((name for name in parameters if name in flags), key=len, reverse=True):
+        def as_option(match: re.Match, flag: str = flags[name]) -> str:
             return f"{flag} {match.group(1)}".rstrip()
 
         # only where a word starts (after a space or a bracket): never inside a path or a quoted name
         message = re.sub(rf"(?<![^\s(]){re.escape(name)}=(\S*)", as_option, message)
         if "_" in name:
-            message = re.sub(rf"(?<![^\s(]){re.escape(name)}\b", flag, message)
+            message = re.sub(rf"(?<![^\s(]){re.escape(name)}\b", flags[name], message)
     return message
+
+
+def said(problem: BaseException | Warning | str, parser: argparse.ArgumentParser | None = None) -> str:
+    """An error's or a warning's message as the command line says it (:func:`as_flags` with the parameters it
+    names)."""
+    return as_flags(str(problem), parser, getattr(problem, "parameters", ()))
 
 
 def outcome_reporter(parser: argparse.ArgumentParser, output: str, unit: str, total: int,
@@ -154,10 +163,11 @@ def outcome_reporter(parser: argparse.ArgumentParser, output: str, unit: str, to
     finished = [0]
 
     def on_outcome(outcome) -> None:
+        named = getattr(outcome, "parameters", ())  # what its error and warnings name, as data
         for note in outcome.warnings:
-            progress.say(f"{parser.prog}: warning: {name(outcome)}: {as_flags(str(note), parser)}")
+            progress.say(f"{parser.prog}: warning: {name(outcome)}: {as_flags(str(note), parser, named)}")
         if outcome.status == "failed":
-            progress.say(f"{parser.prog}: error: {name(outcome)}: {as_flags(str(outcome.error), parser)}")
+            progress.say(f"{parser.prog}: error: {name(outcome)}: {as_flags(str(outcome.error), parser, named)}")
         elif result is not None and (line := result(outcome)):
             progress.say(line)
         finished[0] += 1

@@ -357,7 +357,7 @@ def check_motion_options(args: argparse.Namespace) -> None:
     from ..errors import ConfigError
     from ..motion.conditions import check_condition
 
-    # the library's rules, said with the command's flags (messages.as_flags)
+    # the library's rules, said with the command's flags (messages.said)
     check_condition(args.condition, ground_truth=getattr(args, "ground_truth", None),
                     model=getattr(args, "model", None), expressivity=expressivity(args))
     off = {name.strip() for value in args.off for name in value.split(",") if name.strip()}

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import os
 
 from . import messages as msg
@@ -16,11 +15,11 @@ def condition_names(text: str | None) -> list[str] | None:
     standing for its names (in its order)."""
     if text is None:
         return None
-    from ..study.stimuli import read_condition_options
+    from ..study.stimuli import read_conditions
 
     names: list[str] = []
     for item in text.split(","):
-        names += list(read_condition_options(item.strip())) if item.strip().lower().endswith(".json") else [item]
+        names += list(read_conditions(item.strip())) if item.strip().lower().endswith(".json") else [item]
     return names
 
 
@@ -93,42 +92,38 @@ class ConditionOptionsParser(opt.Parser):
         raise ConfigError(f"condition {self.prog}: {message}")
 
 
-def study_conditions(plan, path: str | None) -> dict:
-    """A StudyCondition for every condition of ``plan``: the thesis's four by their options, the others from the
-    conditions file."""
+def condition_options(name: str, options: str) -> dict:
+    """The settings a condition given as ``prosody convert``'s options means (a conditions file's
+    ``options``); a mistake is a ConfigError naming the condition and the option."""
     import shlex
 
     from ..errors import ConfigError
-    from ..study.stimuli import BUILT_IN, StudyCondition, read_condition_options
 
-    given = read_condition_options(path) if path is not None else {}
-    conditions = {}
-    for name in plan.conditions:
-        if name in given:
-            label, options = given[name]
-        elif name in BUILT_IN:
-            label, options = name, BUILT_IN[name]
-        else:
-            raise ConfigError(f"the plan's condition {name} is not one of the thesis's four: define it in a "
-                              "conditions file (--conditions FILE.json)")
-        parser = ConditionOptionsParser(prog=name, add_help=False)
-        opt.add_motion_options(parser)
-        opt.add_analysis_options(parser)
-        opt.add_eyebrow_options(parser)
-        try:
-            words = shlex.split(options)
-        except ValueError as error:
-            raise ConfigError(f"condition {name}: its options cannot be read ({error})") from None
-        parsed = parser.parse_args(words)
-        if parsed.ground_truth is not None:
-            raise ConfigError(f"condition {name}: --ground-truth is found per stimulus (<stimulus>.head.csv next to "
-                              "its recording); leave it out")
-        try:
-            opt.check_motion_options(parsed)
-        except ConfigError as error:  # the library's rule, said with the condition's options
-            raise ConfigError(f"condition {name}: {msg.as_flags(str(error), parser)}") from None
-        conditions[name] = StudyCondition(name, label, options, opt.motion_kwargs(parsed))
-    return conditions
+    parser = ConditionOptionsParser(prog=name, add_help=False)
+    opt.add_motion_options(parser)
+    opt.add_analysis_options(parser)
+    opt.add_eyebrow_options(parser)
+    try:
+        words = shlex.split(options)
+    except ValueError as error:
+        raise ConfigError(f"condition {name}: its options cannot be read ({error})") from None
+    parsed = parser.parse_args(words)
+    if parsed.ground_truth is not None:
+        raise ConfigError(f"condition {name}: --ground-truth is found per stimulus (<stimulus>.head.csv next to "
+                          "its recording); leave it out")
+    try:
+        opt.check_motion_options(parsed)
+    except ConfigError as error:  # the library's rule, said with the condition's options
+        raise ConfigError(f"condition {name}: {msg.said(error, parser)}") from None
+    return opt.motion_kwargs(parsed)
+
+
+def study_conditions(plan, path: str | None) -> dict:
+    """A StudyCondition for every condition of ``plan`` (the library's :func:`prosody.study.stimuli.
+    study_conditions`), conditions given as options read by this command's parser."""
+    from ..study.stimuli import study_conditions as conditions_of
+
+    return conditions_of(plan, path, read_options=condition_options)
 
 
 def run_stimuli(args: argparse.Namespace) -> int:
@@ -222,70 +217,28 @@ def run_export(args: argparse.Namespace) -> int:
 
 
 def run_analyze(args: argparse.Namespace) -> int:
-    from pathlib import Path
+    from ..study.analysis import analyze_study, write_analysis
 
-    from audio_features.atomic import atomic_path, atomic_write
-
-    from ..errors import BallotError
-    from ..study import ratings
-    from ..study.ballots import (
-        CONDITIONS,
-        analyze_ballots,
-        missing_pairs,
-        parse_ballots,
-        read_text_file,
-        study_markdown,
-    )
-    from ..study.designs import read_plan
-
-    plan = read_plan(args.plan) if args.plan else None
-    text = read_text_file(args.input)
-    design = ratings.ballot_design(text)
-    if plan is not None and plan.design != design:
-        raise BallotError(f"{args.input}: {design} ballots, but {args.plan} is a {plan.design} plan")
-    conditions = plan.conditions if plan is not None else None
-    report = Path(args.report or "report.md")
-    figure = report.with_name(report.stem + (".confusion.png" if design == "identification" else ".means.png"))
-    draw = None  # the report's figure, drawn once everything is checked
-    if design == "paired":
-        ballots = parse_ballots(text, source=args.input, conditions=conditions or CONDITIONS)
-        notes = missing_pairs(ballots, conditions or CONDITIONS)
-        for note in notes:
-            msg.MESSAGES.emit("warning", f"prosody study analyze: warning: {args.input}: {note}")
-        results = analyze_ballots(ballots, conditions or CONDITIONS)
-        summary = f"{len(ballots)} ballots, {len(results['scores'])} stimulus/stimuli"
-        markdown = study_markdown(ballots, results, notes=notes, conditions=conditions or CONDITIONS) \
-            if args.report else ""
-        parsed: list = ballots
-    elif design == "mos":
-        parsed = ratings.parse_ratings(text, source=args.input, conditions=conditions)
-        results = ratings.analyze_ratings(parsed, conditions)
-        summary = f"{len(parsed)} ratings by {results['subjects']} subject(s)"
-        markdown = ratings.ratings_markdown(results, figure=figure.name)
-        draw = ratings.plot_means
-    else:
-        parsed = ratings.parse_identifications(text, source=args.input, classes=conditions)
-        results = ratings.analyze_identifications(parsed, conditions)
-        summary = (f"{len(parsed)} answers by {results['subjects']} subject(s), "
-                   f"{results['overall']['accuracy']:.1%} correct (chance {results['chance']:.1%})")
-        markdown = ratings.identification_markdown(results, figure=figure.name)
-        draw = ratings.plot_confusion
-    if plan is not None:
-        strangers = [f"row {b.row} ({b.stimulus})" for b in parsed if b.stimulus not in plan.stimuli]
-        if strangers:
-            raise BallotError(f"{args.input}: {len(strangers)} ballot row(s) name a stimulus that is not in "
-                              f"{args.plan}: " + ", ".join(strangers[:20]) + (", ..." if len(strangers) > 20 else ""))
-    # every output under a temporary name, renamed only once all of them are complete
-    with contextlib.ExitStack() as pending:
-        handle = pending.enter_context(atomic_write(args.output, newline="\n"))
-        json.dump(results, handle, indent=1, allow_nan=False)
-        handle.write("\n")
-        if args.report:
-            if draw is not None:
-                draw(results, pending.enter_context(atomic_path(figure)))
-            pending.enter_context(atomic_write(args.report, newline="\n")).write(markdown)
-    msg.say(f"{args.output}: {design} study, {summary}")
+    analysis = analyze_study(args.input, args.plan)
+    for note in analysis.notes:
+        msg.MESSAGES.emit("warning", f"prosody study analyze: warning: {args.input}: {note}")
+    write_analysis(analysis, args.output, args.report)
+    msg.say(f"{args.output}: {analysis.design} study, {analysis.summary}")
     return opt.EXIT_OK
+
+
+#: What ``prosody study stimuli --help`` says the command does.
+STIMULI_DESCRIPTION = (
+    "For every stimulus and condition of PLAN, the 3D head animated by that condition with the recording's audio, "
+    "as OUT/<stimulus>/<condition>.mp4 (no curve strip and no caption, so nothing on screen names the condition), "
+    "with the same frames for the ballot's WebGL head as OUT/<stimulus>/<condition>.head.json, listed in "
+    "OUT/stimuli.json. Recordings are RECORDINGS/<stimulus>.wav (or another audio ending), with <stimulus>.head.csv "
+    "(or .fap) for the truth condition. The thesis's four conditions need no definition; others are defined in a "
+    'JSON file: {"format": "visual-prosody-study-conditions", "version": 1, "conditions": {"calm": {"label": '
+    '"Calm", "options": "--activation 0.4 --pad 0.5,-0.3,0"}}}, where options are any of \'prosody convert\'\'s '
+    "motion, face, expressivity and analysis options (or \"settings\": convert's keyword arguments as data, "
+    "docs/studies.md). Videos already made with the same settings are kept; MP4 needs ffmpeg (or the "
+    "imageio-ffmpeg package).")
 
 
 def add_parser(commands) -> None:
@@ -329,16 +282,7 @@ def add_parser(commands) -> None:
 
     stimuli = study_commands.add_parser(
         "stimuli", help="draw the video of every stimulus and condition of a plan",
-        description="For every stimulus and condition of PLAN, the 3D head animated by that condition with the "
-                    "recording's audio, as OUT/<stimulus>/<condition>.mp4 (no curve strip and no caption, so nothing "
-                    "on screen names the condition), with the same frames for the ballot's WebGL head as "
-                    "OUT/<stimulus>/<condition>.head.json, listed in OUT/stimuli.json. Recordings are RECORDINGS/"
-                    "<stimulus>.wav (or another audio ending), with <stimulus>.head.csv (or .fap) for the truth "
-                    "condition. The thesis's four conditions need no definition; others are defined in a JSON file: "
-                    '{"format": "visual-prosody-study-conditions", "version": 1, "conditions": {"calm": {"label": '
-                    '"Calm", "options": "--activation 0.4 --pad 0.5,-0.3,0"}}}, where options are any of '
-                    "'prosody convert''s motion, face, expressivity and analysis options. Videos already made with "
-                    "the same settings are kept; MP4 needs ffmpeg (or the imageio-ffmpeg package).",
+        description=STIMULI_DESCRIPTION,
     )
     stimuli.add_argument("plan", metavar="PLAN.csv", help="the study's plan")
     stimuli.add_argument("--recordings", required=True, metavar="DIR", help="folder of <stimulus>.wav recordings")

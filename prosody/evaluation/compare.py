@@ -293,7 +293,8 @@ def compare(
     wanted = [c if isinstance(c, Condition) else Condition.parse(c) for c in (conditions or CONDITION_ORDER)]
     if ground_truth is None:
         if conditions is not None and Condition.GROUND_TRUTH in wanted:
-            raise ConfigError("the GROUND_TRUTH condition needs recorded motion (ground_truth=FILE)")
+            raise ConfigError("the GROUND_TRUTH condition needs recorded motion (ground_truth=FILE)",
+                              parameter="ground_truth")
         wanted = [c for c in wanted if c is not Condition.GROUND_TRUTH]
     if features is None:
         features = extract_features(audio, **analysis.as_keywords())

@@ -488,7 +488,7 @@ def render_frames(stream: FapStream, *, width: int = 480, exaggerate: float = 1.
     if not exaggerate > 0:
         raise ConfigError(f"exaggerate must be a positive number, got {exaggerate!r}")
     if not (math.isfinite(brow_scale) and brow_scale > 0):
-        raise ConfigError(f"brow_scale must be a positive number, got {brow_scale!r}")
+        raise ConfigError(f"brow_scale must be a positive number, got {brow_scale!r}", parameter="brow_scale")
     resolved = resolve_face(face)
     photo = None if isinstance(resolved, str) else resolved
     face = resolved

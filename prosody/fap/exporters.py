@@ -386,7 +386,7 @@ def format_for(path: str | os.PathLike[str], format_name: str | None = None) -> 
             return candidate
     known = ", ".join(ending for ending, _ in endings)
     raise ConfigError(f"cannot tell the output format of {str(path)!r} from its extension ({known}); "
-                      "give output_format=NAME")
+                      "give output_format=NAME", parameter="output_format")
 
 
 def write_stream(stream: FapStream, path: str | os.PathLike[str], format_name: str | None = None, *,
@@ -422,7 +422,8 @@ def write_stream(stream: FapStream, path: str | os.PathLike[str], format_name: s
     if dat_fps is not None and chosen not in ("moho-dat", "prestonblair-dat"):
         raise ConfigError(f"dat_fps is the frame rate of a .dat switch file; {os.fsdecode(path)!r} is {chosen}")
     if extended_shapes is not None and chosen not in CUE_FORMATS:
-        raise ConfigError(f"extended_shapes chooses the shapes of mouth cues; {os.fsdecode(path)!r} is {chosen}")
+        raise ConfigError(f"extended_shapes chooses the shapes of mouth cues; {os.fsdecode(path)!r} is {chosen}",
+                          parameter="extended_shapes")
     if chosen in CUE_FORMATS:
         extra: dict = {"sound_file": sound_file, "duration_s": duration_s}
         if dat_fps is not None:

@@ -227,7 +227,8 @@ def _duration(stream: FapStream, duration_s: float | None) -> float:
         return _truncated(stream.n_frames / stream.fps)
     if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) or not (
             math.isfinite(duration_s) and duration_s >= 0):
-        raise ConfigError(f"duration_s is the recording's length in seconds (>= 0), got {duration_s!r}")
+        raise ConfigError(f"duration_s is the recording's length in seconds (>= 0), got {duration_s!r}",
+                          parameter="duration_s")
     return _truncated(float(duration_s))
 
 

@@ -89,7 +89,8 @@ class BatchOptions:
             raise ConfigError(f"brows must be 'accent' or 'thesis', got {self.brows!r}")
         if self.brow_semitones is not None and not (isinstance(self.brow_semitones, (int, float))
                                                     and 0 < self.brow_semitones <= 24):
-            raise ConfigError(f"brow_semitones must be a number of semitones in (0, 24], got {self.brow_semitones!r}")
+            raise ConfigError(f"brow_semitones must be a number of semitones in (0, 24], got {self.brow_semitones!r}",
+                              parameter="brow_semitones")
         if self.eyebrow_rule is None:
             rule: AccentRule | EyebrowRule
             if self.brows == "accent":
@@ -101,10 +102,10 @@ class BatchOptions:
             object.__setattr__(self, "eyebrow_rule", rule)
         elif not isinstance(self.eyebrow_rule, AccentRule if self.brows == "accent" else EyebrowRule):
             raise ConfigError(f"eyebrow_rule must be the rule brows={self.brows!r} names, got "
-                              f"{type(self.eyebrow_rule).__name__}")
+                              f"{type(self.eyebrow_rule).__name__}", parameter="brows")
         if self.language is not None and not self.transcripts:
             raise ConfigError("language is the transcripts' language: set transcripts=True (<stem>.txt beside each "
-                              "recording)")
+                              "recording)", parameter="transcripts")
         # the face's rules are the library's: an unknown expression or language, or a transcript the lips do not
         # read, is refused before any file
         FaceSettings(lips=self.lips)
@@ -123,7 +124,8 @@ class BatchOptions:
         object.__setattr__(self, "gains", dict(channels.gains or {}) or None)
         object.__setattr__(self, "disabled", tuple(channels.disabled))
         if self.transcripts and self.lips not in ("visemes", "combined"):
-            raise ConfigError(f"transcripts are read by the visemes; lips={self.lips!r} does not use them")
+            raise ConfigError(f"transcripts are read by the visemes; lips={self.lips!r} does not use them",
+                              parameter="lips")
         valid_seeds(self.seeds)
 
 
@@ -139,6 +141,8 @@ class FileOutcome:
     seconds: float = 0.0
     metrics: dict | None = field(default=None, repr=False)
     warnings: list[str] = field(default_factory=list)
+    #: the parameters its error and warnings name (``ParameterError.parameters``), for a command to say as options
+    parameters: tuple[str, ...] = ()
 
 
 def find_audio_files(indir: str | os.PathLike[str]) -> list[Path]:
@@ -275,6 +279,7 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
                                  language=options.language if transcript is not None else None,
                                  gains=options.gains, disabled=options.disabled)
         outcome.warnings = list(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
+        outcome.parameters = tuple(name for w in caught for name in getattr(w.message, "parameters", ()))
         folder.mkdir(parents=True, exist_ok=True)
         # the features let the summary drive the generator with this recording's audio against other ones
         comparison.features.write_csv(folder / FEATURES_FILE)
@@ -284,6 +289,7 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
         outcome.metrics = comparison.metrics
     except (VisualProsodyError, OSError, ValueError) as error:
         outcome.status, outcome.error = "failed", one_line(error)
+        outcome.parameters += getattr(error, "parameters", ())
     except Exception as error:  # noqa: BLE001 - one broken file must never stop the others
         outcome.status, outcome.error = "failed", f"unexpected {type(error).__name__}: {one_line(error)}"
     outcome.seconds = time.perf_counter() - started
@@ -376,7 +382,8 @@ def make_executor(*, jobs: int = 1, scheduler: str | None = None) -> Iterator[Ex
         try:
             from distributed import Client
         except ImportError:
-            raise ConfigError("scheduler= needs Dask distributed: pip install 'visual-prosody[cluster]'") from None
+            raise ConfigError("scheduler= needs Dask distributed: pip install 'visual-prosody[cluster]'",
+                              parameter="scheduler") from None
         client = _connect(Client, scheduler)
         executor = client.get_executor()
 
@@ -438,7 +445,7 @@ def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,
         if options.model not in SHIPPED_MODELS:
             options = BatchOptions(**{**asdict(options), "model": str(Path(options.model).resolve())})
     if ground_truth_dir is not None and not Path(ground_truth_dir).is_dir():
-        raise ConfigError(f"ground_truth_dir: {ground_truth_dir} is not a folder")
+        raise ConfigError(f"ground_truth_dir: {ground_truth_dir} is not a folder", parameter="ground_truth_dir")
     files = find_audio_files(indir)
     shared = shared_stems(files)
     out = Path(outdir)

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 from audio_features import Features, extract_features
 
-from ..errors import ConfigError
+from ..errors import ConfigError, ParameterNote
 from ..fap.fapfile import read_fap
 from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS
@@ -41,8 +41,8 @@ if TYPE_CHECKING:  # the keywords' types, for a type checker
 __all__ = ["CHANNELS", "BaseResampledWarning", "apply_controls", "convert", "load_ground_truth"]
 
 
-class BaseResampledWarning(UserWarning):
-    """A ``base`` .fap at another frame rate than the output was resampled to it."""
+class BaseResampledWarning(ParameterNote):
+    """A ``base`` .fap at another frame rate than the output was resampled to it (it names ``fps``)."""
 
 
 def apply_controls(stream: FapStream, *, rest: Mapping[int, float] | None = None,
@@ -176,8 +176,9 @@ def _base_motion(base: str | os.PathLike[str], stream: FapStream) -> FapStream:
     frames, like recorded motion); the outer brows left out where ``stream`` has brows of its own."""
     original = read_fap(base).stream
     if original.fps != stream.fps:
-        warnings.warn(f"{base}: the base is at {original.fps:g} fps and is resampled to {stream.fps:g} fps (give "
-                      f"fps={original.fps:g} to keep its rate)", BaseResampledWarning, stacklevel=3)
+        warnings.warn(BaseResampledWarning(f"{base}: the base is at {original.fps:g} fps and is resampled to "
+                                           f"{stream.fps:g} fps (give fps={original.fps:g} to keep its rate)",
+                                           parameter="fps"), stacklevel=3)
     recorded = fit_to_grid(original, n_frames=stream.n_frames, fps=stream.fps, source=str(base))
     if set(EYEBROW_FAPS) & set(stream.active_faps):
         # the brows are the condition's: the base's outer brows (35, 36) would not match its inner ones

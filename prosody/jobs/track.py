@@ -84,7 +84,8 @@ class TrackOptions:
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.av_offset_ms) or abs(self.av_offset_ms) > 5000:
-            raise ConfigError(f"av_offset_ms must be within +-5000 ms, got {self.av_offset_ms!r}")
+            raise ConfigError(f"av_offset_ms must be within +-5000 ms, got {self.av_offset_ms!r}",
+                              parameter="av_offset_ms")
         if not (np.isfinite(self.max_gap_s) and 0 <= self.max_gap_s <= 10):
             raise ConfigError(f"max_gap_s must be from 0 to 10 s, got {self.max_gap_s!r}")
         if self.max_side_px is not None and not (64 <= self.max_side_px <= 8192):
@@ -209,7 +210,7 @@ def track_video(video: str | os.PathLike[str], outdir: str | os.PathLike[str], *
     info = probe_video(path)
     sound = None if info.has_audio else _audio_beside(path, audio)
     if info.has_audio and audio is not None:
-        raise ConfigError(f"{path}: has its own sound; audio= is for videos without one")
+        raise ConfigError(f"{path}: has its own sound; audio= is for videos without one", parameter="audio")
     record = Path(f"{stem}.track.json")
     settings = _settings(path, options, sound)
     if not force and _complete(record, settings):

@@ -77,12 +77,12 @@ def live_head_model(model: LiveHeadModel | str | os.PathLike[str] | None, *, loo
     if model is None or os.fspath(model) == "prosodic":
         usable = [ms for ms in SHIPPED_LOOKAHEADS_MS if ms <= lookahead_ms + 1e-9]
         if not usable:
-            raise ConfigError(f"lookahead_ms must be >= 0, got {lookahead_ms!r}")
+            raise ConfigError(f"lookahead_ms must be >= 0, got {lookahead_ms!r}", parameter="lookahead_ms")
         return LiveHeadModel.load(shipped_live_model_path(max(usable)))
     if os.fspath(model) in OFFLINE_ONLY_MODELS:
         raise ConfigError(f"model={os.fspath(model)}: {OFFLINE_ONLY_MODELS[os.fspath(model)]}, so it is not "
                           "offered live; stream with the live head (prosodic, the default) or a model from "
-                          "'prosody train --kind live'")
+                          "'prosody train --kind live'", parameter="model")
     return LiveHeadModel.from_dict(read_model_json(model), source=str(model))
 
 
@@ -154,7 +154,8 @@ class LiveConverter:
         if chosen is Condition.GROUND_TRUTH:
             raise ConfigError("recorded motion (condition truth) has no live form; choose speech, random or none")
         if not (isinstance(lookahead_ms, (int, float)) and math.isfinite(lookahead_ms) and 0 <= lookahead_ms <= 2000):
-            raise ConfigError(f"lookahead_ms must be a number in [0, 2000], got {lookahead_ms!r}")
+            raise ConfigError(f"lookahead_ms must be a number in [0, 2000], got {lookahead_ms!r}",
+                              parameter="lookahead_ms")
         self.condition = chosen
         self.analyser = StreamingAnalyser(sample_rate_hz, **analysis.as_keywords())
         self.fps = self.analyser.fps
@@ -180,7 +181,7 @@ class LiveConverter:
             head_model = live_head_model(motion.model, lookahead_ms=lookahead_ms)
             if head_model.fps_ != self.fps:
                 raise ConfigError(f"the live head model runs at {head_model.fps_:g} fps; stream at fps="
-                                  f"{head_model.fps_:g} or train a live model at {self.fps:g} fps")
+                                  f"{head_model.fps_:g} or train a live model at {self.fps:g} fps", parameter="fps")
             self._head = head_model.start(lookahead=self.lookahead_frames, seed=motion.seed)
             self._brows = live_brows(motion.eyebrow_rule, fps=self.fps, lookahead=self.lookahead_frames)
         elif chosen is Condition.RANDOM:

@@ -175,7 +175,7 @@ def check_session(options: StreamOptions, source: AudioSource | None,
     _check_output(options, source, flag)
     if options.allow_origin and options.listen is None:
         raise ConfigError(f"{flag('allow_origin')} names pages allowed to open the stream of {flag('listen')}; "
-                          f"give {flag('listen')} too")
+                          f"give {flag('listen')} too", parameter="allow_origin")
     if options.allow_origin:
         from .server import normalize_origin
 
@@ -195,10 +195,11 @@ def _check_sources_and_sinks(options: StreamOptions, source: AudioSource | None,
         raise ConfigError(f"{flag('livelink')} and {flag('vmc')} send the frames of an input: give a file, - or "
                           f"{flag('mic')}")
     if options.vmc_perfect_sync and not options.vmc:
-        raise ConfigError(f"{flag('vmc_perfect_sync')} chooses what {flag('vmc')} sends; give {flag('vmc')} too")
+        raise ConfigError(f"{flag('vmc_perfect_sync')} chooses what {flag('vmc')} sends; give {flag('vmc')} too",
+                          parameter="vmc_perfect_sync")
     if options.livelink_subject != "prosody" and not options.livelink:
         raise ConfigError(f"{flag('livelink_subject')} names the stream of {flag('livelink')}; give "
-                          f"{flag('livelink')} too")
+                          f"{flag('livelink')} too", parameter="livelink_subject")
 
 
 def _check_output(options: StreamOptions, source: AudioSource | None, flag: Callable[[str], str]) -> None:

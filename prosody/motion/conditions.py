@@ -73,13 +73,14 @@ def check_condition(condition: Condition | str, *, ground_truth: object = None, 
     name = _NAMES[chosen]
     if ground_truth is not None and chosen is not Condition.GROUND_TRUTH:
         raise ConfigError(f"ground_truth= is the recorded motion of condition=truth; it is not used by "
-                          f"condition={name}")
+                          f"condition={name}", parameter=("ground_truth", "condition"))
     if model is not None and chosen is not Condition.SPEECH_DRIVEN:
-        raise ConfigError(f"model= is the head model of condition=speech; it is not used by condition={name}")
+        raise ConfigError(f"model= is the head model of condition=speech; it is not used by condition={name}",
+                          parameter=("model", "condition"))
     if expressivity is not None and not expressivity.is_neutral and chosen in (Condition.NO_PROSODY,
                                                                             Condition.GROUND_TRUTH):
         raise ConfigError(f"the expressivity controls shape generated motion; condition={name} has none (choose "
-                          "speech or random)")
+                          "speech or random)", parameter="condition")
     return chosen
 #: The conditions' short names as the commands take them, the default first; live streams have no recording.
 CONDITION_NAMES = ("speech", "random", "none", "truth")
@@ -178,7 +179,8 @@ def condition_stream(
         curves = expressive(curves, fps=fps, expressivity=expressivity, rest=rest_pose(model))
         return FapStream.from_curves(curves, fps=fps, name=name, n_frames=n)
     if ground_truth is None:
-        raise ConfigError("the GROUND_TRUTH condition needs recorded motion (ground_truth=FILE)")
+        raise ConfigError("the GROUND_TRUTH condition needs recorded motion (ground_truth=FILE)",
+                          parameter="ground_truth")
     if ground_truth.n_frames != n or ground_truth.fps != fps:
         raise GroundTruthError("recorded motion must be on the features' frame grid (use fit_to_grid)")
     stream = ground_truth.select(PROSODY_FAPS).renamed(name)

@@ -95,7 +95,7 @@ class EyebrowRule:
                      "offset_ens", "min_hold_s"):
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)):
-                raise ConfigError(f"{name} must be a finite number, got {value!r}")
+                raise ConfigError(f"{name} must be a finite number, got {value!r}", parameter=name)
         if not self.min_hold_s >= 0:
             raise ConfigError(f"min_hold_s must be >= 0, got {self.min_hold_s!r}")
         if not (isinstance(self.ramp_frames, int) and self.ramp_frames >= 1):
@@ -290,7 +290,7 @@ class AccentRule:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
                 # (NaN fails the range test too)
-                raise ConfigError(f"{name} must be a number in [{low:g}, {high:g}], got {value!r}")
+                raise ConfigError(f"{name} must be a number in [{low:g}, {high:g}], got {value!r}", parameter=name)
         if self.max_hold_s < self.min_hold_s:
             raise ConfigError(f"max_hold_s ({self.max_hold_s!r}) must be >= min_hold_s ({self.min_hold_s!r})")
 

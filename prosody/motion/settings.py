@@ -150,15 +150,17 @@ class FaceSettings:
         # settings the lips would ignore are refused (the messages name the parameters)
         lips = self.lips or "none"
         if self.transcript is not None and lips not in ("visemes", "combined"):
-            raise ConfigError(f"transcript= is read by the visemes; it is not used by lips={lips}")
+            raise ConfigError(f"transcript= is read by the visemes; it is not used by lips={lips}",
+                              parameter=("transcript", "lips"))
         if self.language is not None and self.transcript is None:
             raise ConfigError("language= is the transcript's language: give transcript= too (without one, "
-                              "lips=acoustic follows any language)")
+                              "lips=acoustic follows any language)", parameter=("language", "transcript", "lips"))
         if self.mouth_model is not None and lips not in ("acoustic", "combined"):
             raise ConfigError(f"mouth_model= is the model of lips=acoustic (or combined); it is not used by "
-                              f"lips={lips}")
+                              f"lips={lips}", parameter=("mouth_model", "lips"))
         if self.pad_map is not None and self.pad is None:
-            raise ConfigError("pad_map= maps the state of pad= to the face; give pad= too")
+            raise ConfigError("pad_map= maps the state of pad= to the face; give pad= too",
+                              parameter=("pad_map", "pad"))
         if self.language is not None:  # before any work: nothing eSpeak NG does not list reaches it
             from audio_features.espeak import check_language
 
@@ -322,7 +324,7 @@ def overridden(kind: type[Settings], given: object, fields: dict[str, Any], *, n
     if given is None:
         given = kind()
     if not isinstance(given, kind):
-        raise ConfigError(f"{name} must be a {kind.__name__}, got {given!r}")
+        raise ConfigError(f"{name} must be a {kind.__name__}, got {given!r}", parameter=name)
     own = [f.name for f in dataclasses.fields(cast(Any, kind)) if f.init]
     picked = {key: fields.pop(key) for key in own if key in fields}
     return cast(Settings, dataclasses.replace(cast(Any, given), **picked)) if picked else given

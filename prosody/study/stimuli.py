@@ -7,15 +7,20 @@ on screen names the condition) animated by one condition, with the recording's a
 together, drawing the head itself from the frames (the video gives the sound and the clock) or, where WebGL is
 off, showing the videos.
 
-A condition is what ``prosody convert`` would make with some options: the thesis's four (``none``, ``random``,
-``speech``, ``truth``) need no options; a study's own are given in a conditions file (JSON)::
+A condition is what :func:`prosody.convert` makes with some settings: the thesis's four (``none``, ``random``,
+``speech``, ``truth``) are :data:`BUILT_IN`; a study's own are given in a conditions file (JSON), as
+``convert``'s keyword arguments in plain values (``settings``) or as ``prosody convert``'s options (``options``,
+read by ``prosody study stimuli``)::
 
     {"format": "visual-prosody-study-conditions", "version": 1,
-     "conditions": {"calm":  {"label": "Calm",  "options": "--activation 0.4 --pad 0.5,-0.3,0"},
-                    "arx":   {"options": "--model arx --brows thesis"}}}
+     "conditions": {"calm": {"label": "Calm", "settings": {"expressivity": {"activation": 0.4},
+                                                           "pad": "0.5,-0.3,0"}},
+                    "arx":  {"options": "--model arx --brows thesis"}}}
 
-``options`` are ``prosody convert``'s motion, face, expressivity and analysis options; ``label`` is what the
-participant reads in an identification study (default: the name).
+In ``settings``, ``expressivity`` is an object of :class:`~prosody.motion.expressivity.Expressivity`'s fields
+and ``eyebrow_rule`` one of :class:`~prosody.motion.eyebrows.AccentRule`'s (``{"rule": "accent", ...}``) or
+:class:`~prosody.motion.eyebrows.EyebrowRule`'s (``{"rule": "thesis", ...}``); the rest are as ``convert`` takes
+them. ``label`` is what the participant reads in an identification study (default: the name).
 
 Recordings are found by the stimulus's name in a folder: ``<stimulus>.wav`` (or any audio ending the other
 commands read), with ``<stimulus>.head.csv`` (or ``.fap``) for ``truth``. Every input is checked before the
@@ -54,24 +59,123 @@ MANIFEST = "stimuli.json"
 FACE_FILE = "face.png"
 #: Largest conditions or manifest file read.
 MAX_JSON_BYTES = 16 << 20
-#: The thesis's four conditions: the ``convert`` options that make each.
-BUILT_IN = {"NO_PROSODY": "--condition none", "RANDOM": "--condition random",
-            "SPEECH_DRIVEN": "--condition speech", "GROUND_TRUTH": "--condition truth"}
+#: The thesis's four conditions: the settings (``convert``'s keyword arguments) that make each.
+BUILT_IN: dict[str, dict[str, Any]] = {"NO_PROSODY": {"condition": "none"}, "RANDOM": {"condition": "random"},
+                                       "SPEECH_DRIVEN": {"condition": "speech"},
+                                       "GROUND_TRUTH": {"condition": "truth"}}
+#: What a condition's settings may not hold: the recorded motion is found per stimulus.
+PER_STIMULUS = ("ground_truth", "base", "features", "output_format", "progress")
 
 
 @dataclass(frozen=True)
 class StudyCondition:
-    """One condition of a study: its name, the label participants read, the ``convert`` options it was given
-    as (for the manifest) and the keyword arguments of :func:`prosody.jobs.pipeline.convert` they mean."""
+    """One condition of a study: its name, the label participants read, its settings (the keyword arguments of
+    :func:`prosody.jobs.pipeline.convert`, checked by :func:`condition_settings`) and, where it was given as
+    ``prosody convert``'s options, those (the manifest records them)."""
 
     name: str
     label: str
-    options: str
     settings: Mapping[str, Any] = field(default_factory=dict)
+    options: str = ""
 
     @property
     def needs_truth(self) -> bool:
         return Condition.parse(str(self.settings.get("condition", "speech"))) is Condition.GROUND_TRUTH
+
+    @property
+    def recipe(self) -> str:
+        """What made it, as the manifest records it: its options, or its settings as JSON."""
+        return self.options or json.dumps(self.settings, sort_keys=True, default=repr)
+
+
+def condition_settings(name: str, given: Mapping[str, Any]) -> dict[str, Any]:
+    """A condition's settings from plain values (a conditions file's ``settings``), checked by the library's
+    rules as :func:`~prosody.jobs.pipeline.convert` would check them, before any video is drawn.
+
+    Parameters
+    ----------
+    name : str
+        The condition, for the messages.
+    given : mapping
+        ``convert``'s keyword arguments; ``expressivity`` and ``eyebrow_rule`` as objects of their fields.
+
+    Returns
+    -------
+    dict
+        The keyword arguments of ``convert``.
+
+    Examples
+    --------
+    >>> condition_settings("calm", {"expressivity": {"activation": 0.4}})["expressivity"].activation
+    0.4
+    >>> condition_settings("calm", {"condition": "none", "model": "arx"})
+    Traceback (most recent call last):
+    ...
+    prosody.errors.ConfigError: condition calm: model= is the head model of condition=speech; it is not used by \
+condition=none
+    """
+    from ..motion.conditions import check_condition
+    from ..motion.expressivity import Expressivity
+    from ..motion.eyebrows import AccentRule, EyebrowRule
+    from ..motion.settings import settings_groups
+
+    settings = dict(given)
+    try:
+        if kept := [key for key in PER_STIMULUS if key in settings]:
+            raise ConfigError(f"{', '.join(kept)} is found per stimulus (ground_truth: <stimulus>.head.csv next to "
+                              "its recording); leave it out", parameter=tuple(kept))
+        if isinstance(settings.get("expressivity"), Mapping):
+            settings["expressivity"] = Expressivity(**settings["expressivity"])
+        if isinstance(settings.get("eyebrow_rule"), Mapping):
+            fields = dict(settings["eyebrow_rule"])
+            rule = {"accent": AccentRule, "thesis": EyebrowRule}.get(fields.pop("rule", None))
+            if rule is None:
+                raise ConfigError("eyebrow_rule needs \"rule\": \"accent\" or \"thesis\"", parameter="eyebrow_rule")
+            settings["eyebrow_rule"] = rule(**fields)
+        condition = settings.pop("condition", "speech")
+        groups = settings_groups("convert", settings)
+        check_condition(condition, model=groups.motion.model, expressivity=groups.motion.expressivity)
+    except TypeError as error:  # a keyword convert (or a rule) does not take
+        raise ConfigError(f"condition {name}: {error}") from None
+    except ConfigError as error:
+        raise ConfigError(f"condition {name}: {error}", parameter=error.parameters) from None
+    return {"condition": condition, **settings}
+
+
+def study_conditions(plan: StudyPlan, path: str | os.PathLike[str] | None = None, *,
+                     read_options: Callable[[str, str], dict[str, Any]] | None = None) -> dict[str, StudyCondition]:
+    """A :class:`StudyCondition` for every condition of ``plan``: the thesis's four from :data:`BUILT_IN`, the
+    others from the conditions file ``path``.
+
+    Parameters
+    ----------
+    plan : StudyPlan
+    path : path-like, optional
+        The conditions file.
+    read_options : callable (name, options) -> settings, optional
+        Reads a condition given as command-line options (the ``prosody`` command gives its own); without it,
+        such a condition is refused.
+
+    Returns
+    -------
+    dict
+        Name -> condition, in the plan's order.
+    """
+    given = read_conditions(path) if path is not None else {}
+    conditions = {}
+    for name in plan.conditions:
+        if name not in given and name not in BUILT_IN:
+            raise ConfigError(f"the plan's condition {name} is not one of the thesis's four: define it in a "
+                              "conditions file (--conditions FILE.json)")
+        label, entry = given.get(name, (name, {"settings": BUILT_IN.get(name, {})}))
+        if "options" in entry:
+            if read_options is None:
+                raise ConfigError(f"condition {name} is given as command-line options: give its \"settings\" "
+                                  "instead, or make the stimuli with 'prosody study stimuli'")
+            conditions[name] = StudyCondition(name, label, read_options(name, entry["options"]), entry["options"])
+        else:
+            conditions[name] = StudyCondition(name, label, condition_settings(name, entry["settings"]))
+    return conditions
 
 
 def _read_json(path: str | os.PathLike[str], what: str) -> dict:
@@ -88,8 +192,9 @@ def _read_json(path: str | os.PathLike[str], what: str) -> dict:
     return payload
 
 
-def read_condition_options(path: str | os.PathLike[str]) -> dict[str, tuple[str, str]]:
-    """A conditions file: ``{name: (label, options)}`` in the file's order (names checked as plans check them)."""
+def read_conditions(path: str | os.PathLike[str]) -> dict[str, tuple[str, dict[str, Any]]]:
+    """A conditions file: ``{name: (label, entry)}`` in the file's order (names checked as plans check them),
+    each entry holding its ``settings`` (an object) or its ``options`` (text)."""
     from .ballots import condition_name
 
     payload = _read_json(path, "study conditions file")
@@ -99,18 +204,27 @@ def read_condition_options(path: str | os.PathLike[str]) -> dict[str, tuple[str,
     entries = payload.get("conditions")
     if not isinstance(entries, dict) or not entries:
         raise ConfigError(f"{path}: \"conditions\" must be an object of one or more named conditions")
-    found: dict[str, tuple[str, str]] = {}
+    found: dict[str, tuple[str, dict[str, Any]]] = {}
     for raw, entry in entries.items():
         try:
             name = condition_name(raw)
         except ConfigError as error:
             raise ConfigError(f"{path}: {error}") from None
-        if not isinstance(entry, dict) or set(entry) - {"label", "options"}:
-            raise ConfigError(f"{path}: condition {raw!r} must be an object with \"options\" (and \"label\")")
-        options, label = entry.get("options", ""), entry.get("label", name)
-        if not isinstance(options, str) or not isinstance(label, str) or not label.strip() or len(label) > 80:
-            raise ConfigError(f"{path}: condition {raw!r}: \"options\" must be text and \"label\" 1-80 characters")
-        found[name] = (label.strip(), options)
+        if (not isinstance(entry, dict) or set(entry) - {"label", "options", "settings"}
+                or len(set(entry) & {"options", "settings"}) > 1):
+            raise ConfigError(f"{path}: condition {raw!r} must be an object with \"settings\" or \"options\" (and "
+                              "\"label\")")
+        label = entry.get("label", name)
+        if not isinstance(label, str) or not label.strip() or len(label) > 80:
+            raise ConfigError(f"{path}: condition {raw!r}: \"label\" must be 1-80 characters")
+        if "options" in entry:
+            if not isinstance(entry["options"], str):
+                raise ConfigError(f"{path}: condition {raw!r}: \"options\" must be text")
+            found[name] = (label.strip(), {"options": entry["options"]})
+        else:
+            if not isinstance(entry.get("settings", {}), dict):
+                raise ConfigError(f"{path}: condition {raw!r}: \"settings\" must be an object")
+            found[name] = (label.strip(), {"settings": entry.get("settings", {})})
     return found
 
 
@@ -214,7 +328,7 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
     manifest: dict[str, Any] = {"format": STIMULI_FORMAT, "version": FORMAT_VERSION, "plan_sha256": plan.sha256,
                 "design": plan.design, "width": width,
                 **({"face": {"file": FACE_FILE, "sha256": _sha256(out / FACE_FILE)}} if photo is not None else {}),
-                "conditions": {name: {"label": conditions[name].label, "options": conditions[name].options}
+                "conditions": {name: {"label": conditions[name].label, "recipe": conditions[name].recipe}
                                for name in plan.conditions},
                 "videos": {}}
     needed = sorted({(trial.stimulus, name) for trial in plan.trials for name in trial.conditions},
@@ -222,7 +336,7 @@ def make_stimuli(plan: StudyPlan, recordings: str | os.PathLike[str], output: st
     for done, (stimulus, name) in enumerate(needed, start=1):
         audio, truth = inputs[stimulus]
         condition = conditions[name]
-        settings = json.dumps({"options": condition.options, "audio": _sha256(audio), "width": width,
+        settings = json.dumps({"recipe": condition.recipe, "audio": _sha256(audio), "width": width,
                                **({"face": photo_digest} if photo_digest is not None else {}),
                                "truth": _sha256(truth) if truth is not None and condition.needs_truth else None},
                               sort_keys=True)

@@ -83,7 +83,8 @@ class ExpressionSegment:
             raise ConfigError(f"expression intensity must be in [0, 1], got {self.intensity!r}")
         end = math.inf if self.end_s is None else self.end_s
         if not (math.isfinite(self.start_s) and 0 <= self.start_s < end):
-            raise ConfigError(f"an expression needs 0 <= start_s < end_s, got {self.start_s!r} and {self.end_s!r}")
+            raise ConfigError(f"an expression needs 0 <= start_s < end_s, got {self.start_s!r} and {self.end_s!r}",
+                              parameter="start_s")
 
 
 def parse_expressions(spec: str) -> list[ExpressionSegment]:
@@ -135,7 +136,8 @@ def read_expression_file(path: str | os.PathLike[str]) -> list[ExpressionSegment
             start, end, expression, intensity = row
             segments.append(ExpressionSegment(expression.lower(), float(intensity), float(start), float(end)))
         except ValueError as error:
-            raise ConfigError(f"{path}, line {line}: expected start_s,end_s,expression,intensity ({error})") from None
+            raise ConfigError(f"{path}, line {line}: expected start_s,end_s,expression,intensity ({error})",
+                              parameter="start_s") from None
     return segments
 
 

@@ -57,10 +57,11 @@ class PadSegment:
         for name in ("pleasure", "arousal", "dominance"):
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and -1 <= value <= 1):
-                raise ConfigError(f"{name} must be a number in [-1, 1], got {value!r}")
+                raise ConfigError(f"{name} must be a number in [-1, 1], got {value!r}", parameter=name)
         end = math.inf if self.end_s is None else self.end_s
         if not (math.isfinite(self.start_s) and 0 <= self.start_s < end):
-            raise ConfigError(f"a PAD state needs 0 <= start_s < end_s, got {self.start_s!r} and {self.end_s!r}")
+            raise ConfigError(f"a PAD state needs 0 <= start_s < end_s, got {self.start_s!r} and {self.end_s!r}",
+                              parameter="start_s")
 
     def covers(self, time_s: float) -> bool:
         return self.start_s <= time_s < (math.inf if self.end_s is None else self.end_s)

@@ -162,7 +162,7 @@ class ArxHeadModel:
     def _check_orders(self) -> None:
         for name, value, low in (("na", self.na, 0), ("nb", self.nb, 1), ("nk", self.nk, 0)):
             if not (isinstance(value, (int, np.integer)) and value >= low):
-                raise ConfigError(f"{name} must be a whole number >= {low}, got {value!r}")
+                raise ConfigError(f"{name} must be a whole number >= {low}, got {value!r}", parameter=name)
         if not (math.isfinite(self.ridge) and 0 <= self.ridge <= MAX_RIDGE):
             raise ConfigError(f"ridge must be a number in [0, {MAX_RIDGE:g}], got {self.ridge!r}")
         if not (math.isfinite(self.smoothing_s) and 0 < self.smoothing_s <= 60):
