@@ -136,12 +136,16 @@ def morph_targets(rig: HeadRig, stream: FapStream) -> list[tuple[int, int, str, 
     return targets
 
 
-def _image_bytes(image: np.ndarray) -> bytes:
+def _image_bytes(image: np.ndarray) -> tuple[bytes, str]:
+    """An image as JPEG, or as PNG where it has an alpha channel; with its MIME type."""
     from PIL import Image
 
     out = io.BytesIO()
+    if image.ndim == 3 and image.shape[2] == 4:
+        Image.fromarray(image).save(out, format="PNG")
+        return out.getvalue(), "image/png"
     Image.fromarray(image).save(out, format="JPEG", quality=92)
-    return out.getvalue()
+    return out.getvalue(), "image/jpeg"
 
 
 def glb_document(stream: FapStream, *, rig: HeadRig | None = None, photo: PhotoHead | None = None
@@ -230,10 +234,13 @@ def glb_document(stream: FapStream, *, rig: HeadRig | None = None, photo: PhotoH
         meshes += _photo_meshes(photo, buffer, place, pivot)
         nodes += [{"name": "person", "mesh": 1, "skin": 0}, {"name": "backdrop", "mesh": 2}]
         scene_nodes = [0, 3, 4]
-        images = [_image_bytes(photo.image), _image_bytes(photo.background)]
+        # the person's texture carries its coverage as alpha: round the outline the backdrop shows (MASK)
+        coverage = np.round(255 * np.clip(photo.coverage, 0, 1)).astype(np.uint8)
+        images = [_image_bytes(photo.image), _image_bytes(photo.background),
+                  _image_bytes(np.dstack([photo.image, coverage]))]
 
     animation = _animation(stream, values, targets, buffer)
-    image_entries = [_embed(buffer, data) for data in images]
+    image_entries = [_embed(buffer, *image) for image in images]
     document = {
         "asset": {"version": "2.0", "generator": "visual-prosody"},
         "scene": 0,
@@ -257,7 +264,8 @@ def glb_document(stream: FapStream, *, rig: HeadRig | None = None, photo: PhotoH
 
 def _materials(photo: bool) -> list[dict]:
     """The head's skin (or the photo, unlit: it is lit as it was taken) and the mouth (double-sided); with a
-    photo, the person's and the background's materials (unlit, textures 0 and 1)."""
+    photo, the person's and the background's materials (unlit, textures 2 and 1: the person's is the photo
+    with its coverage as alpha, cut at one half, so no strip of background turns with the head)."""
     def material(name: str, roughness: float, **more) -> dict:
         return {"name": name, **more, "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0.0,
                                                                "roughnessFactor": roughness}}
@@ -267,8 +275,9 @@ def _materials(photo: bool) -> list[dict]:
         return [material("skin", 0.7), material("mouth", 0.6, doubleSided=True)]
     materials = [material("photo", 1.0, extensions=unlit), material("mouth", 0.6, doubleSided=True),
                  material("person", 1.0, extensions=unlit), material("background", 1.0, extensions=unlit)]
-    for entry, texture in zip((materials[0], materials[2], materials[3]), (0, 0, 1), strict=True):
+    for entry, texture in zip((materials[0], materials[2], materials[3]), (0, 2, 1), strict=True):
         entry["pbrMetallicRoughness"]["baseColorTexture"] = {"index": texture}
+    materials[2].update(alphaMode="MASK", alphaCutoff=0.5)
     return materials
 
 
@@ -306,13 +315,13 @@ def _skin_weights(share: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return joints, weights
 
 
-def _embed(buffer: _Buffer, data: bytes) -> dict:
-    """An image in the binary chunk (JPEG), as a glTF image entry."""
+def _embed(buffer: _Buffer, data: bytes, mime_type: str) -> dict:
+    """An image in the binary chunk (JPEG or PNG), as a glTF image entry."""
     while len(buffer.data) % 4:
         buffer.data.append(0)
     buffer.views.append({"buffer": 0, "byteOffset": len(buffer.data), "byteLength": len(data)})
     buffer.data += data
-    return {"bufferView": len(buffer.views) - 1, "mimeType": "image/jpeg"}
+    return {"bufferView": len(buffer.views) - 1, "mimeType": mime_type}
 
 
 def _photo_meshes(photo: PhotoHead, buffer: _Buffer, place, pivot: np.ndarray) -> list[dict]:

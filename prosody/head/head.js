@@ -178,7 +178,8 @@
     uniform vec3 light0; uniform vec3 light1; uniform vec4 strengths; uniform float shininess;
     varying vec3 vNormal; varying vec3 vColor; varying vec2 vUV; varying float vTextured;
     void main() {
-      if (vTextured > 0.5) { gl_FragColor = vec4(texture2D(image, vUV).rgb, 1.0); return; }
+      // the photo's alpha is the person's coverage: round the outline the background behind the canvas shows
+      if (vTextured > 0.5) { vec4 t = texture2D(image, vUV); gl_FragColor = vec4(t.rgb * t.a, t.a); return; }
       vec3 n = normalize(vNormal);
       if (n.z < 0.0) n = -n;
       float diffuse = strengths.z + strengths.x * max(dot(n, light0), 0.0) + strengths.y * max(dot(n, light1), 0.0);
@@ -200,7 +201,8 @@
       this.attribute("behind", new Float32Array(model.behind), 1);
       const texture = gl.createTexture();
       gl.bindTexture(gl.TEXTURE_2D, texture);
-      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGB, gl.RGB, gl.UNSIGNED_BYTE, image);
+      gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA, gl.RGBA, gl.UNSIGNED_BYTE, image);
       for (const [name, value] of [[gl.TEXTURE_MIN_FILTER, gl.LINEAR], [gl.TEXTURE_MAG_FILTER, gl.LINEAR],
                                    [gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE], [gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE]]) {
         gl.texParameteri(gl.TEXTURE_2D, name, value);

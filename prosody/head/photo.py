@@ -21,7 +21,9 @@ and a texture). Here the photo gives both:
    the chin and stays still at the shoulders, the neck bending between.
 4. **The background** stays as photographed; behind the person it is filled with the background round it,
    blurred (a normalised convolution), so that what a turned head uncovers is background, not a hole, a
-   streak or the head twice.
+   streak or the head twice. The person's grid carries the photo over the person and :data:`EDGE_GROW` past
+   the outline only (:attr:`PhotoHead.coverage`); beyond, its cells are transparent, so a turned head moves
+   no strip of the background with it.
 
 The photo is seen by an orthographic camera (a face's depth is small beside its distance from the camera),
 so the frames keep the photo's framing and pixels. Everything needs the ``track`` extra (MediaPipe, whose
@@ -93,6 +95,9 @@ RELIGHT_AMBIENT = 0.35  # > 0: the ratio below is bounded
 RELIGHT_FADE_CM = 2.0
 #: Side of the person layer's grid cells, as a fraction of the photo's longer side.
 GRID_STEP = 1 / 110
+#: How far past the person's outline the photo moves with the person, as a share of the photo's longer side
+#: (3 pixels at 512): the outline's own soft edge, and no more of the background.
+EDGE_GROW = 1 / 170
 #: The person's grid is left out this far inside the face's outline (the face always covers it there), cm.
 HIDDEN_UNDER_FACE_CM = 1.0
 
@@ -125,6 +130,9 @@ class PhotoHead:
     layer_triangles : int (q, 3).
     background : uint8 (height, width, 3), the photo with the person filled in.
     person : bool (height, width), where the person is.
+    coverage : float32 (height, width), how much of each pixel the person's layer covers: 1 over the person
+        and a few pixels round it (:data:`EDGE_GROW`), fading to 0 beyond; where it is below 1 the filled
+        background shows through, so the grid's cells round the outline carry no background with them.
     notes : things worth telling the user (several faces, lips apart, scaled down).
     """
 
@@ -141,6 +149,7 @@ class PhotoHead:
     layer_triangles: np.ndarray
     background: np.ndarray
     person: np.ndarray
+    coverage: np.ndarray
     notes: tuple[str, ...] = ()
 
     @property
@@ -410,8 +419,30 @@ def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None =
 
     person = person_mask(image, landmarks)
     layer = _person_layer(image.shape[:2], person, face, scale, turn, offset, landmarks)
-    background = fill_background(image, person, margin_px=max(2, round(2.5 * GRID_STEP * max(image.shape[:2]))))
-    return PhotoHead(label, image, rig, scale, turn, offset, uv, *layer, background, person, tuple(notes))
+    edge = max(2, round(EDGE_GROW * max(image.shape[:2])))
+    background = fill_background(image, person, margin_px=edge)
+    return PhotoHead(label, image, rig, scale, turn, offset, uv, *layer, background, person,
+                     person_coverage(person, edge), tuple(notes))
+
+
+def person_coverage(person: np.ndarray, edge_px: int) -> np.ndarray:
+    """How much the person's layer covers each pixel: 1 over the person grown by ``edge_px`` (where the
+    background is filled), fading to 0 over about a third of that beyond it.
+
+    Parameters
+    ----------
+    person : bool (height, width)
+    edge_px : int
+
+    Returns
+    -------
+    float32 (height, width), 0..1
+    """
+    from scipy.ndimage import binary_dilation, gaussian_filter
+
+    grown = binary_dilation(person, iterations=max(1, edge_px))
+    soft = gaussian_filter(grown.astype(np.float32), max(0.5, edge_px / 3))
+    return np.maximum(soft, person).astype(np.float32)
 
 
 def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, scale: float, turn: np.ndarray,
@@ -563,7 +594,8 @@ class PhotoRenderer:
         # the mouth's inside as bright as the photo's light: its colours times the face's brightness in the
         # photo over the head's own skin's
         self.colors[:n_rig][np.isin(mesh.part, _SHADED_PARTS)] *= photo_exposure(head)
-        self.texture = head.image.astype(np.float32) / 255.0
+        # the photo with its coverage: round the person's outline the grid's cells show what is behind them
+        self.texture = np.dstack([head.image.astype(np.float32) / 255.0, head.coverage]).astype(np.float32)
         background = Image.fromarray(head.background)
         if (self.width, self.height) != (head.width, head.height):
             background = background.resize((self.width, self.height), Image.Resampling.LANCZOS)

@@ -205,27 +205,34 @@ def rasterise(screen: np.ndarray, triangles: np.ndarray, normals: np.ndarray, co
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _texel(texture, u, v, rgb, gain0, gain1, gain2):  # pragma: no cover - compiled
-    """Add the bilinear sample of ``texture`` (h, w, 3; 0..1) at pixel coordinates (u, v), times a gain per
-    channel."""
+def _texel(texture, u, v, rgb, gain0, gain1, gain2, behind):  # pragma: no cover - compiled
+    """Add the bilinear sample of ``texture`` (h, w, 3 or 4; 0..1) at pixel coordinates (u, v), times a gain
+    per channel. A fourth channel is the texture's coverage: where it is below 1, ``behind`` (the background's
+    colour at that pixel) shows through."""
     height, width = texture.shape[0], texture.shape[1]
     x = min(max(u - 0.5, 0.0), width - 1.0)
     y = min(max(v - 0.5, 0.0), height - 1.0)
     x0, y0 = int(x), int(y)
     x1, y1 = min(x0 + 1, width - 1), min(y0 + 1, height - 1)
     fx, fy = x - x0, y - y0
+    cover = 1.0
+    if texture.shape[2] > 3:
+        top = texture[y0, x0, 3] * (1 - fx) + texture[y0, x1, 3] * fx
+        bottom = texture[y1, x0, 3] * (1 - fx) + texture[y1, x1, 3] * fx
+        cover = top * (1 - fy) + bottom * fy
     for channel in range(3):
         top = texture[y0, x0, channel] * (1 - fx) + texture[y0, x1, channel] * fx
         bottom = texture[y1, x0, channel] * (1 - fx) + texture[y1, x1, channel] * fx
         gain = gain0 if channel == 0 else (gain1 if channel == 1 else gain2)
-        rgb[channel] += min((top * (1 - fy) + bottom * fy) * gain, 1.0)
+        rgb[channel] += cover * min((top * (1 - fy) + bottom * fy) * gain, 1.0) + (1 - cover) * behind[channel]
 
 
 @njit(cache=True, nogil=True, inline="always")
 def _paint_sample(t, w0, w1, triangles, normals, colors, uv, textured, texture, lights, strengths,
-                  rgb):  # pragma: no cover - compiled
+                  rgb, behind):  # pragma: no cover - compiled
     """Add the colour of the point (w0, w1) of triangle t: where the triangle is textured, the texture times
-    the vertex colours (a gain: 1 shows the texture as it is), else its shaded vertex colour."""
+    the vertex colours (a gain: 1 shows the texture as it is; where the texture's coverage is partial, over
+    ``behind``), else its shaded vertex colour."""
     if textured[t]:
         a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
         w2 = 1.0 - w0 - w1
@@ -233,7 +240,7 @@ def _paint_sample(t, w0, w1, triangles, normals, colors, uv, textured, texture, 
         v = w0 * uv[a, 1] + w1 * uv[b, 1] + w2 * uv[c, 1]
         _texel(texture, u, v, rgb, w0 * colors[a, 0] + w1 * colors[b, 0] + w2 * colors[c, 0],
                w0 * colors[a, 1] + w1 * colors[b, 1] + w2 * colors[c, 1],
-               w0 * colors[a, 2] + w1 * colors[b, 2] + w2 * colors[c, 2])
+               w0 * colors[a, 2] + w1 * colors[b, 2] + w2 * colors[c, 2], behind)
     else:
         _shade_sample(t, w0, w1, triangles, normals, colors, lights, strengths, rgb)
 
@@ -266,7 +273,7 @@ def _resolve_textured(triangles, normals, colors, uv, textured, texture, nearest
                         w0 += weights[top + dy, left + dx, 0]
                         w1 += weights[top + dy, left + dx, 1]
                 _paint_sample(first, w0 / samples, w1 / samples, triangles, normals, colors, uv, textured, texture,
-                              lights, strengths, rgb)
+                              lights, strengths, rgb, background[py, px])
             else:
                 for dy in range(factor):
                     for dx in range(factor):
@@ -277,7 +284,7 @@ def _resolve_textured(triangles, normals, colors, uv, textured, texture, nearest
                         else:
                             _paint_sample(t, weights[top + dy, left + dx, 0], weights[top + dy, left + dx, 1],
                                           triangles, normals, colors, uv, textured, texture, lights, strengths,
-                                          rgb)
+                                          rgb, background[py, px])
                 for channel in range(3):
                     rgb[channel] /= samples
             for channel in range(3):
@@ -299,8 +306,9 @@ def rasterise_textured(screen: np.ndarray, triangles: np.ndarray, normals: np.nd
     textured : bool (m,)
         The triangles drawn from the texture, times their vertices' ``colors`` (1, 1, 1: as it is, not lit
         again); the others are shaded as by :func:`rasterise`.
-    texture : float32 (th, tw, 3), 0..1
-        The image the textured triangles show.
+    texture : float32 (th, tw, 3) or (th, tw, 4), 0..1
+        The image the textured triangles show; a fourth channel is its coverage (1: opaque, 0: the background
+        shows through, as at a person's outline).
     background : float32 (height, width, 3), 0..1
         What is seen where no triangle is; its size is the image's.
     window : (top, bottom, left, right), optional

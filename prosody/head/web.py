@@ -77,7 +77,7 @@ def head_script() -> bytes:
     return resources.files("prosody.head").joinpath("head.js").read_bytes()
 
 
-PHOTO_TEXTURE_PATH, PHOTO_BACKGROUND_PATH = "/face.jpg", "/background.jpg"
+PHOTO_TEXTURE_PATH, PHOTO_BACKGROUND_PATH = "/face.png", "/background.jpg"
 
 
 def photo_model_document(head) -> dict:
@@ -126,15 +126,18 @@ def photo_model_document(head) -> dict:
     }
 
 
-def photo_images(head) -> dict[str, bytes]:
-    """The photo and its filled background as JPEG, by the paths :func:`photo_model_document` names."""
+def photo_images(head) -> dict[str, tuple[bytes, str]]:
+    """The photo and its filled background by the paths :func:`photo_model_document` names, each with its
+    content type: the photo as PNG whose alpha is the person's coverage (round the outline the page's
+    background shows through, as on the CPU), the background as JPEG."""
     import io
 
     from PIL import Image
 
+    texture = np.dstack([head.image, np.round(255 * np.clip(head.coverage, 0, 1)).astype(np.uint8)])
     out = {}
-    for path, image in ((PHOTO_TEXTURE_PATH, head.image), (PHOTO_BACKGROUND_PATH, head.background)):
+    for path, image, kind in ((PHOTO_TEXTURE_PATH, texture, "PNG"), (PHOTO_BACKGROUND_PATH, head.background, "JPEG")):
         buffer = io.BytesIO()
-        Image.fromarray(image).save(buffer, format="JPEG", quality=92)
-        out[path] = buffer.getvalue()
+        Image.fromarray(image).save(buffer, format=kind, **({"quality": 92} if kind == "JPEG" else {}))
+        out[path] = (buffer.getvalue(), f"image/{kind.lower()}")
     return out

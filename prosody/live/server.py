@@ -408,7 +408,7 @@ class FrameServer:
 
             model = json.dumps(photo_model_document(self._face), separators=(",", ":")).encode("utf-8")
             self._face_files = {"/head.json": (model, "application/json"),
-                                **{path: (body, "image/jpeg") for path, body in photo_images(self._face).items()}}
+                                **photo_images(self._face)}
         return self._face_files
 
     def _served_host(self, host_header: str) -> bool:

@@ -79,8 +79,8 @@ def study_page() -> bytes:
     return resources.files("prosody.study").joinpath("study.html").read_bytes()
 
 
-def _jpeg(body: bytes) -> tuple[bytes, str]:
-    return body, "image/jpeg"
+def _as_is(served: tuple[bytes, str]) -> tuple[bytes, str]:
+    return served
 
 
 #: Largest head-frames file a study serves (a 10-minute stimulus at 30 fps and 30 FAPs is about 5 MB).
@@ -182,8 +182,8 @@ class StudyServer:
             head = photo_head(path)
             model = json.dumps(photo_model_document(head), separators=(",", ":")).encode("utf-8")
             files["/head.json"] = lambda: (model, "application/json")
-            for name, image in photo_images(head).items():
-                files[name] = functools.partial(_jpeg, image)
+            for name, served in photo_images(head).items():
+                files[name] = functools.partial(_as_is, served)
         return files
 
     def __init__(self, plan: StudyPlan, stimuli: str | Path, store: StudyStore, *, host: str = "127.0.0.1",
