@@ -5,6 +5,7 @@ The package is in layers, each importing only those before it:
 - :mod:`prosody.errors`: the exceptions;
 - :mod:`prosody.fap`: the FAP table and units, streams, the .fap reader and writer, the exporters;
 - :mod:`prosody.head`: the 3D head (mesh, rig, renderer, glTF, WebGL model);
+- :mod:`prosody.outputs`: every output format by name and ending, and the writer that chooses among them;
 - :mod:`prosody.measures`: how motion is measured against recorded motion;
 - :mod:`prosody.motion`: the eyebrow rules, Perlin noise, recorded motion and the expressivity controls; its
   rooms :mod:`prosody.motion.face` (lips, expressions, PAD states) and :mod:`prosody.motion.heads` (the head
@@ -43,7 +44,7 @@ _FACADE = {
     "StreamSession": "prosody.live.session",
     "read_fap": "prosody.fap.fapfile",
     "write_fap": "prosody.fap.fapfile",
-    "write_stream": "prosody.fap.exporters",
+    "write_stream": "prosody.outputs",
     "FapStream": "prosody.fap.stream",
     "run_batch": "prosody.jobs.batch",
     "AnalysisSettings": "prosody.motion.settings",

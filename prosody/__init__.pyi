@@ -4,7 +4,6 @@ reads it from its own module, whose source carries its signature."""
 from prosody.evaluation.compare import compare as compare
 from prosody.evaluation.compare import write_comparison as write_comparison
 from prosody.evaluation.preview import write_preview as write_preview
-from prosody.fap.exporters import write_stream as write_stream
 from prosody.fap.fapfile import read_fap as read_fap
 from prosody.fap.fapfile import write_fap as write_fap
 from prosody.fap.stream import FapStream as FapStream
@@ -16,6 +15,7 @@ from prosody.motion.settings import AnalysisSettings as AnalysisSettings
 from prosody.motion.settings import ChannelSettings as ChannelSettings
 from prosody.motion.settings import FaceSettings as FaceSettings
 from prosody.motion.settings import MotionSettings as MotionSettings
+from prosody.outputs import write_stream as write_stream
 
 __version__: str
 __all__: list[str]

@@ -12,9 +12,10 @@ from bvh import Bvh
 
 from prosody.cli import main
 from prosody.errors import ConfigError, FapWriteError
-from prosody.fap.exporters import ARKIT_BLENDSHAPES, BROW_FULL_SCALE_ENS, format_for, livelink_timecode, write_stream
+from prosody.fap.exporters import ARKIT_BLENDSHAPES, BROW_FULL_SCALE_ENS, livelink_timecode
 from prosody.fap.stream import FapStream
 from prosody.jobs.pipeline import apply_controls
+from prosody.outputs import format_for, write_stream
 
 
 @pytest.fixture

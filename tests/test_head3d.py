@@ -276,7 +276,7 @@ def test_the_closed_loop_tracks_back_the_motion_the_head_was_given(tmp_path: Pat
 
 def test_convert_writes_an_animated_gltf_head_that_a_reader_opens(tmp_path: Path) -> None:
     pygltflib = pytest.importorskip("pygltflib", reason="the glTF reader of the tests (pip install pygltflib)")
-    from prosody.fap.exporters import write_stream
+    from prosody.outputs import write_stream
 
     frames = 12
     stream = FapStream.from_curves({3: np.linspace(0, 600, frames), 31: np.full(frames, 120.0),

@@ -12,7 +12,7 @@ from conftest import REPO
 #: Inside ``prosody.motion``, its rooms: the shared pieces first (brows, expressivity, noise, recorded motion, model
 #: files), then the face, then the head models, then what joins them (the settings groups, the conditions).
 LAYERS = ("prosody", "prosody.errors", "prosody.validate", "prosody.dsp", "prosody.fap", "prosody.head",
-          "prosody.measures", "prosody.motion", "prosody.motion.face", "prosody.motion.heads",
+          "prosody.outputs", "prosody.measures", "prosody.motion", "prosody.motion.face", "prosody.motion.heads",
           "prosody.motion.settings", "prosody.motion.conditions", "prosody.tracking",
           "prosody.evaluation", "prosody.jobs", "prosody.live", "prosody.study", "prosody.cli", "prosody.__main__")
 

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from prosody.cli import main
-from prosody.fap.exporters import format_for, write_stream
 from prosody.fap.mouth_cues import OPENING_SCALE, PRESTON_BLAIR, mouth_cues
 from prosody.fap.stream import FapStream
+from prosody.outputs import format_for, write_stream
 
 FPS = 30.0
 #: (frames, opening MNS, rounding 0..1) -> the shape it must give.

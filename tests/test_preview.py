@@ -23,9 +23,9 @@ from prosody.evaluation.preview import (
     render_frames,
     write_preview,
 )
-from prosody.fap.exporters import write_stream
 from prosody.fap.fapfile import write_fap
 from prosody.fap.stream import FapStream
+from prosody.outputs import write_stream
 
 WIDTH = 320
 

@@ -18,7 +18,7 @@ def run(args: argparse.Namespace) -> int:
                           f"to draw a video, use 'prosody preview {args.input} -o {args.output}'")
     photo = None
     if args.face is not None:  # the photo is read, and its face found, before the audio
-        from ..fap.exporters import format_for
+        from ..outputs import format_for
 
         if args.output == "-" or format_for(args.output, args.output_format) != "gltf":
             raise ConfigError(f"--face makes the head of the .glb output; -o {args.output!r} is not a .glb file "
@@ -28,8 +28,8 @@ def run(args: argparse.Namespace) -> int:
         photo = photo_face(args.face)
     cues = None  # the mouth cues' own options, checked before the audio
     if args.dat_frame_rate is not None or args.extended_shapes is not None:
-        from ..fap.exporters import CUE_FORMATS, format_for
         from ..fap.mouth_cues import check_extended_shapes
+        from ..outputs import CUE_FORMATS, format_for
 
         written = format_for(args.output, args.output_format) if args.output != "-" else args.output_format
         if args.dat_frame_rate is not None and written not in ("moho-dat", "prestonblair-dat"):
@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         stream = convert(args.input, args.output, base=args.base, output_format=args.output_format,
                          progress=msg.frame_progress(args.input, "analysed"), **opt.motion_kwargs(args))
-    from ..fap.exporters import format_for
+    from ..outputs import format_for
 
     written = format_for(args.output, args.output_format)
     # a .fap file leaves out the high-level FAPs 1 (the viseme said) and 2
@@ -84,8 +84,8 @@ def _write_cues(args: argparse.Namespace, path: str, format_name: str, *, progre
     """Convert and write mouth cues with their own options (the recording's path and length, as Rhubarb's)."""
     from audio_features.audio import open_sound_file
 
-    from ..fap.exporters import write_stream
     from ..jobs.pipeline import convert
+    from ..outputs import write_stream
 
     stream = convert(args.input, None, base=args.base, progress=progress, **opt.motion_kwargs(args))
     with open_sound_file(args.input) as sound:
@@ -97,7 +97,7 @@ def _write_cues(args: argparse.Namespace, path: str, format_name: str, *, progre
 
 def add_parser(commands) -> None:
     """Add the command to the subcommands of ``prosody``."""
-    from ..fap.exporters import DEFERRED_WRITERS, WRITERS
+    from ..outputs import WRITERS
 
     convert = commands.add_parser(
         "convert", help="turn a speech recording into a FAP stream",
@@ -117,7 +117,7 @@ def add_parser(commands) -> None:
                               ".rhubarb.xml, .dat and .prestonblair.dat (the lips as Rhubarb Lip Sync's mouth "
                               "cues, for its plugins); - writes to standard output (with --format)")
     convert.add_argument("--format", dest="output_format", default=None,
-                         choices=[*WRITERS, *DEFERRED_WRITERS],
+                         choices=list(WRITERS),
                          help="output format, overriding the ending (csv-physical: radians and fractions of "
                               "the reference distances)")
     opt.add_motion_options(convert)

@@ -96,7 +96,7 @@ def add_parser(commands) -> None:
     """Add the command to the subcommands of ``prosody``."""
     from audio_features.pcm import RAW_FORMATS
 
-    from ..fap.exporters import MOTION_FORMATS
+    from ..outputs import MOTION_FORMATS
 
     stream = commands.add_parser(
         "stream", help="animate live audio frame by frame (a pipe, a microphone, or a file), optionally served "

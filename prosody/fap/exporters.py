@@ -1,4 +1,5 @@
-"""Writers of FAP streams, chosen by name or file extension in one registry (stream in, file out).
+"""Writers and readers of FAP streams in the formats other tools read (stream in, file out); the registry that
+chooses a writer by name or file ending is :mod:`prosody.outputs`.
 
 Formats and their mapping from FAP units (docs/fap.md; AU = 1e-5 rad, ENS = eye-nose separation / 1024):
 
@@ -15,7 +16,6 @@ Formats and their mapping from FAP units (docs/fap.md; AU = 1e-5 rad, ENS = eye-
 - ``rhubarb-tsv``, ``rhubarb-json``, ``rhubarb-xml``, ``moho-dat``, ``prestonblair-dat``: the lips as Rhubarb
   Lip Sync's mouth cues (A-H, X) in its files (``.rhubarb.tsv``, ``.rhubarb.json``, ``.rhubarb.xml``, ``.dat``,
   ``.prestonblair.dat``; :mod:`prosody.fap.mouth_cues`).
-- ``gltf``: the 3D head animated by the stream, as binary glTF 2.0 (``.glb``; :mod:`prosody.head.gltf`).
 - ``livelink``: Live Link Face style CSV (``*.livelink.csv``): ``Timecode,BlendShapeCount`` then the 52 ARKit
   blendshape columns and ``HeadYaw,HeadPitch,HeadRoll`` plus the six eye angles. Head angles in radians with
   the FAPs' signs (HeadYaw + to the character's left, HeadPitch + down, HeadRoll + to its right); BrowInnerUp is
@@ -36,7 +36,6 @@ import csv
 import json
 import math
 import os
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -44,17 +43,8 @@ import numpy as np
 from audio_features.atomic import atomic_write
 
 from ..errors import ConfigError, FapWriteError
-from .mouth_cues import (
-    write_moho_dat,
-    write_preston_blair_dat,
-    write_rhubarb_json,
-    write_rhubarb_tsv,
-    write_rhubarb_xml,
-)
 from .stream import FapStream
 from .table import BY_NUMBER, HEAD_FAPS, RADIANS_PER_AU
-
-Writer = Callable[[FapStream, "str | os.PathLike[str]"], None]
 
 #: Brow raise (ENS) written as a full blendshape weight of 1 in Live Link Face CSV: about the largest raise
 #: the eyebrow rule makes with its default gain (0.1 ENS/Hz x 450 Hz - 5 = 40 ENS).
@@ -77,12 +67,6 @@ ARKIT_BLENDSHAPES = (
 )
 LIVELINK_ROTATIONS = ("HeadYaw", "HeadPitch", "HeadRoll", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll",
                       "RightEyeYaw", "RightEyePitch", "RightEyeRoll")
-
-
-def _write_fap(stream: FapStream, path: str | os.PathLike[str]) -> None:
-    from .fapfile import write_fap
-
-    write_fap(stream, path)
 
 
 def _number(value: float) -> str:
@@ -110,10 +94,6 @@ def write_csv(stream: FapStream, path: str | os.PathLike[str], *, physical: bool
             row = [str(k), f"{k / stream.fps:.6f}"]
             row += ["" if np.isnan(values[k, fap - 1]) else _number(values[k, fap - 1]) for fap in active]
             writer.writerow(row)
-
-
-def _write_physical_csv(stream: FapStream, path: str | os.PathLike[str]) -> None:
-    write_csv(stream, path, physical=True)
 
 
 def write_json(stream: FapStream, path: str | os.PathLike[str]) -> None:
@@ -331,106 +311,3 @@ def _livelink_face(stream: FapStream) -> dict[str, np.ndarray]:
         out[f"CheekSquint{side}"] = weight(fap(cheek), scale["cheek"])
         out[f"BrowDown{side}"] = weight(-fap(brow), scale["brow_down"])
     return out
-
-
-#: format name -> (writer, file name endings); longer endings are matched first.
-WRITERS: dict[str, tuple[Writer, tuple[str, ...]]] = {
-    "fap": (_write_fap, (".fap",)),
-    "livelink": (write_livelink, (".livelink.csv",)),
-    "csv-physical": (_write_physical_csv, ()),
-    "csv": (write_csv, (".csv",)),
-    "json": (write_json, (".json",)),
-    "bvh": (write_bvh, (".bvh",)),
-    "rhubarb-tsv": (write_rhubarb_tsv, (".rhubarb.tsv",)),
-    "rhubarb-json": (write_rhubarb_json, (".rhubarb.json",)),
-    "rhubarb-xml": (write_rhubarb_xml, (".rhubarb.xml",)),
-    "moho-dat": (write_moho_dat, (".dat",)),
-    "prestonblair-dat": (write_preston_blair_dat, (".prestonblair.dat",)),
-}
-
-
-#: The formats of mouth cues, whose files also name the recording and end where it ends (Rhubarb's).
-CUE_FORMATS = ("rhubarb-tsv", "rhubarb-json", "rhubarb-xml", "moho-dat", "prestonblair-dat")
-
-
-#: The formats of motion over time that a live stream can also write (not the mouth cues, not the 3D head).
-MOTION_FORMATS = ("fap", "csv", "csv-physical", "json", "bvh", "livelink")
-
-
-#: Writers of higher layers (the 3D head), named by "module:function" and loaded when first used, so that
-#: this layer imports nothing above it.
-DEFERRED_WRITERS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "gltf": ("prosody.head.gltf:write_glb", (".glb",)),
-}
-
-
-def _deferred(reference: str) -> Writer:
-    import importlib
-
-    module, _, function = reference.partition(":")
-    return getattr(importlib.import_module(module), function)
-
-
-def format_for(path: str | os.PathLike[str], format_name: str | None = None) -> str:
-    """The format name for an output path (from ``format_name`` when given, else from the extension)."""
-    known_formats = {**WRITERS, **DEFERRED_WRITERS}
-    if format_name is not None:
-        if format_name not in known_formats:
-            raise ConfigError(f"unknown output format {format_name!r}; choose one of {', '.join(known_formats)}")
-        return format_name
-    name = str(path).lower()
-    endings = sorted(((ending, fmt) for fmt, (_, ends) in known_formats.items() for ending in ends),
-                     key=lambda item: -len(item[0]))
-    for ending, candidate in endings:
-        if name.endswith(ending):
-            return candidate
-    known = ", ".join(ending for ending, _ in endings)
-    raise ConfigError(f"cannot tell the output format of {str(path)!r} from its extension ({known}); "
-                      "give output_format=NAME", parameter="output_format")
-
-
-def write_stream(stream: FapStream, path: str | os.PathLike[str], format_name: str | None = None, *,
-                 sound_file: str | os.PathLike[str] | None = None, duration_s: float | None = None,
-                 dat_fps: float | None = None, extended_shapes: str | None = None) -> str:
-    """Write ``stream`` to ``path`` in the named (or extension-implied) format, atomically.
-
-    Parameters
-    ----------
-    stream : FapStream
-        The frames to write.
-    path : path-like
-        The file; its ending chooses the format when ``format_name`` is None (``.fap``, ``.csv``, ``.json``,
-        ``.bvh``, ``.livelink.csv``, ``.glb``, ``.rhubarb.tsv``, ...).
-    format_name : str, optional
-        A name of :data:`WRITERS` or :data:`DEFERRED_WRITERS`, overriding the ending.
-    sound_file, duration_s : optional
-        The recording the stream was made from and its length in seconds: the mouth cues' files
-        (:data:`CUE_FORMATS`) name it and end where it ends, as Rhubarb's do; other formats ignore them.
-    dat_fps : float, optional
-        The frame rate of a ``.dat`` switch file (default 24, Rhubarb's); refused for other formats.
-    extended_shapes : str, optional
-        Which of Rhubarb's extended shapes G, H and X the mouth cues use (default all; Rhubarb's
-        ``--extendedShapes``); refused for formats that are not cues.
-
-    Returns
-    -------
-    str
-        The format written.
-    """
-    chosen = format_for(path, format_name)
-    writer = WRITERS[chosen][0] if chosen in WRITERS else _deferred(DEFERRED_WRITERS[chosen][0])
-    if dat_fps is not None and chosen not in ("moho-dat", "prestonblair-dat"):
-        raise ConfigError(f"dat_fps is the frame rate of a .dat switch file; {os.fsdecode(path)!r} is {chosen}")
-    if extended_shapes is not None and chosen not in CUE_FORMATS:
-        raise ConfigError(f"extended_shapes chooses the shapes of mouth cues; {os.fsdecode(path)!r} is {chosen}",
-                          parameter="extended_shapes")
-    if chosen in CUE_FORMATS:
-        extra: dict = {"sound_file": sound_file, "duration_s": duration_s}
-        if dat_fps is not None:
-            extra["dat_fps"] = dat_fps
-        if extended_shapes is not None:
-            extra["extended_shapes"] = extended_shapes
-        writer(stream, Path(path), **extra)
-    else:
-        writer(stream, Path(path))
-    return chosen

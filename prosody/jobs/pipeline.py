@@ -109,8 +109,8 @@ def convert(
     perlin : PerlinSettings, optional
         The noise of the ``random`` condition (default: the thesis's).
     output_format : str, optional
-        A name of :data:`prosody.fap.exporters.WRITERS` (fap, csv, csv-physical, json, bvh, livelink) or of
-        :data:`~prosody.fap.exporters.DEFERRED_WRITERS` (gltf).
+        A name of :data:`prosody.outputs.WRITERS` (fap, csv, csv-physical, json, bvh, livelink, the mouth
+        cues' formats, gltf).
     features : Features, optional
         Already extracted features of ``audio`` (skips the analysis).
     progress : callable, optional
@@ -165,7 +165,7 @@ def convert(
     if recorded is not None:
         stream = stream.merged_over(recorded)
     if output is not None:
-        from ..fap.exporters import write_stream
+        from ..outputs import write_stream
 
         write_stream(stream, output, output_format, sound_file=audio, duration_s=features.duration_s)
     return stream

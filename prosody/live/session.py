@@ -220,7 +220,7 @@ def _check_output(options: StreamOptions, source: AudioSource | None, flag: Call
     if options.output not in (None, "-") and not (str(options.output).lower().endswith(".jsonl")
                                                    and options.format is None):
         # the format of a file written when the stream ends is known now, not after the whole session
-        from ..fap.exporters import MOTION_FORMATS, format_for
+        from ..outputs import MOTION_FORMATS, format_for
 
         chosen = format_for(options.output, options.format)
         if chosen not in MOTION_FORMATS:
@@ -412,7 +412,7 @@ class StreamSession:
                 converter.set_expressivity(server.expressivity)
                 server.restart_audio()
         if recorder is not None:
-            from ..fap.exporters import write_stream
+            from ..outputs import write_stream
 
             write_stream(recorder.stream(fps=converter.fps, name=source.name), output, options.format)
         return StreamResult(count, converter.fps, converter.lookahead_frames, interrupted, passes,

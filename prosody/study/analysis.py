@@ -22,7 +22,7 @@ import contextlib
 import json
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -44,7 +44,7 @@ class StudyAnalysis:
     results: dict
     summary: str
     conditions: Sequence[str] | None = None
-    notes: Sequence[str] = field(default_factory=tuple)
+    notes: tuple[str, ...] = ()
 
     def report(self, figure: str | None = None) -> str:
         """The report in Markdown; ``figure`` is the file name of the figure it shows (opinion scores and

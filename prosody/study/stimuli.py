@@ -71,12 +71,12 @@ PER_STIMULUS = ("ground_truth", "base", "features", "output_format", "progress")
 class StudyCondition:
     """One condition of a study: its name, the label participants read, its settings (the keyword arguments of
     :func:`prosody.jobs.pipeline.convert`, checked by :func:`condition_settings`) and, where it was given as
-    ``prosody convert``'s options, those (the manifest records them)."""
+    ``prosody convert``'s options, those (``command_line``; the manifest records them)."""
 
     name: str
     label: str
     settings: Mapping[str, Any] = field(default_factory=dict)
-    options: str = ""
+    command_line: str = ""
 
     @property
     def needs_truth(self) -> bool:
@@ -85,7 +85,7 @@ class StudyCondition:
     @property
     def recipe(self) -> str:
         """What made it, as the manifest records it: its options, or its settings as JSON."""
-        return self.options or json.dumps(self.settings, sort_keys=True, default=repr)
+        return self.command_line or json.dumps(self.settings, sort_keys=True, default=repr)
 
 
 def condition_settings(name: str, given: Mapping[str, Any]) -> dict[str, Any]:
