@@ -2,7 +2,8 @@
 
 The package is in layers, each importing only those before it:
 
-- :mod:`prosody.errors`: the exceptions;
+- :mod:`prosody.errors`: the exceptions; :mod:`prosody.validate`: the checks of callers' values;
+- :mod:`prosody.net`: what the live and study servers share (addresses, the origins they answer, headers);
 - :mod:`prosody.fap`: the FAP table and units, streams, the .fap reader and writer, the exporters;
 - :mod:`prosody.head`: the 3D head (mesh, rig, renderer, glTF, WebGL model);
 - :mod:`prosody.outputs`: every output format by name and ending, and the writer that chooses among them;

@@ -11,9 +11,9 @@ from conftest import REPO
 #: The layers, lowest first: a module may import its own layer and the ones before it.
 #: Inside ``prosody.motion``, its rooms: the shared pieces first (brows, expressivity, noise, recorded motion, model
 #: files), then the face, then the head models, then what joins them (the settings groups, the conditions).
-LAYERS = ("prosody", "prosody.errors", "prosody.validate", "prosody.dsp", "prosody.fap", "prosody.head",
-          "prosody.outputs", "prosody.measures", "prosody.motion", "prosody.motion.face", "prosody.motion.heads",
-          "prosody.motion.settings", "prosody.motion.conditions", "prosody.tracking",
+LAYERS = ("prosody", "prosody.errors", "prosody.validate", "prosody.net", "prosody.dsp", "prosody.fap",
+          "prosody.head", "prosody.outputs", "prosody.measures", "prosody.motion", "prosody.motion.face",
+          "prosody.motion.heads", "prosody.motion.settings", "prosody.motion.conditions", "prosody.tracking",
           "prosody.evaluation", "prosody.jobs", "prosody.live", "prosody.study", "prosody.cli", "prosody.__main__")
 
 

@@ -153,7 +153,7 @@ def run_stimuli(args: argparse.Namespace) -> int:
 
 def run_serve(args: argparse.Namespace) -> int:
 
-    from ..live.server import parse_address, serve_until_interrupted
+    from ..net import parse_address, serve_until_interrupted
     from ..study.designs import read_plan
     from ..study.server import StudyServer
     from ..study.stimuli import check_stimuli

@@ -16,8 +16,8 @@ from ..errors import ConfigError
 from ..fap.exporters import livelink_columns
 from ..fap.live_links import LIVELINK_PORT, VMC_PORT, check_link_name, livelink_packet, vmc_bundle
 from ..fap.stream import FapStream
+from ..net import parse_address
 from .converter import LiveFrame
-from .server import parse_address
 
 PROTOCOLS = {"livelink": LIVELINK_PORT, "vmc": VMC_PORT}
 

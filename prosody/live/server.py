@@ -38,13 +38,10 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import ipaddress
 import json
 import socket
 import struct
 import threading
-import time
-import urllib.parse
 from collections.abc import Callable, Iterable
 from importlib import resources
 from typing import Any
@@ -56,6 +53,7 @@ from audio_features.pcm import PcmDecoder, PcmFormat
 
 from ..errors import ConfigError
 from ..motion.expressivity import RANGES, Expressivity
+from ..net import SAFE_HEADERS, OriginPolicy
 from .converter import LiveConverter, LiveFrame
 
 #: Frames kept for a client that is not reading (10 s at 30 fps); older ones are dropped.
@@ -76,83 +74,9 @@ class ServerClosedError(ConfigError, RuntimeError):
     """Frames published to a server that has been closed."""
 
 
-def normalize_origin(text: str) -> str:
-    """``scheme://host[:port]`` in lower case, without a default port or a trailing slash.
-
-    Examples
-    --------
-    >>> normalize_origin("HTTP://LocalHost:80/"), normalize_origin("https://example.org:8443")
-    ('http://localhost', 'https://example.org:8443')
-    """
-    try:
-        parts = urllib.parse.urlsplit(text.strip())
-        hostname = parts.hostname
-    except ValueError:  # an unclosed IPv6 bracket
-        raise ConfigError(f"origin {text!r} must be http(s)://HOST[:PORT], e.g. http://localhost:8080") from None
-    if parts.scheme not in ("http", "https") or not hostname:
-        raise ConfigError(f"origin {text!r} must be http(s)://HOST[:PORT], e.g. http://localhost:8080")
-    try:
-        port = parts.port
-    except ValueError:
-        raise ConfigError(f"origin {text!r} has a bad port") from None
-    host = f"[{hostname}]" if ":" in hostname else hostname
-    default = {"http": 80, "https": 443}[parts.scheme]
-    return f"{parts.scheme}://{host}" + ("" if port in (None, default) else f":{port}")
-
-
-def trusted_host(name: str) -> bool:
-    """A host name that no other site can point at this machine: an address, localhost, this machine's name."""
-    try:
-        ipaddress.ip_address(name.strip("[]"))
-        return True
-    except ValueError:
-        return name.lower() in {"localhost", socket.gethostname().lower(), socket.getfqdn().lower()}
-
-
 def page_html() -> bytes:
     """The page served at ``/``."""
     return resources.files("prosody.live").joinpath("face.html").read_bytes()
-
-
-def serve_until_interrupted(close: Callable[[], object]) -> None:
-    """Block the calling thread until Ctrl-C (or SIGTERM, which the command turns into it), then ``close``."""
-    try:
-        while True:
-            time.sleep(3600)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        close()
-
-
-def parse_address(text: str, address_of: str = "listen address") -> tuple[str, int]:
-    """``HOST:PORT``, ``:PORT`` or ``PORT`` (host 127.0.0.1); ``[::1]:PORT`` for IPv6.
-
-    Examples
-    --------
-    >>> parse_address("8765"), parse_address("0.0.0.0:80"), parse_address("[::1]:9000")
-    (('127.0.0.1', 8765), ('0.0.0.0', 80), ('::1', 9000))
-    """
-    form = ConfigError(f"{address_of} {text!r} must be HOST:PORT, e.g. 127.0.0.1:8765 ([::1]:8765 for IPv6)")
-    host, _, port = text.strip().rpartition(":")
-    if host.startswith("[") or host.endswith("]"):
-        if not (host.startswith("[") and host.endswith("]")):
-            raise form
-        host = host[1:-1]
-        try:
-            ipaddress.IPv6Address(host)
-        except ValueError:
-            raise form from None
-    elif ":" in host or any(c in host for c in "[]/ ") or not port.isdigit() or len(port) > 5:
-        raise form
-    host = host or "127.0.0.1"
-    try:
-        number = int(port)
-    except ValueError:
-        raise form from None
-    if not 0 <= number <= 65535:
-        raise ConfigError(f"{address_of} {text!r}: port {number} must be in 0-65535")
-    return host, number
 
 
 def frame_message(frame: LiveFrame, source: str) -> str:
@@ -205,7 +129,8 @@ class FrameServer:
         self.host, self.port = host, port
         self.make_converter = make_converter
         self.report = report
-        self.allow_origins = frozenset(normalize_origin(origin) for origin in allow_origins)
+        self.origins = OriginPolicy(allow_origins)
+        self.allow_origins = self.origins.allowed
         self.expressivity = expressivity or Expressivity()  # of the command's input
         self.on_expressivity = on_expressivity
         self._face = face  # a PhotoHead: the page shows that person's head (its model made on the first request)
@@ -367,13 +292,13 @@ class FrameServer:
             return connection.respond(400, "bad request: one Host and at most one Upgrade header\n")
         if upgrades and upgrades[0].lower() == "websocket":
             origins = request.headers.get_all("Origin")
-            if not origins or (len(origins) == 1 and len(hosts) == 1 and self._allowed(origins[0], hosts[0])):
+            if not origins or (len(origins) == 1 and self.origins.allows(origins[0], hosts[0])):
                 return None  # go on with the WebSocket handshake
             origin = ", ".join(origins)
             self.report(f"refused a WebSocket from the page at {origin[:200]!r}: only this server's own page may "
                         "connect (allow another with --allow-origin ORIGIN)")
             return connection.respond(403, "forbidden: this stream is only for the page served here\n")
-        if not self._served_host(hosts[0]):
+        if not self.origins.serves_host(hosts[0]):
             # DNS rebinding: a page of another site, its name pointed at this machine, reads nothing here
             return connection.respond(421, "misdirected request: this server answers to its own address\n")
         path = request.path.split("?", 1)[0]
@@ -391,9 +316,7 @@ class FrameServer:
             # the page and its files: never framed by another site, never sniffed as another type, scripts and
             # connections only from here (the stream at ws(s)://this host; the microphone's worklet is a blob)
             own = hosts[0]
-            headers = Headers([("Content-Type", kind), ("Cache-Control", "no-store"),
-                               ("Content-Length", str(len(body))), ("X-Content-Type-Options", "nosniff"),
-                               ("Referrer-Policy", "no-referrer"),
+            headers = Headers([("Content-Type", kind), ("Content-Length", str(len(body))), *SAFE_HEADERS.items(),
                                ("Content-Security-Policy",
                                 "default-src 'self'; script-src 'self' 'unsafe-inline' blob:; style-src 'self' "
                                 f"'unsafe-inline'; img-src 'self' data:; connect-src 'self' ws://{own} wss://{own}; "
@@ -410,28 +333,6 @@ class FrameServer:
             self._face_files = {"/head.json": (model, "application/json"),
                                 **photo_images(self._face)}
         return self._face_files
-
-    def _served_host(self, host_header: str) -> bool:
-        """Whether a request's Host names this server: an address, localhost, this machine's name, or the host
-        of an origin allowed with --allow-origin."""
-        try:
-            hostname = urllib.parse.urlsplit(normalize_origin(f"http://{host_header}")).hostname or ""
-        except (ConfigError, ValueError):
-            return False
-        allowed = {urllib.parse.urlsplit(origin).hostname for origin in self.allow_origins}
-        return trusted_host(hostname) or hostname in allowed
-
-    def _allowed(self, origin: str, host_header: str) -> bool:
-        try:
-            origin = normalize_origin(origin)
-            # the page served here: same host and port as the request, on a host no other site can claim
-            own = normalize_origin(f"http://{host_header}")
-        except ConfigError:
-            return False
-        if origin in self.allow_origins:
-            return True
-        host = urllib.parse.urlsplit(origin).hostname or ""
-        return origin == own and trusted_host(host)
 
     async def _handle(self, websocket) -> None:
         from websockets.exceptions import ConnectionClosed

@@ -177,7 +177,7 @@ def check_session(options: StreamOptions, source: AudioSource | None,
         raise ConfigError(f"{flag('allow_origin')} names pages allowed to open the stream of {flag('listen')}; "
                           f"give {flag('listen')} too", parameter="allow_origin")
     if options.allow_origin:
-        from .server import normalize_origin
+        from ..net import normalize_origin
 
         for origin in options.allow_origin:
             normalize_origin(origin)
@@ -324,7 +324,8 @@ class StreamSession:
         return senders
 
     def _start_server(self, *, reading: bool) -> None:
-        from .server import FrameServer, parse_address
+        from ..net import parse_address
+        from .server import FrameServer
 
         options = self.options
         host, port = parse_address(options.listen or "")
@@ -348,7 +349,7 @@ class StreamSession:
         return True
 
     def _serve_only(self) -> StreamResult:
-        from .server import serve_until_interrupted
+        from ..net import serve_until_interrupted
 
         self._start_server(reading=False)
         serve_until_interrupted(self.server.close)

@@ -50,7 +50,7 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import ConfigError
-from ..live.server import normalize_origin, trusted_host
+from ..net import SAFE_HEADERS, OriginPolicy
 from .designs import StudyPlan
 from .stimuli import check_stimuli
 from .store import StudyStore, StudyStoreError
@@ -216,7 +216,8 @@ class StudyServer:
         self.labels = {name: str(entry.get("label", name)) for name, entry in manifest["conditions"].items()}
         self.head_files = self._head_files(manifest)
         self.break_every = break_every
-        self.allow_origins = frozenset(normalize_origin(origin) for origin in allow_origins)
+        self.origins = OriginPolicy(allow_origins)
+        self.allow_origins = self.origins.allowed
         self.token = token or secrets.token_urlsafe(18)
         self._page = study_page()
         self.arrivals = _Arrivals()
@@ -367,10 +368,7 @@ class _Handler(BaseHTTPRequestHandler):
         self.send_response(status)
         self.send_header("Content-Type", content_type)
         self.send_header("Content-Length", str(len(body)))
-        self.send_header("Cache-Control", "no-store")
-        self.send_header("X-Content-Type-Options", "nosniff")
-        self.send_header("Referrer-Policy", "no-referrer")
-        for key, value in (extra or {}).items():
+        for key, value in {**SAFE_HEADERS, **(extra or {})}.items():
             self.send_header(key, value)
         self.end_headers()
         if self.command != "HEAD":
@@ -383,28 +381,18 @@ class _Handler(BaseHTTPRequestHandler):
         self._json(status, {"error": message})
 
     def _allowed_origin(self) -> bool:
-        """True unless a browser says the request comes from a page of another site."""
-        study = self.study
+        """True unless a browser says the request comes from a page of another site, or the request names a host
+        another site's DNS could point here (the policy of :class:`prosody.net.OriginPolicy`)."""
         hosts = self.headers.get_all("Host") or []
         origins = self.headers.get_all("Origin") or []
         if self.headers.get("Sec-Fetch-Site", "").lower() == "cross-site" and not origins:
             return False
         if len(hosts) > 1 or len(origins) > 1:
             return False
-        try:
-            own = normalize_origin(f"http://{hosts[0]}") if hosts else None
-        except ConfigError:
-            return False
-        if own is not None and own not in study.allow_origins \
-                and not trusted_host(urllib.parse.urlsplit(own).hostname or ""):
-            return False  # a name another site's DNS could point here (DNS rebinding)
-        if not origins:
-            return True  # not a browser page: a program, or a same-origin GET
-        try:
-            origin = normalize_origin(origins[0])
-        except ConfigError:
-            return False
-        return origin in study.allow_origins or origin == own
+        policy = self.study.origins
+        if hosts and not policy.serves_host(hosts[0]):
+            return False  # DNS rebinding
+        return policy.allows(origins[0] if origins else None, hosts[0] if hosts else "")
 
     def _query(self) -> dict[str, str]:
         query = urllib.parse.urlsplit(self.path).query
@@ -558,9 +546,8 @@ class _Handler(BaseHTTPRequestHandler):
                 headers["Content-Range"] = f"bytes {start}-{end}/{size}"
             self.send_response(status)
             kind = "application/json" if name.endswith(".json") else "video/mp4"
-            for key, value in {"Content-Type": kind, "Content-Length": str(end - start + 1),
-                               "Cache-Control": "no-store", "X-Content-Type-Options": "nosniff",
-                               "Referrer-Policy": "no-referrer", **headers}.items():
+            for key, value in {"Content-Type": kind, "Content-Length": str(end - start + 1), **SAFE_HEADERS,
+                               **headers}.items():
                 self.send_header(key, value)
             self.end_headers()
             if self.command == "HEAD":
