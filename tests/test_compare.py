@@ -97,6 +97,7 @@ def _head_csv(path: Path, n: int, rng) -> Path:
     return path
 
 
+@pytest.mark.slow  # about 2 s of processor time when it is the first to import the report's plotting
 def test_compare_cli_writes_everything_with_the_documented_shape(tmp_path, rng) -> None:
     audio = _tone_file(tmp_path / "tone.wav")
     truth = _head_csv(tmp_path / "tone.head.csv", 60, rng)
@@ -362,15 +363,15 @@ def test_a_worker_that_dies_fails_only_its_own_file(tmp_path, monkeypatch) -> No
 def test_a_cluster_without_workers_stops_waiting_and_a_lost_scheduler_is_said(monkeypatch) -> None:
     from concurrent.futures import CancelledError, Future
 
-    import prosody.jobs.batch as batch
+    import prosody.jobs.runner as runner
 
-    monkeypatch.setattr(batch, "NO_WORKER_TIMEOUT_S", 0.2)
+    monkeypatch.setattr(runner, "NO_WORKER_TIMEOUT_S", 0.2)
     stuck, lost = Future(), Future()
     lost.set_exception(CancelledError())
-    results = list(batch.completed_futures({stuck: ("a",), lost: ("b",)}, alive=lambda: False, poll_s=0.05))
+    results = list(runner.completed_futures({stuck: ("a",), lost: ("b",)}, alive=lambda: False, poll_s=0.05))
     by_task = {task[0]: result for task, result in results}
     assert isinstance(by_task["b"], CancelledError)
-    assert isinstance(by_task["a"], batch._NoWorkers) and "no worker" in str(by_task["a"])
+    assert isinstance(by_task["a"], runner._NoWorkers) and "no worker" in str(by_task["a"])
     # with workers, a slow file is simply waited for
     slow = Future()
     calls = []
@@ -381,7 +382,7 @@ def test_a_cluster_without_workers_stops_waiting_and_a_lost_scheduler_is_said(mo
             slow.set_result("done")
         return True
 
-    assert list(batch.completed_futures({slow: ("c",)}, alive=alive, poll_s=0.05)) == [(("c",), "done")]
+    assert list(runner.completed_futures({slow: ("c",)}, alive=alive, poll_s=0.05)) == [(("c",), "done")]
 
 
 @pytest.mark.slow
@@ -547,3 +548,21 @@ def test_batch_takes_the_gains_and_channels_left_out(tmp_path, capsys) -> None:
     capsys.readouterr()
     assert main(["batch", str(indir), "-o", str(tmp_path / "bad"), "--off", "ears"]) == 2
     assert "unknown channel(s) 'ears'" in capsys.readouterr().err
+
+
+def _fails_on_two(value: int) -> int:
+    if value == 2:
+        raise RuntimeError("two is refused")
+    return value * 10
+
+
+def test_the_job_runner_turns_a_worker_error_into_that_tasks_failure() -> None:
+    """Both the batch and the tracker run their tasks through one runner: in worker processes, a task that
+    raises gives its own failed outcome, and the others their results."""
+    from prosody.jobs.runner import run_tasks
+
+    results = dict(run_tasks(_fails_on_two, [(1,), (2,), (3,)], failed=lambda task, why: f"failed: {why}", jobs=2))
+    assert results[(1,)] == 10 and results[(3,)] == 30
+    assert results[(2,)] == "failed: worker failed: RuntimeError: two is refused"
+    in_process = dict(run_tasks(abs, [(-1,), (4,)], failed=lambda task, why: None))
+    assert in_process == {(-1,): 1, (4,): 4}

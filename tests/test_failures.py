@@ -336,7 +336,7 @@ def test_a_dask_scheduler_that_never_answers_is_given_up_on(monkeypatch) -> None
     import threading
 
     from prosody.errors import ConfigError
-    from prosody.jobs import batch
+    from prosody.jobs import runner
 
     release = threading.Event()
 
@@ -344,10 +344,10 @@ def test_a_dask_scheduler_that_never_answers_is_given_up_on(monkeypatch) -> None
         def __init__(self, address, timeout):
             release.wait(10)
 
-    monkeypatch.setattr(batch, "SCHEDULER_TIMEOUT_S", 0.2)
-    monkeypatch.setattr(batch, "_SCHEDULER_GRACE_S", 0.1)
+    monkeypatch.setattr(runner, "SCHEDULER_TIMEOUT_S", 0.2)
+    monkeypatch.setattr(runner, "_SCHEDULER_GRACE_S", 0.1)
     with pytest.raises(ConfigError, match="did not answer within 0.2 s"):
-        batch._connect(Silent, "tcp://127.0.0.1:1")
+        runner._connect(Silent, "tcp://127.0.0.1:1")
     release.set()
 
 

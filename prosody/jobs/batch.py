@@ -15,10 +15,7 @@ import os
 import re
 import time
 import warnings
-from collections.abc import Callable, Iterable, Iterator, Mapping
-from concurrent.futures import CancelledError, Executor, Future, ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
-from contextlib import contextmanager
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -36,6 +33,7 @@ from ..motion.expressivity import NEUTRAL, Expressivity
 from ..motion.eyebrows import AccentRule, EyebrowRule
 from ..motion.settings import AnalysisSettings, ChannelSettings, FaceSettings, MotionSettings
 from ..validate import valid_seeds
+from .runner import one_line, run_tasks
 
 #: Ground-truth file endings looked up beside an audio file's stem, in order of preference.
 GROUND_TRUTH_SUFFIXES = (".head.csv", ".fap")
@@ -296,116 +294,6 @@ def process_file(audio: str, relative: str, outdir: str, ground_truth: str | Non
     return outcome
 
 
-def one_line(error: BaseException) -> str:
-    if isinstance(error, OSError) and error.filename:
-        return f"{error.filename}: {error.strerror or error}"
-    return " ".join(str(error).split())
-
-
-class _NoWorkers(Exception):
-    """Every worker of the cluster is gone."""
-
-
-#: Seconds without a single Dask worker after which the files still queued are failed.
-NO_WORKER_TIMEOUT_S = 60.0
-
-
-def completed_futures(futures: dict[Future, tuple], *, alive: Callable[[], bool] | None = None,
-               poll_s: float = 2.0) -> Iterator[tuple[tuple, object]]:
-    """``(task, outcome or exception)`` as the futures finish. With ``alive`` (the cluster still has
-    workers), waiting stops when it has had none for :data:`NO_WORKER_TIMEOUT_S`: the rest are failed."""
-    from concurrent.futures import FIRST_COMPLETED, wait
-
-    pending = set(futures)
-    without_workers_since: float | None = None
-    while pending:
-        done, pending = wait(pending, timeout=poll_s, return_when=FIRST_COMPLETED)
-        for future in done:
-            try:
-                yield futures[future], future.result()
-            except BaseException as error:  # noqa: BLE001 - reported per file
-                if isinstance(error, (KeyboardInterrupt, SystemExit)):
-                    raise
-                yield futures[future], error
-        if done or alive is None:
-            without_workers_since = None
-            continue
-        if alive():
-            without_workers_since = None
-        elif without_workers_since is None:
-            without_workers_since = time.monotonic()
-        elif time.monotonic() - without_workers_since > NO_WORKER_TIMEOUT_S:
-            for future in pending:
-                future.cancel()
-                yield futures[future], _NoWorkers(
-                    f"the Dask cluster has had no worker for {NO_WORKER_TIMEOUT_S:.0f} s; this file was not done")
-            return
-
-
-#: Longest wait for a Dask scheduler to answer, in s.
-SCHEDULER_TIMEOUT_S = 20.0
-#: Time beyond it given to Dask to report its own timeout, in s.
-_SCHEDULER_GRACE_S = 5.0
-
-
-def _connect(client_class, scheduler: str):
-    """A Dask client of ``scheduler``, or ConfigError within :data:`SCHEDULER_TIMEOUT_S` (Dask's own timeout
-    covers the connection, not a listener that accepts and never answers, so the wait is bounded here)."""
-    import threading
-
-    outcome: list = []
-
-    def connect() -> None:
-        try:
-            outcome.append(client_class(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S:g}s"))
-        except BaseException as error:  # noqa: BLE001 - handed to the waiting thread
-            outcome.append(error)
-
-    thread = threading.Thread(target=connect, name="dask-connect", daemon=True)
-    thread.start()
-    thread.join(SCHEDULER_TIMEOUT_S + _SCHEDULER_GRACE_S)
-    if not outcome:
-        raise ConfigError(f"the Dask scheduler at {scheduler!r} did not answer within {SCHEDULER_TIMEOUT_S:g} s "
-                          "(is it a Dask scheduler?)")
-    if isinstance(outcome[0], (OSError, TimeoutError, ValueError)):
-        raise ConfigError(f"cannot reach the Dask scheduler at {scheduler!r} ({outcome[0]})") from None
-    if isinstance(outcome[0], BaseException):
-        raise outcome[0]
-    return outcome[0]
-
-
-@contextmanager
-def make_executor(*, jobs: int = 1, scheduler: str | None = None) -> Iterator[Executor | None]:
-    """The executor for a batch: None (run in this process) for one local job, a process pool for more,
-    or the ``concurrent.futures`` executor of a Dask distributed client connected to ``scheduler``."""
-    if scheduler is not None:
-        try:
-            from distributed import Client
-        except ImportError:
-            raise ConfigError("scheduler= needs Dask distributed: pip install 'visual-prosody[cluster]'",
-                              parameter="scheduler") from None
-        client = _connect(Client, scheduler)
-        executor = client.get_executor()
-
-        def workers_alive() -> bool:
-            try:
-                return bool(client.scheduler_info().get("workers"))
-            except Exception:  # noqa: BLE001 - a lost scheduler has no workers for us either
-                return False
-
-        executor.workers_alive = workers_alive
-        try:
-            yield executor
-        finally:
-            with contextlib.suppress(Exception):
-                client.close()
-    elif jobs > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            yield pool
-    else:
-        yield None
-
-
 def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,
               ground_truth_dir: str | os.PathLike[str] | None = None, options: BatchOptions | None = None,
               jobs: int = 1, scheduler: str | None = None, force: bool = False,
@@ -457,47 +345,14 @@ def run_batch(indir: str | os.PathLike[str], outdir: str | os.PathLike[str], *,
     suffixed = {str(relative) for relative in shared}
     outcomes: dict[str, FileOutcome] = {}
     report = on_outcome or (lambda outcome: None)
-    with make_executor(jobs=jobs, scheduler=scheduler) as executor:
-        if executor is None:
-            for task in tasks:
-                outcome = process_file(*task, options, force, task[1] in suffixed)
-                outcomes[outcome.file] = outcome
-                report(outcome)
-        else:
-            def failed(task: tuple, why: str) -> FileOutcome:
-                folder = output_folder(out, Path(task[1]), keep_suffix=task[1] in suffixed)
-                return FileOutcome(task[1], "failed", str(folder), task[3], error=why)
+    def failed(task: tuple, why: str) -> FileOutcome:
+        folder = output_folder(out, Path(task[1]), keep_suffix=task[1] in suffixed)
+        return FileOutcome(task[1], "failed", str(folder), task[3], error=why)
 
-            futures: dict[Future, tuple] = {executor.submit(process_file, *task, options, force,
-                                                            task[1] in suffixed): task
-                                            for task in tasks}
-            broken: list[tuple] = []
-            for task, result in completed_futures(futures, alive=getattr(executor, "workers_alive", None)):
-                if isinstance(result, FileOutcome):
-                    outcome = result
-                elif isinstance(result, BrokenProcessPool):
-                    broken.append(task)  # a worker died: which file killed it is found below
-                    continue
-                elif isinstance(result, CancelledError):
-                    outcome = failed(task, "the Dask scheduler was lost before this file was done")
-                elif isinstance(result, _NoWorkers):
-                    outcome = failed(task, str(result))
-                else:
-                    error = result if isinstance(result, BaseException) else RuntimeError(str(result))
-                    outcome = failed(task, f"worker failed: {type(error).__name__}: {one_line(error)}")
-                outcomes[outcome.file] = outcome
-                report(outcome)
-            # after a worker died, every file it left undone is run alone in a fresh process: only the file
-            # that kills its process fails
-            for task in broken:
-                with ProcessPoolExecutor(max_workers=1) as alone:
-                    try:
-                        outcome = alone.submit(process_file, *task, options, force, task[1] in suffixed).result()
-                    except BrokenProcessPool:
-                        outcome = failed(task, "the worker process died while processing this file (out of "
-                                               "memory, or a crash in native code)")
-                outcomes[outcome.file] = outcome
-                report(outcome)
+    runs = [(*task, options, force, task[1] in suffixed) for task in tasks]
+    for _, outcome in run_tasks(process_file, runs, failed=failed, jobs=jobs, scheduler=scheduler):
+        outcomes[outcome.file] = outcome
+        report(outcome)
     ordered = [outcomes[str(relative)] for relative in files]
     summary = summarize(ordered, indir=str(indir), outdir=str(out), options=options)
     from ..evaluation.report import batch_markdown

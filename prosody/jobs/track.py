@@ -21,7 +21,6 @@ import os
 import time
 import warnings
 from collections.abc import Callable, Iterable
-from concurrent.futures import Future
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -51,7 +50,8 @@ from ..tracking.video import (
     probe_video,
     read_video_audio,
 )
-from .batch import completed_futures, file_digest, make_executor, natural_key, one_line
+from .batch import file_digest, natural_key
+from .runner import one_line, run_tasks
 
 #: Version of the tracking method, stored in each track.json (a change redoes complete outputs).
 TRACK_VERSION = 1
@@ -406,18 +406,11 @@ def track_videos(videos: Iterable[str | os.PathLike[str]], outdir: str | os.Path
         if on_outcome is not None:
             on_outcome(outcome)
 
-    with make_executor(jobs=jobs, scheduler=scheduler) as executor:
-        if executor is None:
-            for task in tasks:
-                done(_track_one(*task))
-        else:
-            futures: dict[Future, tuple] = {executor.submit(_track_one, *task): task for task in tasks}
-            for task, result in completed_futures(futures, alive=getattr(executor, "workers_alive", None)):
-                if isinstance(result, TrackOutcome):
-                    done(result)
-                else:
-                    done(TrackOutcome(task[0], "failed", str(Path(task[1]) / Path(task[0]).stem),
-                                      error=one_line(result) if isinstance(result, BaseException) else str(result)))
+    def failed(task: tuple, why: str) -> TrackOutcome:
+        return TrackOutcome(task[0], "failed", str(Path(task[1]) / Path(task[0]).stem), error=why)
+
+    for _, outcome in run_tasks(_track_one, tasks, failed=failed, jobs=jobs, scheduler=scheduler):
+        done(outcome)
     order = {str(path): index for index, path in enumerate(found)}
     return sorted(outcomes, key=lambda outcome: order.get(outcome.video, 0))
 
