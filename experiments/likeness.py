@@ -36,9 +36,9 @@ import numpy as np
 
 from experiments.common import TRACKED_VIDEOS, data_folder, record, tracked_videos
 from experiments.mouth_videos_loso import speakers
+from prosody.fap.recorded import read_brows_csv, read_mouth_csv
 from prosody.measures import mouth_metrics
 from prosody.motion.face.lips import MNS_PER_EYE_WIDTH, inner_opening
-from prosody.motion.ground_truth import read_brows_csv, read_mouth_csv
 from prosody.motion.settings import LIP_METHODS, FaceSettings
 
 FPS = 30.0

@@ -14,6 +14,7 @@ import numpy as np
 
 from experiments.common import record
 from experiments.mouth_loco import default_data, speaker_of
+from prosody.fap.recorded import read_mouth_csv
 from prosody.measures import mouth_metrics
 from prosody.motion.face.lips import inner_opening, shape_faps
 from prosody.motion.face.mouth_model import (
@@ -21,7 +22,6 @@ from prosody.motion.face.mouth_model import (
     LiveMouthModel,
     live_mouth_clips,
 )
-from prosody.motion.ground_truth import read_mouth_csv
 
 
 def main(folder: Path) -> None:

@@ -37,6 +37,7 @@ from audio_features.espeak import align_transcript
 from audio_features.phones import Phone, recognise_phones
 from experiments.common import record
 from experiments.common import talking_heads as default_data
+from prosody.fap.recorded import read_mouth_csv
 from prosody.measures import average_mouth_metrics, mouth_metrics, relative_closures
 from prosody.motion.face.lips import (
     MNS_PER_EYE_WIDTH,
@@ -49,7 +50,6 @@ from prosody.motion.face.lips import (
     viseme_weights,
 )
 from prosody.motion.face.mouth_model import AcousticMouthModel, mouth_training_clip
-from prosody.motion.ground_truth import read_mouth_csv
 
 FPS = 30.0
 #: What a player of Rhubarb's cues shows, as (opening MNS, rounding): each shape at the visemes' size.

@@ -35,10 +35,10 @@ from audio_features import extract_features, load_audio
 from audio_features.phones import recognise_phones
 from experiments.common import TRACKED_VIDEOS, data_folder, record, tracked_videos
 from experiments.mouth_loco import measured
+from prosody.fap.recorded import read_mouth_csv
 from prosody.measures import opening_agreement
 from prosody.motion.face.lips import inner_opening, shape_faps, shapes_from_phones
 from prosody.motion.face.mouth_model import HEADS_MOUTH_MODEL_PATH, AcousticMouthModel, mouth_training_clip
-from prosody.motion.ground_truth import read_mouth_csv
 
 FPS = 30.0
 TRACKED = TRACKED_VIDEOS

@@ -32,8 +32,8 @@ import audio_features.phones as phones
 from audio_features import extract_features, load_audio
 from experiments.common import data_folder, record
 from experiments.mouth_videos_loso import FPS, load_clips, measured, summary_table
+from prosody.fap.recorded import read_mouth_csv
 from prosody.motion.face.lips import inner_opening, shape_faps, shapes_from_phones
-from prosody.motion.ground_truth import read_mouth_csv
 
 #: Peterson and Barney's (1952) mean F0 of men, Hz, and the exponent that turns a pitch ratio into their
 #: women's-to-men's formant ratio.

@@ -4,11 +4,12 @@ The package is in layers, each importing only those before it:
 
 - :mod:`prosody.errors`: the exceptions; :mod:`prosody.validate`: the checks of callers' values;
 - :mod:`prosody.net`: what the live and study servers share (addresses, the origins they answer, headers);
-- :mod:`prosody.fap`: the FAP table and units, streams, the .fap reader and writer, the exporters;
+- :mod:`prosody.fap`: the FAP table and units, streams, the .fap reader and writer, the exporters, recorded
+  motion's files;
 - :mod:`prosody.head`: the 3D head (mesh, rig, renderer, glTF, WebGL model);
 - :mod:`prosody.outputs`: every output format by name and ending, and the writer that chooses among them;
 - :mod:`prosody.measures`: how motion is measured against recorded motion;
-- :mod:`prosody.motion`: the eyebrow rules, Perlin noise, recorded motion and the expressivity controls; its
+- :mod:`prosody.motion`: the eyebrow rules, Perlin noise and the expressivity controls; its
   rooms :mod:`prosody.motion.face` (lips, expressions, PAD states) and :mod:`prosody.motion.heads` (the head
   models behind one protocol, offline and live, and their training); then the settings groups and the
   conditions that join them;

@@ -149,7 +149,7 @@ def normalize_stream(stream: FapStream, targets: Mapping[int, tuple[float, float
 
 def head_measured(stream: FapStream) -> np.ndarray:
     """Frames whose head rotation (FAP 48-50) is all there, shape (n_frames,): False in stretches a face
-    tracker lost (see :func:`prosody.motion.ground_truth.read_head_csv`)."""
+    tracker lost (see :func:`prosody.fap.recorded.read_head_csv`)."""
     return np.asarray(stream.mask[:, [fap - 1 for fap in HEAD_FAPS]].all(axis=1), dtype=bool)
 
 

@@ -12,10 +12,10 @@ from conftest import harmonic_tone, make_features, segments
 from prosody.cli import main
 from prosody.errors import ConfigError, GroundTruthError
 from prosody.fap.fapfile import read_fap, write_fap
+from prosody.fap.recorded import fit_to_grid, read_head_csv
 from prosody.fap.stream import FapStream
 from prosody.motion.conditions import Condition, condition_stream
 from prosody.motion.eyebrows import BROW_SCALE
-from prosody.motion.ground_truth import fit_to_grid, read_head_csv
 from prosody.motion.perlin import HEAD_STD_AU, PerlinSettings, fractal_noise, perlin_curves
 
 SR = 16000

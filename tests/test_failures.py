@@ -230,7 +230,7 @@ def test_arx_fit_refuses_widths_its_files_cannot_hold(tmp_path) -> None:
 
 def test_head_csv_rows_off_the_30_fps_grid_are_refused(tmp_path) -> None:
     from prosody.errors import GroundTruthError
-    from prosody.motion.ground_truth import read_head_csv
+    from prosody.fap.recorded import read_head_csv
 
     path = tmp_path / "c.head.csv"
     path.write_text("frame,time_s,rx_rad,ry_rad,rz_rad\n0,0.0,0,0,0\n1,0.04,0,0,0\n")  # 25 fps timing
@@ -240,7 +240,7 @@ def test_head_csv_rows_off_the_30_fps_grid_are_refused(tmp_path) -> None:
 
 def test_huge_csv_cells_are_one_line_errors(tmp_path) -> None:
     from prosody.errors import BallotError, GroundTruthError
-    from prosody.motion.ground_truth import read_head_csv
+    from prosody.fap.recorded import read_head_csv
     from prosody.study.ballots import read_ballots
 
     big = "x" * 200_000
@@ -478,8 +478,8 @@ def test_model_numbers_beyond_any_fit_and_motion_beyond_a_turn_are_refused(tmp_p
     import json
 
     from prosody.errors import GroundTruthError, ModelError
+    from prosody.fap.recorded import read_head_csv
     from prosody.live.converter import live_head_model, shipped_live_model_path
-    from prosody.motion.ground_truth import read_head_csv
     from prosody.motion.heads.arx import ArxHeadModel
     from prosody.motion.heads.models import ARX_MODEL_PATH, load_head_model
 
@@ -505,7 +505,7 @@ def test_a_byte_order_mark_is_accepted_in_every_text_input(tmp_path) -> None:
     import json
 
     from prosody.fap.fapfile import read_fap
-    from prosody.motion.ground_truth import read_head_csv
+    from prosody.fap.recorded import read_head_csv
     from prosody.motion.heads.models import ARX_MODEL_PATH, load_head_model
 
     bom = b"\xef\xbb\xbf"

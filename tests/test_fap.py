@@ -381,7 +381,7 @@ def test_an_endless_device_is_refused(tmp_path) -> None:
 
 def test_ground_truth_and_base_at_another_length_are_refused_before_resampling(tmp_path) -> None:
     from prosody.errors import GroundTruthError
-    from prosody.motion.ground_truth import fit_to_grid
+    from prosody.fap.recorded import fit_to_grid
 
     slow = FapStream.from_curves({48: np.zeros(3)}, fps=1.0)  # 3 s at 1 fps
     with pytest.raises(GroundTruthError, match="lasts 3.00 s"):

@@ -492,7 +492,7 @@ def test_two_measures_of_one_opening_agree_once_low_passed() -> None:
 
 @pytest.mark.parametrize("with_jaw", [True, False])
 def test_the_mouth_reader_keeps_the_jaw_blendshape_when_the_file_has_it(tmp_path, with_jaw) -> None:
-    from prosody.motion.ground_truth import read_mouth_csv
+    from prosody.fap.recorded import read_mouth_csv
 
     header = ["frame", "time_s", *(["jaw_open"] if with_jaw else []), "mouth_funnel", "mouth_pucker",
               "lip_opening", "mouth_width"]

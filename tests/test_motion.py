@@ -13,6 +13,7 @@ from conftest import make_features, segments
 from audio_features import Audio, F0Track, Features, Track, extract_features, read_features_csv
 from prosody.cli import main
 from prosody.errors import ConfigError, GroundTruthError, ModelError
+from prosody.fap.recorded import ENS_PER_EYE_WIDTH, read_brows_csv, read_motion
 from prosody.fap.stream import FapStream
 from prosody.jobs.pipeline import apply_controls, convert
 from prosody.measures import (
@@ -27,7 +28,6 @@ from prosody.measures import (
 from prosody.motion.conditions import Condition
 from prosody.motion.controls import fitted_features, shift_offsets, shifted_features
 from prosody.motion.eyebrows import BROW_SCALE, AccentRule, EyebrowRule, NoRaiseWarning, accent_raises, brow_raises
-from prosody.motion.ground_truth import ENS_PER_EYE_WIDTH, read_brows_csv, read_motion
 from prosody.motion.heads.models import SHIPPED_MODELS, default_head_model, load_head_model, rest_pose
 from prosody.motion.heads.prosodic import ProsodicHeadModel, follow, speech_presence
 

@@ -10,6 +10,7 @@ import sqlite3
 import threading
 import urllib.error
 import urllib.request
+from pathlib import Path
 
 import pytest
 import soundfile
@@ -170,14 +171,18 @@ def test_export_reads_the_database_without_writing_it(tmp_path) -> None:
 # the videos -------------------------------------------------------------------------------------------------------
 
 
-@pytest.fixture
-def recordings(tmp_path):
-    folder = tmp_path / "recordings"
+def _recordings(where: Path) -> Path:
+    folder = where / "recordings"
     folder.mkdir()
     samples, rate = soundfile.read(REPO / "samples" / "arctic_a0009.wav")
     for name, gain in (("a", 1.0), ("b", 0.5)):
         soundfile.write(folder / f"{name}.wav", gain * samples, rate)
     return folder
+
+
+@pytest.fixture
+def recordings(tmp_path):
+    return _recordings(tmp_path)
 
 
 def _conditions(plan):
@@ -288,17 +293,26 @@ def test_condition_files_take_settings_and_the_library_reads_them(tmp_path) -> N
 # the server -------------------------------------------------------------------------------------------------------
 
 
-@pytest.fixture
-def served(tmp_path, recordings):
+@pytest.fixture(scope="module")
+def served_stimuli(tmp_path_factory):
+    """One plan's stimuli for every test of a server (they only read them): made once per module."""
     if find_ffmpeg() is None:
         pytest.skip("needs ffmpeg (pip install imageio-ffmpeg)")
+    where = tmp_path_factory.mktemp("served")
+    plan = _plan("identification", ("none", "speech"))
+    make_stimuli(plan, _recordings(where), where / "stimuli", _conditions(plan), width=64)
+    return plan, where / "stimuli"
+
+
+@pytest.fixture
+def served(tmp_path, served_stimuli):
+    """A study server of its own (its own database, settings a test may change) on the shared stimuli."""
     from prosody.study.server import StudyServer
 
-    plan = _plan("identification", ("none", "speech"))
-    make_stimuli(plan, recordings, tmp_path / "stimuli", _conditions(plan), width=64)
+    plan, stimuli = served_stimuli
     store = StudyStore(tmp_path / "s.sqlite", plan)
     lines: list[str] = []
-    server = StudyServer(plan, tmp_path / "stimuli", store, port=0, token="secret-token", report=lines.append).start()
+    server = StudyServer(plan, stimuli, store, port=0, token="secret-token", report=lines.append).start()
     server.lines = lines
     yield server
     server.close()

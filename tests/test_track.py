@@ -21,8 +21,8 @@ from conftest import SHARED_DATA
 
 from prosody.cli import main
 from prosody.errors import ConfigError, TrackingError
+from prosody.fap.recorded import RecordedGapWarning, read_head_csv, read_mouth_csv
 from prosody.measures import opening_agreement
-from prosody.motion.ground_truth import RecordedGapWarning, read_head_csv, read_mouth_csv
 from prosody.tracking.curves import EnvelopeAccumulator, estimate_sync, on_grid
 from prosody.tracking.face import head_angles
 

@@ -22,6 +22,7 @@ from audio_features import Features, extract_features
 from audio_features.atomic import atomic_write
 
 from ..errors import ConfigError
+from ..fap.recorded import RecordedMouth, fit_to_grid, mouth_beside, read_motion, read_mouth_csv
 from ..fap.stream import FapStream
 from ..fap.table import HEAD_FAPS
 from ..measures import (
@@ -53,7 +54,6 @@ from ..motion.controls import shift_offsets, shifted_features
 from ..motion.expressivity import Expressivity
 from ..motion.eyebrows import BrowRule, EyebrowRaises, NoRaiseWarning, brow_raises, warn_if_no_raise
 from ..motion.face.layer import stream_mouth
-from ..motion.ground_truth import RecordedMouth, fit_to_grid, mouth_beside, read_motion, read_mouth_csv
 from ..motion.heads.models import HeadModel, is_stochastic, resolve_head_model, rest_pose
 from ..motion.settings import (
     AnalysisSettings,

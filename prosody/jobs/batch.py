@@ -418,10 +418,10 @@ def other_recordings_control(outcomes: list[FileOutcome], options: BatchOptions,
     ``options.seeds`` seeds. Keyed by file."""
     from audio_features import read_features_csv
 
+    from ..fap.recorded import fit_to_grid, read_motion
     from ..measures import average_head_metrics, empty_head_metrics, head_matrix, head_measured, head_metrics
     from ..motion.conditions import head_motion
     from ..motion.controls import fitted_features
-    from ..motion.ground_truth import fit_to_grid, read_motion
     from ..motion.heads.models import is_stochastic, resolve_head_model
 
     usable = [o for o in outcomes if o.metrics is not None and (Path(o.output) / FEATURES_FILE).is_file()]

@@ -13,12 +13,12 @@ from audio_features import Features, extract_features
 
 from ..errors import ConfigError, ParameterNote
 from ..fap.fapfile import read_fap
+from ..fap.recorded import fit_to_grid, read_motion
 from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS
 from ..motion.conditions import Condition, check_condition, condition_stream
 from ..motion.face.layer import FaceLayer
 from ..motion.face.pad import parse_pad
-from ..motion.ground_truth import fit_to_grid, read_motion
 from ..motion.heads.models import resolve_head_model, rest_pose
 from ..motion.heads.pad import PadHeadModel
 from ..motion.limits import warn_if_bent, within_human_limits

@@ -29,8 +29,8 @@ import numpy as np
 from audio_features.atomic import atomic_path, atomic_write
 
 from ..errors import ConfigError, TrackingError, VisualProsodyError, require_extra
+from ..fap.recorded import HEAD_CSV_FPS
 from ..measures import opening_agreement
-from ..motion.ground_truth import HEAD_CSV_FPS
 from ..tracking.curves import (
     ALL_COLUMNS,
     MAX_GAP_S,

@@ -151,7 +151,7 @@ def condition_stream(
         Head model for SPEECH_DRIVEN; the shipped prosodic generator when omitted.
     ground_truth : FapStream, optional
         Recorded motion on the features' grid (required for GROUND_TRUTH); see
-        :func:`prosody.motion.ground_truth.fit_to_grid`.
+        :func:`prosody.fap.recorded.fit_to_grid`.
     eyebrow_rule : AccentRule or EyebrowRule, optional
         The speech-driven brows' rule: the accent rule (default) or the thesis's rule.
     perlin : PerlinSettings, optional

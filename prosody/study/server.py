@@ -73,6 +73,8 @@ NEW_PER_CLIENT_PER_MINUTE = 10
 NEW_PER_MINUTE = 120
 #: Bytes of a video sent at a time.
 VIDEO_BLOCK_BYTES = 1 << 16
+#: How often the serving loop looks for a shutdown, in s (closing the server waits at most this long).
+SHUTDOWN_POLL_S = 0.05
 
 
 def study_page() -> bytes:
@@ -241,7 +243,9 @@ class StudyServer:
         return f"http://{shown}:{port}/"
 
     def start(self) -> StudyServer:
-        self._thread = threading.Thread(target=self._http.serve_forever, name="study-server", daemon=True)
+        # the loop looks for a shutdown every SHUTDOWN_POLL_S: closing takes no longer than that
+        self._thread = threading.Thread(target=self._http.serve_forever, kwargs={"poll_interval": SHUTDOWN_POLL_S},
+                                        name="study-server", daemon=True)
         self._thread.start()
         return self
 

@@ -17,15 +17,8 @@ from audio_features.atomic import atomic_path
 from audio_features.tracks import frame_count
 
 from ..dsp import centred_moving_average
-from ..motion.ground_truth import HEAD_CSV_COLUMNS, HEAD_CSV_FPS
-from .face import MOUTH_BLENDSHAPES, snake_case
+from ..fap.recorded import ALL_COLUMNS, BROWS_COLUMNS, HEAD_CSV_COLUMNS, HEAD_CSV_FPS, MOUTH_COLUMNS
 
-#: Columns after frame and time_s of the brows and mouth files (the talking-heads order).
-BROWS_COLUMNS = ("brow_inner_up", "brow_outer_up_l", "brow_outer_up_r", "inner_height_l", "inner_height_r",
-                 "outer_height_l", "outer_height_r")
-MOUTH_COLUMNS = tuple(snake_case(name) for name in MOUTH_BLENDSHAPES) + ("lip_opening", "mouth_width", "nose_chin")
-HEAD_COLUMNS = ("rx_rad", "ry_rad", "rz_rad")
-ALL_COLUMNS = HEAD_COLUMNS + BROWS_COLUMNS + MOUTH_COLUMNS
 #: Longest stretch without the face that is bridged by interpolation, in s; longer ones stay empty.
 MAX_GAP_S = 0.25
 

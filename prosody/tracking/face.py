@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..fap.recorded import MOUTH_BLENDSHAPES, snake_case
 from ..head.landmarks import (
     INSTALL_HINT,
     MAX_FACES,
@@ -32,12 +33,9 @@ __all__ = ["INSTALL_HINT", "MAX_FACES", "MODEL_PACKAGE", "MODEL_RESOURCE", "MODE
 #: A followed face that jumps further than this (in face widths) between frames is taken as another face.
 MAX_JUMP_FACE_WIDTHS = 1.0
 
-#: Blendshapes kept, in the talking-heads column order (brows, then mouth); l/r are the speaker's own sides.
+#: Blendshapes kept, in the talking-heads column order (brows, then the mouth's, :data:`MOUTH_BLENDSHAPES` of
+#: :mod:`prosody.fap.recorded`); l/r are the speaker's own sides.
 BROW_BLENDSHAPES = ("browInnerUp", "browOuterUpLeft", "browOuterUpRight")
-MOUTH_BLENDSHAPES = ("jawOpen", "mouthClose", "mouthFunnel", "mouthPucker", "mouthSmileLeft", "mouthSmileRight",
-                     "mouthStretchLeft", "mouthStretchRight", "mouthPressLeft", "mouthPressRight", "mouthRollLower",
-                     "mouthRollUpper", "mouthLowerDownLeft", "mouthLowerDownRight", "mouthUpperUpLeft",
-                     "mouthUpperUpRight")
 
 # Landmarks of the 478-point face mesh ("left" is the speaker's own left, on the image's right).
 EYE_OUTER_LEFT, EYE_OUTER_RIGHT = 263, 33
@@ -200,6 +198,3 @@ def face_measures(observation: FaceObservation) -> dict[str, float]:
     return values
 
 
-def snake_case(name: str) -> str:
-    """``mouthSmileLeft`` -> ``mouth_smile_left``."""
-    return "".join("_" + c.lower() if c.isupper() else c for c in name)

@@ -101,7 +101,7 @@ def context_features(frames: np.ndarray, n_frames: int, *, fps: float) -> np.nda
 
 
 def mouth_training_clip(audio: Audio, mouth, *, fps: float, name: str = "") -> MouthTrainingClip:
-    """A training clip from audio and a :class:`~prosody.motion.ground_truth.RecordedMouth` on its grid."""
+    """A training clip from audio and a :class:`~prosody.fap.recorded.RecordedMouth` on its grid."""
     opening = (mouth.lip_opening - np.nanquantile(mouth.lip_opening, 0.05)) / MNS_PER_EYE_WIDTH \
         * DISTANCE_UNITS_PER_REFERENCE
     rounding = mouth.rounding - np.nanquantile(mouth.rounding, 0.05)
@@ -212,7 +212,7 @@ def train_mouth(folders: str | os.PathLike[str] | Sequence[str | os.PathLike[str
     from audio_features import AUDIO_EXTENSIONS, load_audio
 
     from ...errors import ConfigError, GroundTruthError
-    from ..ground_truth import read_mouth_csv
+    from ...fap.recorded import read_mouth_csv
 
     roots = [Path(folders)] if isinstance(folders, (str, os.PathLike)) else [Path(f) for f in folders]
     clips = []
@@ -437,7 +437,7 @@ def live_mouth_clips(folder: str | os.PathLike[str], *,
 
     from audio_features import AUDIO_EXTENSIONS, load_audio
 
-    from ..ground_truth import read_mouth_csv
+    from ...fap.recorded import read_mouth_csv
 
     pairs = []
     for audio_path in sorted(p for p in Path(folder).iterdir() if p.suffix.lower() in AUDIO_EXTENSIONS):

@@ -18,10 +18,10 @@ from audio_features import DEFAULT_FPS
 from audio_features.streaming import stream_file
 
 from ...errors import ConfigError, GroundTruthError, ProsodyError
+from ...fap.recorded import fit_to_grid, read_motion
 from ...fap.table import HEAD_FAPS
 from ...measures import average_head_metrics, head_matrix, head_metrics
 from ..controls import shift_offsets
-from ..ground_truth import fit_to_grid, read_motion
 from .live import DEFAULT_LOOKAHEAD_MS, LiveHeadModel
 from .training import CV_SEEDS, HeldOut, find_pairs, held_out_summary, signed
 

@@ -21,10 +21,10 @@ import numpy as np
 from audio_features import AUDIO_EXTENSIONS, DEFAULT_FPS, Features, extract_features
 
 from ...errors import ConfigError, GroundTruthError, ProsodyError, require_extra
+from ...fap.recorded import fit_to_grid, read_motion
 from ...fap.table import HEAD_FAPS
 from ...measures import average_head_metrics, head_matrix, head_metrics, mean_of, pearson
 from ..controls import shift_offsets, shifted_features
-from ..ground_truth import fit_to_grid, read_motion
 from .arx import DEFAULT_NA, DEFAULT_NB, DEFAULT_NK, DEFAULT_RIDGE, ArxHeadModel, arx_inputs
 from .prosodic import ProsodicHeadModel
 

@@ -1,8 +1,12 @@
-"""Recorded motion as a FAP stream: the GROUND_TRUTH condition.
+"""Recorded motion's files, beside the FAP formats: what ``prosody track`` writes and the GROUND_TRUTH
+condition reads.
 
-Two sources are read: a .fap file, and the ``<clip>.head.csv`` convention of docs/dependencies.md (columns
+Read as a FAP stream: a .fap file, and the ``<clip>.head.csv`` convention of docs/dependencies.md (columns
 frame, time_s, rx_rad, ry_rad, rz_rad at 30 fps; FAP 48 = rx, 49 = ry, 50 = rz, times 1e5 for AU, each
-clip's median pose removed since FAPs are displacements from a neutral pose).
+clip's median pose removed since FAPs are displacements from a neutral pose); the video-tracked brows
+(``<clip>.brows.csv``) as FAP 31-36 and mouth (``<clip>.mouth.csv``) as measures. The columns of the three
+files are :data:`HEAD_COLUMNS`, :data:`BROWS_COLUMNS` and :data:`MOUTH_COLUMNS` (after ``frame`` and
+``time_s``), one schema for the tracker that writes them and the readers.
 """
 
 from __future__ import annotations
@@ -19,12 +23,30 @@ import numpy as np
 from audio_features.inputs import open_input, reading
 
 from ..errors import GroundTruthError
-from ..fap.stream import FapStream
-from ..fap.table import HEAD_FAPS, PROSODY_FAPS, RADIANS_PER_AU
+from .stream import FapStream
+from .table import HEAD_FAPS, PROSODY_FAPS, RADIANS_PER_AU
 
 #: Frame rate of the head.csv convention.
 HEAD_CSV_FPS = 30.0
 HEAD_CSV_COLUMNS = ("frame", "time_s", "rx_rad", "ry_rad", "rz_rad")
+#: MediaPipe's mouth blendshapes that the tracker keeps, in the mouth file's order.
+MOUTH_BLENDSHAPES = ("jawOpen", "mouthClose", "mouthFunnel", "mouthPucker", "mouthSmileLeft", "mouthSmileRight",
+                     "mouthStretchLeft", "mouthStretchRight", "mouthPressLeft", "mouthPressRight", "mouthRollLower",
+                     "mouthRollUpper", "mouthLowerDownLeft", "mouthLowerDownRight", "mouthUpperUpLeft",
+                     "mouthUpperUpRight")
+
+
+def snake_case(name: str) -> str:
+    """``mouthSmileLeft`` -> ``mouth_smile_left``."""
+    return "".join("_" + c.lower() if c.isupper() else c for c in name)
+
+
+#: Columns after frame and time_s of the tracker's head, brows and mouth files (the talking-heads order).
+HEAD_COLUMNS = HEAD_CSV_COLUMNS[2:]
+BROWS_COLUMNS = ("brow_inner_up", "brow_outer_up_l", "brow_outer_up_r", "inner_height_l", "inner_height_r",
+                 "outer_height_l", "outer_height_r")
+MOUTH_COLUMNS = tuple(snake_case(name) for name in MOUTH_BLENDSHAPES) + ("lip_opening", "mouth_width", "nose_chin")
+ALL_COLUMNS = HEAD_COLUMNS + BROWS_COLUMNS + MOUTH_COLUMNS
 #: How far a head.csv row's time_s may stray from frame / 30 (its rounding to a few decimals).
 TIME_TOLERANCE_S = 0.002
 #: Largest length difference (frames) between audio and recorded motion that is trimmed or padded.
