@@ -8,7 +8,7 @@ import sys
 
 import pytest
 import soundfile
-from conftest import segments
+from conftest import REPO, segments
 
 from prosody import __version__
 from prosody.cli import main
@@ -316,3 +316,22 @@ def test_an_unknown_option_is_named_by_its_command(capsys):
     assert stop.value.code == 2
     assert capsys.readouterr().err == ("prosody convert: error: unrecognized arguments: --fsp 25 (see 'prosody convert "
                                        "--help')\n")
+
+
+def test_leaving_out_every_channel_is_the_librarys_rule(tmp_path, capsys) -> None:
+    """An output with every moving channel left out is refused by the library (convert, compare, the live
+    converter) and by the command line in the same words, with the command's own option."""
+    from prosody import LiveConverter, compare, convert
+    from prosody.errors import ConfigError
+
+    every = ("pitch", "yaw", "roll", "brows", "lips")
+    speech = REPO / "samples" / "arctic_a0009.wav"
+    for call in (lambda: convert(speech, None, disabled=every), lambda: compare(speech, disabled=every),
+                 lambda: LiveConverter(16000, disabled=every)):
+        with pytest.raises(ConfigError, match="leaves out every channel") as refused:
+            call()
+        assert refused.value.parameters == ("disabled",)
+    convert(speech, None, disabled=every[:4], lips=None, expression="joy:0.5")  # an expression still moves
+    assert main(["convert", str(speech), "-o", str(tmp_path / "x.fap"), "--off", "pitch,yaw,roll,brows,lips"]) == 2
+    assert "--off leaves out every channel" in capsys.readouterr().err
+    assert not (tmp_path / "x.fap").exists()

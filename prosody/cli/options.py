@@ -160,7 +160,7 @@ def add_channel_options(parser: argparse.ArgumentParser) -> None:
                                    "what a person can do)")
     controls.add_argument("--lip-gain", type=number_in(0, MAX_GAIN), default=1.0, metavar="G",
                           help="scale the lips' motion (FAP 3-11, 16-17, 51-58) by G (default 1)")
-    controls.add_argument("--off", action="append", default=[], metavar="CHANNEL[,CHANNEL]",
+    controls.add_argument("--off", dest="disabled", action="append", default=[], metavar="CHANNEL[,CHANNEL]",
                           help="leave channels out of the output: pitch, yaw, roll, brows, lips (repeatable)")
 
 
@@ -168,7 +168,7 @@ def channel_kwargs(args: argparse.Namespace) -> dict:
     """The ``gains`` and ``disabled`` keywords set by :func:`add_channel_options`."""
     gains = {"pitch": args.pitch_gain, "yaw": args.yaw_gain, "roll": args.roll_gain, "brows": args.brow_gain,
              "lips": args.lip_gain}
-    return {"gains": gains, "disabled": [name.strip() for value in args.off for name in value.split(",")
+    return {"gains": gains, "disabled": [name.strip() for value in args.disabled for name in value.split(",")
                                          if name.strip()]}
 
 
@@ -354,18 +354,16 @@ def making_options_given(args: argparse.Namespace) -> list[str]:
 
 def check_motion_options(args: argparse.Namespace) -> None:
     """Options that would make the output silently other than asked are refused."""
-    from ..errors import ConfigError
     from ..motion.conditions import check_condition
 
     # the library's rules, said with the command's flags (messages.said)
     check_condition(args.condition, ground_truth=getattr(args, "ground_truth", None),
                     model=getattr(args, "model", None), expressivity=expressivity(args))
-    off = {name.strip() for value in args.off for name in value.split(",") if name.strip()}
+    from ..motion.settings import ChannelSettings
+
     lips = getattr(args, "lips", getattr(args, "live_lips", "none"))
-    channels = {"pitch", "yaw", "roll", "brows"} | ({"lips"} if lips != "none" else set())
-    if channels <= off and getattr(args, "expression", None) is None:
-        raise ConfigError(f"--off leaves out every channel ({', '.join(sorted(channels))}): the output would be "
-                          "empty")
+    ChannelSettings(disabled=channel_kwargs(args)["disabled"]).check_leaves_output(
+        lips=lips != "none", face_layer=bool(getattr(args, "expression", None) or getattr(args, "pad", None)))
     if hasattr(args, "transcript"):  # the face's rules, before the audio is read
         from ..motion.settings import FaceSettings
 

@@ -290,6 +290,7 @@ def compare(
     """
     analysis, motion, face, channels = settings_groups("compare", fields, analysis=analysis, motion=motion, face=face,
                                                        channels=channels)
+    channels.check_leaves_output(lips=face.lips is not None, face_layer=bool(face.expression or face.pad))
     wanted = [c if isinstance(c, Condition) else Condition.parse(c) for c in (conditions or CONDITION_ORDER)]
     if ground_truth is None:
         if conditions is not None and Condition.GROUND_TRUTH in wanted:

@@ -137,6 +137,7 @@ def convert(
                                                        channels=channels)
     if output is not None and not os.fspath(output):
         raise ConfigError("output: no output file name given")
+    channels.check_leaves_output(lips=face.lips is not None, face_layer=bool(face.expression or face.pad))
     chosen = check_condition(condition, ground_truth=ground_truth, model=motion.model,
                              expressivity=motion.expressivity)
     if features is None:

@@ -150,6 +150,7 @@ class LiveConverter:
                  channels: ChannelSettings = ChannelSettings(), **fields: Unpack[LiveFields]) -> None:
         analysis, motion, _, channels = settings_groups("LiveConverter", fields, analysis=analysis, motion=motion,
                                                         channels=channels, taking=("analysis", "motion", "channels"))
+        channels.check_leaves_output(lips=bool(live_lips), face_layer=bool(expression))
         chosen = condition if isinstance(condition, Condition) else Condition.parse(condition)
         if chosen is Condition.GROUND_TRUTH:
             raise ConfigError("recorded motion (condition truth) has no live form; choose speech, random or none")

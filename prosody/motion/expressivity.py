@@ -240,62 +240,95 @@ class HeadShaper:
         x = [float(value) for value in frame]
         if len(x) != 3:
             raise ConfigError(f"a head frame has 3 angles (pitch, yaw, roll), got {len(x)}")
-        return np.array(self._step(x))
+        return np.array(self._run([x])[0])
 
-    def _step(self, x: list[float]) -> list[float]:
-        """:meth:`step` on a list of three floats (the list is kept: the caller gives a new one each frame)."""
+    def _run(self, rows: list[list[float]]) -> list[list[float]]:
+        """:meth:`step` over frames in order (each a new list of three floats, kept as the previous pose): the
+        one implementation of the shaping, for a live stream's frame and for a whole recording. The running
+        state is held in local variables through the loop (a frame costs a few microseconds)."""
         e = self.expressivity
         fps = self.fps
-        if self._previous is None:
-            self._previous, self._output, self._mean = list(x), list(x), list(x)
-        velocity = [a - b for a, b in zip(x, self._previous, strict=True)]
-        self._previous = x
-        self._frames += 1
-        # how strongly the head moves now against its running average
-        # the speed a viewer sees: the velocity below about 4 Hz (two one-poles), as the measures low-pass it
-        pole = self._visible_pole
+        activation, power, repetition = e.activation, e.power, e.repetition
+        filtering = e.temporal != 0.0 or e.fluidity != 0.0
+        visible_pole, smooth_speed, pull, scale = self._visible_pole, self._smooth_speed, self._pull, self._scale
+        reshaping = self._reshaping
+        low, high = BALANCE_RANGE
+        gain_low, gain_high = POWER_GAIN_RANGE
+        exponent = power if power < 0 else POWER_SHARPENING * power
+        slowest_weight = 1.0 / (REFERENCE_S * fps)
         first, second = self._visible
-        for k in range(3):
-            first[k] = pole * first[k] + (1 - pole) * velocity[k]
-            second[k] = pole * second[k] + (1 - pole) * first[k]
-        instant = math.sqrt(second[0] * second[0] + second[1] * second[1] + second[2] * second[2]) * fps
-        self._speed = self._smooth_speed * self._speed + (1 - self._smooth_speed) * instant
-        weight = max(1.0 / self._frames, 1.0 / (REFERENCE_S * fps))
-        self._reference += weight * (self._speed - self._reference)
-        mean_rate = 1.0 / min(self._frames + MEAN_START_S * fps, REFERENCE_S * fps)
-        mean = self._mean
-        for k in range(3):
-            mean[k] += (x[k] - mean[k]) * mean_rate
-        ratio = self._speed / self._reference if self._reference > 0 else 1.0
-        gain = 1.0
-        target = x
-        if e.activation < 1.0:
-            gain, target = self._gated(ratio, x, mean, e.activation)
-        if e.power != 0.0:
-            # the gain's average over the speed it scales is kept at 1, so the average speed stays
-            exponent = e.power if e.power < 0 else POWER_SHARPENING * e.power
-            boost = ratio**exponent if ratio > 0 else 0.0
-            self._instant_reference += weight * (instant - self._instant_reference)
-            self._power_reference += weight * (boost * instant - self._power_reference)
-            norm = self._power_reference / self._instant_reference if self._power_reference > 0 else 1.0
-            gain *= min(max(boost / norm, POWER_GAIN_RANGE[0]), POWER_GAIN_RANGE[1])
-        if gain != 1.0:
-            velocity = self._balanced(velocity, gain, weight)
-        if e.temporal != 0.0 or e.fluidity != 0.0:
-            velocity = self._filtered(velocity, e)
-        if self._reshaping:
-            output = self._output
+        up, down = self._distance
+        shaped_up, shaped_down = self._shaped_distance
+        previous, output, mean = self._previous, self._output, self._mean
+        speed, reference, frames = self._speed, self._reference, self._frames
+        instant_reference, power_reference, last_ratio = self._instant_reference, self._power_reference, self._ratio
+        out = []
+        for x in rows:
+            if previous is None:
+                previous, output, mean = list(x), list(x), list(x)
+                self._mean = mean
+            velocity = [x[0] - previous[0], x[1] - previous[1], x[2] - previous[2]]
+            previous = x
+            frames += 1
+            # how strongly the head moves now against its running average
+            # the speed a viewer sees: the velocity below about 4 Hz (two one-poles), as the measures low-pass it
             for k in range(3):
-                output[k] = output[k] + velocity[k]
-                output[k] += self._pull * (target[k] - output[k])
-        else:
-            self._output = list(x)
-        scale = self._scale
-        shaped = [self._output[0] * scale, self._output[1] * scale, self._output[2] * scale]
-        if e.repetition > 0:
-            shaped[0] = (self._output[0] + self._nod(x[0], ratio)) * scale
-        self._ratio = ratio
-        return shaped
+                first[k] = visible_pole * first[k] + (1 - visible_pole) * velocity[k]
+                second[k] = visible_pole * second[k] + (1 - visible_pole) * first[k]
+            instant = math.sqrt(second[0] * second[0] + second[1] * second[1] + second[2] * second[2]) * fps
+            speed = smooth_speed * speed + (1 - smooth_speed) * instant
+            weight = max(1.0 / frames, slowest_weight)
+            reference += weight * (speed - reference)
+            mean_rate = 1.0 / min(frames + MEAN_START_S * fps, REFERENCE_S * fps)
+            for k in range(3):
+                mean[k] += (x[k] - mean[k]) * mean_rate
+            ratio = speed / reference if reference > 0 else 1.0
+            gain = 1.0
+            target = x
+            if activation < 1.0:
+                gain, target = self._gated(ratio, x, mean, activation)
+            if power != 0.0:
+                # the gain's average over the speed it scales is kept at 1, so the average speed stays
+                boost = ratio**exponent if ratio > 0 else 0.0
+                instant_reference += weight * (instant - instant_reference)
+                power_reference += weight * (boost * instant - power_reference)
+                norm = power_reference / instant_reference if power_reference > 0 else 1.0
+                gain *= min(max(boost / norm, gain_low), gain_high)
+            if gain != 1.0:
+                # each axis's rises and falls rescaled so that, on average, they stand in the proportion the
+                # generator's do (their total kept as the gain makes it): a gain that follows the speed would
+                # otherwise favour the direction in which the generator moves faster (a nod's quick fall) and
+                # carry the pose away from the generator's, by more than the motion's spread within the pull's 4 s
+                for k in range(3):
+                    v = velocity[k]
+                    rising, falling = (v, 0.0) if v > 0 else (0.0, v)
+                    up[k] += weight * (rising - up[k])
+                    down[k] += weight * (-falling - down[k])
+                    shaped_up[k] += weight * (gain * rising - shaped_up[k])
+                    shaped_down[k] += weight * (-gain * falling - shaped_down[k])
+                    total = (shaped_up[k] + shaped_down[k]) / max(up[k] + down[k], 1e-300)
+                    rise = (min(max(up[k] * total / shaped_up[k], low), high) if shaped_up[k] > 0
+                            else min(max(1.0, low), high))
+                    fall = (min(max(down[k] * total / shaped_down[k], low), high) if shaped_down[k] > 0
+                            else min(max(1.0, low), high))
+                    velocity[k] = gain * (rising * rise + falling * fall)
+            if filtering:
+                velocity = self._filtered(velocity, e)
+            if reshaping:
+                for k in range(3):
+                    output[k] = output[k] + velocity[k]
+                    output[k] += pull * (target[k] - output[k])
+            else:
+                output = list(x)
+            shaped = [output[0] * scale, output[1] * scale, output[2] * scale]
+            if repetition > 0:
+                shaped[0] = (output[0] + self._nod(x[0], ratio, frames, last_ratio)) * scale
+            last_ratio = ratio
+            out.append(shaped)
+        self._previous, self._output = previous, output
+        self._speed, self._reference, self._frames = speed, reference, frames
+        self._instant_reference, self._power_reference, self._ratio = instant_reference, power_reference, last_ratio
+        return out
 
     def _gated(self, ratio: float, x: list[float], mean: list[float], activation: float,
                ) -> tuple[float, list[float]]:
@@ -330,37 +363,16 @@ class HeadShaper:
                         else [v + JITTER_BOOST * -e.fluidity * (v - w) for v, w in zip(velocity, second, strict=True)])
         return velocity
 
-    def _balanced(self, velocity: list[float], gain: float, weight: float) -> list[float]:
-        """The velocity times the gain, each axis's rises and falls rescaled so that, on average, they stand in
-        the proportion the generator's do (their total kept as the gain makes it): a gain that follows the speed
-        would otherwise favour the direction in which the generator moves faster (a nod's quick fall) and carry
-        the pose away from the generator's, by more than the motion's spread within the pull's 4 s."""
-        low, high = BALANCE_RANGE
-        (up, down), (shaped_up, shaped_down) = self._distance, self._shaped_distance
-        out = [0.0, 0.0, 0.0]
-        for k in range(3):
-            v = velocity[k]
-            rising, falling = (v, 0.0) if v > 0 else (0.0, v)
-            up[k] += weight * (rising - up[k])
-            down[k] += weight * (-falling - down[k])
-            shaped_up[k] += weight * (gain * rising - shaped_up[k])
-            shaped_down[k] += weight * (-gain * falling - shaped_down[k])
-            scale = (shaped_up[k] + shaped_down[k]) / max(up[k] + down[k], 1e-300)
-            rise = min(max(up[k] * scale / shaped_up[k], low), high) if shaped_up[k] > 0 else min(max(1.0, low), high)
-            fall = (min(max(down[k] * scale / shaped_down[k], low), high) if shaped_down[k] > 0
-                    else min(max(1.0, low), high))
-            out[k] = gain * (rising * rise + falling * fall)
-        return out
-
-    def _nod(self, pitch: float, ratio: float) -> float:
-        """The repeated nod's part of the pitch axis at this frame (AU)."""
+    def _nod(self, pitch: float, ratio: float, frames: int, last_ratio: float) -> float:
+        """The repeated nod's part of the pitch axis at frame number ``frames`` (from 1; AU), the speed ratio
+        ``ratio`` now and ``last_ratio`` a frame before."""
         fps = self.fps
-        weight = max(1.0 / self._frames, 1.0 / (REFERENCE_S * fps))
+        weight = max(1.0 / frames, 1.0 / (REFERENCE_S * fps))
         self._pitch_mean += weight * (pitch - self._pitch_mean)
         self._pitch_power += weight * ((pitch - self._pitch_mean) ** 2 - self._pitch_power)
-        now = self._frames / fps
-        if (self._ratio < ACCENT_RATIO <= ratio and now - self._last_accent >= ACCENT_REFRACTORY_S
-                and self._frames > ACCENT_WARMUP_S * fps):
+        now = frames / fps
+        if (last_ratio < ACCENT_RATIO <= ratio and now - self._last_accent >= ACCENT_REFRACTORY_S
+                and frames > ACCENT_WARMUP_S * fps):
             self._last_accent = now
             self._nod_start = now
             self._nod_height = self.expressivity.repetition * math.sqrt(max(self._pitch_power, 0.0))
@@ -498,7 +510,7 @@ def shape_head(motion_au: np.ndarray, *, fps: float, expressivity: Expressivity)
     if motion.ndim != 2 or motion.shape[1] != 3:
         raise ConfigError(f"head motion has 3 angles a frame (pitch, yaw, roll), got shape {motion.shape}")
     shaper = HeadShaper(expressivity, fps=fps)
-    return np.array([shaper._step(row) for row in motion.tolist()], dtype=float).reshape(motion.shape)
+    return np.array(shaper._run(motion.tolist()), dtype=float).reshape(motion.shape)
 
 
 def shape_brows(curve_ens: np.ndarray, *, fps: float, expressivity: Expressivity) -> np.ndarray:

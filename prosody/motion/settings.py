@@ -212,6 +212,26 @@ class ChannelSettings:
         """
         return float(self.gains.get(channel, 1.0))  # type: ignore[union-attr]
 
+    def check_leaves_output(self, *, lips: bool, face_layer: bool = False) -> None:
+        """Refuse to leave out every channel that would move: the output would be empty.
+
+        Parameters
+        ----------
+        lips : bool
+            Whether lips are made (they are a channel only then).
+        face_layer : bool
+            Whether an expression or an emotional state is shown (it moves the face whatever is left out).
+
+        Raises
+        ------
+        ConfigError
+            Every channel that would move is left out, and nothing else moves.
+        """
+        moving = {"pitch", "yaw", "roll", "brows"} | ({"lips"} if lips else set())
+        if moving <= set(self.disabled) and not face_layer:
+            raise ConfigError(f"disabled= leaves out every channel ({', '.join(sorted(moving))}): the output would "
+                              "be empty", parameter="disabled")
+
     def disabled_faps(self) -> set[int]:
         """The FAPs of the channels left out.
 
