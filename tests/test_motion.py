@@ -589,3 +589,35 @@ def test_speech_driven_head_at_other_frame_rates(tmp_path, fps) -> None:
     times = np.arange(other.n_frames) / fps
     expected = np.interp(times, np.arange(at_30.n_frames) / 30.0, at_30.curve(49))
     assert np.corrcoef(other.curve(49), expected)[0, 1] > 0.95
+
+
+def test_every_shipped_model_file_is_read_and_written_the_one_way(tmp_path) -> None:
+    """Every model class is a JsonModel: each shipped file loads by its kind's class, and what it saves loads
+    back to the same data; a file of one kind is refused by another kind's reader, naming the file."""
+    import json
+
+    from prosody.errors import ModelError
+    from prosody.motion.face.mouth_model import AcousticMouthModel, LiveMouthModel
+    from prosody.motion.heads.arx import ArxHeadModel
+    from prosody.motion.heads.live import LiveHeadModel
+    from prosody.motion.heads.models import NAMED_MODELS
+    from prosody.motion.heads.pad import PadHeadModel
+    from prosody.motion.heads.prosodic import ProsodicHeadModel
+    from prosody.motion.model_files import MODELS_DIR, JsonModel
+
+    readers = {"arx": ArxHeadModel, "prosodic": ProsodicHeadModel, "prosodic-live": LiveHeadModel,
+               "mouth-acoustic": AcousticMouthModel, "mouth-live": LiveMouthModel, "pad": PadHeadModel}
+    assert all(issubclass(reader, JsonModel) for reader in readers.values())
+    files = sorted(MODELS_DIR.glob("*.json"))
+    assert {json.loads(path.read_text())["kind"] for path in files} == set(readers) - {"pad"}
+    for path in files:
+        reader = readers[json.loads(path.read_text())["kind"]]
+        model = reader.load(path)
+        model.save(tmp_path / path.name)
+        assert reader.load(tmp_path / path.name).to_dict() == model.to_dict(), path.name
+        for other in set(readers.values()) - {reader}:
+            with pytest.raises(ModelError, match=path.name):
+                other.load(path)
+    pad = NAMED_MODELS["pad"]()
+    pad.save(tmp_path / "pad.json")
+    assert PadHeadModel.load(tmp_path / "pad.json").to_dict() == pad.to_dict()

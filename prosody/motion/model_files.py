@@ -7,6 +7,7 @@ import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, TypeVar
 
 from audio_features.atomic import atomic_write
 from audio_features.inputs import open_input, reading
@@ -126,3 +127,49 @@ def model_payload(payload: object, *, format_name: str, source: str, version: in
         raise ModelError(f"{source}: model version {payload.get('version')!r} is not supported (this release "
                          f"reads version {version})")
     return payload
+
+
+Model = TypeVar("Model", bound="JsonModel")
+
+
+class JsonModel:
+    """A model kept as one JSON file: the one way every model of the package is written and read.
+
+    A model class gives :meth:`to_dict` (its data, with ``"format"`` and ``"version"``) and :meth:`from_dict`
+    (checking them with :func:`model_payload`, then its own fields, raising :class:`ModelError` naming
+    ``source``); :meth:`save` and :meth:`load` are these.
+    """
+
+    def to_dict(self) -> dict:
+        """The model's data as plain JSON values."""
+        raise NotImplementedError
+
+    @classmethod
+    def from_dict(cls: type[Model], payload: object, *, source: str = "<dict>") -> Model:
+        """The model from :meth:`to_dict`'s data; :class:`ModelError` naming ``source`` if it is not one."""
+        raise NotImplementedError
+
+    def save(self, path: str | os.PathLike[str], *, extra: dict[str, Any] | None = None) -> None:
+        """Write the model as JSON (plain data, never pickle), atomically, with ``extra`` fields such as
+        held-out figures.
+
+        Parameters
+        ----------
+        path : path-like
+        extra : dict, optional
+        """
+        write_model_json(self.to_dict(), path, extra=extra)
+
+    @classmethod
+    def load(cls: type[Model], path: str | os.PathLike[str]) -> Model:
+        """Read a model file written by :meth:`save`; :class:`ModelError` names the file and the problem.
+
+        Parameters
+        ----------
+        path : path-like
+
+        Returns
+        -------
+        the model
+        """
+        return cls.from_dict(read_model_json(path), source=str(path))

@@ -22,7 +22,7 @@ from audio_features.spectral import N_SPECTRAL, cepstra, on_grid
 
 from ...errors import ModelError
 from ...fap.table import DISTANCE_UNITS_PER_REFERENCE
-from ..model_files import MAX_MODEL_MAGNITUDE, MODELS_DIR, model_payload, read_model_json, write_model_json
+from ..model_files import MAX_MODEL_MAGNITUDE, MODELS_DIR, JsonModel, model_payload
 from .lips import MNS_PER_EYE_WIDTH, MouthShape
 
 MODEL_FORMAT = "visual-prosody-mouth-model"
@@ -110,7 +110,7 @@ def mouth_training_clip(audio: Audio, mouth, *, fps: float, name: str = "") -> M
                              opening, rounding, spread)
 
 
-class AcousticMouthModel:
+class AcousticMouthModel(JsonModel):
     """Ridge regressions from spectral context to the mouth's shape.
 
     Parameters
@@ -157,16 +157,23 @@ class AcousticMouthModel:
         voice, dip = on_grid(smooth, n_frames, fps=fps).T
         return gated(self.predict_features(features), voice, dip)
 
-    def save(self, path: str | os.PathLike[str]) -> None:
-        write_model_json({"format": MODEL_FORMAT, "version": MODEL_VERSION, "kind": "mouth-acoustic",
-                          "context_s": list(CONTEXT_S), "features": N_SPECTRAL, "ridge": self.ridge,
-                          "outputs": ["opening_mns", "rounding", "spread"], "weights": self.weights_.tolist(),
-                          "training": self.training_}, path)
+    def to_dict(self) -> dict:
+        """The model's data as plain JSON values."""
+        return {"format": MODEL_FORMAT, "version": MODEL_VERSION, "kind": "mouth-acoustic",
+                "context_s": list(CONTEXT_S), "features": N_SPECTRAL, "ridge": self.ridge,
+                "outputs": ["opening_mns", "rounding", "spread"], "weights": self.weights_.tolist(),
+                "training": self.training_}
 
     @classmethod
     def load(cls, path: str | os.PathLike[str] = DEFAULT_MOUTH_MODEL_PATH) -> AcousticMouthModel:
-        name = str(path)
-        payload = model_payload(read_model_json(path), format_name=MODEL_FORMAT, source=name, version=MODEL_VERSION)
+        """The model of a file (default: the shipped one)."""
+        return super().load(path)
+
+    @classmethod
+    def from_dict(cls, payload: object, *, source: str = "<dict>") -> AcousticMouthModel:
+        """The model from :meth:`to_dict`'s data; :class:`ModelError` naming ``source`` if it is not one."""
+        name = source
+        payload = model_payload(payload, format_name=MODEL_FORMAT, source=name, version=MODEL_VERSION)
         try:
             weights = np.array(payload["weights"], dtype=float)
             ridge = float(payload["ridge"])
@@ -282,7 +289,7 @@ def _live_offsets(lookahead_s: float) -> tuple[float, ...]:
     return tuple(float(x) for x in np.round(np.arange(-0.3, lookahead_s + 1e-9, 0.05), 3))
 
 
-class LiveMouthModel:
+class LiveMouthModel(JsonModel):
     """The acoustic mouth model in causal form, for ``prosody stream``: spectral features standardised by
     their running statistics and read from 0.3 s before each frame to ``lookahead_s`` after it.
 
@@ -321,19 +328,18 @@ class LiveMouthModel:
     def start(self, sample_rate_hz: int, *, fps: float) -> LiveMouth:
         return LiveMouth(self, sample_rate_hz, fps=fps)
 
-    def save(self, path: str | os.PathLike[str]) -> None:
-        write_model_json({"format": LIVE_MODEL_FORMAT, "version": MODEL_VERSION, "kind": "mouth-live",
-                          "lookahead_s": self.lookahead_s, "offsets_s": list(self.offsets_s), "ridge": self.ridge,
-                          "prior_mean": self.prior_mean_.tolist(), "prior_var": self.prior_var_.tolist(),
-                          "prior_loud_db": self.prior_loud_db_,
-                          "weights": self.weights_.tolist(), "training": self.training_}, path)
+    def to_dict(self) -> dict:
+        """The model's data as plain JSON values."""
+        return {"format": LIVE_MODEL_FORMAT, "version": MODEL_VERSION, "kind": "mouth-live",
+                "lookahead_s": self.lookahead_s, "offsets_s": list(self.offsets_s), "ridge": self.ridge,
+                "prior_mean": self.prior_mean_.tolist(), "prior_var": self.prior_var_.tolist(),
+                "prior_loud_db": self.prior_loud_db_, "weights": self.weights_.tolist(), "training": self.training_}
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> LiveMouthModel:
-        payload = read_model_json(path)
-        name = str(path)
-        if not isinstance(payload, dict) or payload.get("format") != LIVE_MODEL_FORMAT:
-            raise ModelError(f"{name}: not a live mouth model file (format {LIVE_MODEL_FORMAT!r})")
+    def from_dict(cls, payload: object, *, source: str = "<dict>") -> LiveMouthModel:
+        """The model from :meth:`to_dict`'s data; :class:`ModelError` naming ``source`` if it is not one."""
+        name = source
+        payload = model_payload(payload, format_name=LIVE_MODEL_FORMAT, source=name)
         try:
             model = cls(float(payload["lookahead_s"]), float(payload["ridge"]))
             model.weights_ = np.array(payload["weights"], dtype=float)

@@ -14,7 +14,6 @@ from one recording into the next; generation runs the model free, feeding back i
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Sequence
 from typing import ClassVar
 
@@ -27,10 +26,9 @@ from ...fap.table import HEAD_FAPS
 from ..model_files import (
     MAX_MODEL_MAGNITUDE,
     MODELS_DIR,
+    JsonModel,
     TrainingClip,
     model_payload,
-    read_model_json,
-    write_model_json,
 )
 
 MODEL_FORMAT = "visual-prosody-arx"
@@ -104,7 +102,7 @@ def spectral_radius(a_matrices: np.ndarray) -> float:
     return float(np.max(np.abs(poles))) if poles.size else 0.0
 
 
-class ArxHeadModel:
+class ArxHeadModel(JsonModel):
     """Linear ARX model from audio features to head pitch, yaw and roll (FAP 48-50, AU).
 
     Parameters
@@ -344,10 +342,6 @@ class ArxHeadModel:
             "training": [clip.__dict__ for clip in self.training_],
         }
 
-    def save(self, path: str | os.PathLike[str], *, extra: dict | None = None) -> None:
-        """Write the model as JSON (plain data, never pickle), atomically."""
-        write_model_json(self.to_dict(), path, extra=extra)
-
     @classmethod
     def from_dict(cls, payload: object, *, source: str = "<dict>") -> ArxHeadModel:
         """Rebuild a model from :meth:`to_dict` output, checking every field."""
@@ -405,11 +399,6 @@ class ArxHeadModel:
         model.spectral_radius_, model.ridge_, model.fps_ = radius, model.ridge, fps
         model.training_ = training
         return model
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> ArxHeadModel:
-        """Read a model file written by :meth:`save`; raises ModelError naming the file and the problem."""
-        return cls.from_dict(read_model_json(path), source=str(path))
 
 
 def default_model() -> ArxHeadModel:

@@ -22,7 +22,6 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-import os
 from collections import deque
 from collections.abc import Sequence
 
@@ -35,7 +34,7 @@ from ...errors import ConfigError
 from ...fap.table import EYEBROW_FAPS, HEAD_FAPS, RADIANS_PER_AU
 from ...validate import valid_seed
 from ..eyebrows import AccentRule, BrowRule, EyebrowRule
-from ..model_files import TrainingClip, read_model_json, write_model_json
+from ..model_files import JsonModel, TrainingClip
 from ..perlin import CHANNEL_KEYS, EYEBROW_STD_ENS, HEAD_OFFSETS_FRAMES, HEAD_STD_AU, PerlinSettings, fractal_noise
 from ..regression import SPECTRUM_FRAMES, TimingFit
 from .prosodic import (
@@ -386,7 +385,7 @@ _CALIBRATION_SEEDS = 3
 _OWN_SPEED_HALF_S = 0.25
 
 
-class LiveHeadModel(LiveHeadSettings):
+class LiveHeadModel(LiveHeadSettings, JsonModel):
     """The prosodic head generator in causal form: head pitch, yaw and roll (FAP 48-50, AU) from audio up
     to ``lookahead_s`` after each frame.
 
@@ -555,10 +554,6 @@ class LiveHeadModel(LiveHeadSettings):
                 "speed_rad_s": self.speed_rad_s_, "pitch_prediction_spread": self.pitch_prediction_spread_,
                 "training": [clip.__dict__ for clip in self.training_]}
 
-    def save(self, path: str | os.PathLike[str], *, extra: dict | None = None) -> None:
-        """Write the model as JSON (plain data, never pickle), atomically."""
-        write_model_json(self.to_dict(), path, extra=extra)
-
     @classmethod
     def from_dict(cls, payload: object, *, source: str = "<dict>") -> LiveHeadModel:
         """Rebuild a model from :meth:`to_dict` output, checking every field."""
@@ -567,10 +562,6 @@ class LiveHeadModel(LiveHeadSettings):
             unsupported=f"is not a live head model (this release streams with version {MODEL_VERSION} of kind "
                         f"{MODEL_KIND!r}, made by 'prosody train --kind live')",
             names={"features": list(FEATURE_NAMES), "outputs": list(HEAD_FAPS)})
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> LiveHeadModel:
-        return cls.from_dict(read_model_json(path), source=str(path))
 
 
 class _Synthesis:

@@ -40,8 +40,7 @@ and twice Table 3's mean, the pose as above, and the peak anywhere in the PW.
 from __future__ import annotations
 
 import math
-import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -52,7 +51,7 @@ from audio_features import Features
 from ...errors import ConfigError
 from ...fap.table import HEAD_FAPS
 from ...fap.units import AU_PER_DEGREE
-from ..model_files import TrainingClip
+from ..model_files import JsonModel, TrainingClip, model_payload
 
 #: Table 3 of Jia et al. (2013): amplitude means, in degrees, per axis (pitch, yaw, roll).
 TABLE3_AMPLITUDE_DEG = (9.83, 3.41, 3.35)
@@ -347,7 +346,7 @@ def held_out_arousal(per_recording: Sequence[tuple[np.ndarray, np.ndarray]], fol
         for axis, name in enumerate(("pitch", "yaw", "roll"))}}
 
 
-class PadHeadModel:
+class PadHeadModel(JsonModel):
     """Jia et al.'s head gestures as a head model (``--model pad``; ``pad-random`` for its random baseline).
 
     Parameters
@@ -426,27 +425,17 @@ class PadHeadModel:
         return model
 
     def to_dict(self) -> dict:
+        """The model's data (``--model FILE`` reads its file), with the clips it was fitted on."""
         return {"format": MODEL_FORMAT, "version": 1, "kind": self.kind, "pleasure": self.pleasure,
-                "randomized": self.randomized, "coefficients": [list(axis) for axis in self.coefficients_]}
-
-    def save(self, path: str | os.PathLike[str], *, extra: dict | None = None) -> None:
-        """Write the model as JSON (``--model FILE`` reads it), with ``extra`` fields such as held-out figures."""
-        from ..model_files import write_model_json
-
-        payload = self.to_dict()
-        if self.training_:
-            payload["training"] = [clip.__dict__ for clip in self.training_]
-        write_model_json(payload, path, extra=extra)
+                "randomized": self.randomized, "coefficients": [list(axis) for axis in self.coefficients_],
+                **({"training": [clip.__dict__ for clip in self.training_]} if self.training_ else {})}
 
     @classmethod
     def from_dict(cls, payload: object, *, source: str = "<dict>") -> PadHeadModel:
         from ...errors import ModelError
 
+        payload = model_payload(payload, format_name=MODEL_FORMAT, source=source, version=1)
         try:
-            if not isinstance(payload, Mapping):
-                raise ValueError("not a JSON object")
-            if payload.get("version") != 1:
-                raise ValueError(f"version {payload.get('version')!r}; this release reads version 1")
             model = cls(float(payload.get("pleasure", 0.0)), payload.get("coefficients"),
                         bool(payload.get("randomized", False)))
             model.training_ = [TrainingClip.from_dict(c) for c in payload.get("training", [])]

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 from collections.abc import Callable, Sequence
 from typing import ClassVar
 
@@ -33,7 +32,7 @@ from ...errors import ConfigError, ModelError
 from ...fap.table import HEAD_FAPS, RADIANS_PER_AU
 from ...validate import valid_seed
 from ..expressivity import Expressivity, shape_head
-from ..model_files import MAX_MODEL_MAGNITUDE, TrainingClip, model_payload, write_model_json
+from ..model_files import MAX_MODEL_MAGNITUDE, JsonModel, TrainingClip, model_payload
 from ..regression import SPECTRUM_FRAMES, TimingFit, finite_number
 from .settings import OfflineHeadSettings
 
@@ -249,7 +248,7 @@ def _read_fitted_fields(model, payload: dict, fail: Callable[[str], ModelError])
     model.training_ = [TrainingClip.from_dict(c) for c in payload["training"]]
 
 
-class ProsodicHeadModel(OfflineHeadSettings):
+class ProsodicHeadModel(OfflineHeadSettings, JsonModel):
     """Head pitch, yaw and roll (FAP 48-50, AU) from speech: a predicted speed envelope driving coloured
     noise, plus a predicted head pitch.
 
@@ -543,10 +542,6 @@ class ProsodicHeadModel(OfflineHeadSettings):
             "pitch_prediction_spread": self.pitch_prediction_spread_,
             "training": [clip.__dict__ for clip in self.training_],
         }
-
-    def save(self, path: str | os.PathLike[str], *, extra: dict | None = None) -> None:
-        """Write the model as JSON (plain data, never pickle), atomically."""
-        write_model_json(self.to_dict(), path, extra=extra)
 
     @classmethod
     def from_dict(cls, payload: object, *, source: str = "<dict>") -> ProsodicHeadModel:
