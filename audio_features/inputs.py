@@ -171,6 +171,7 @@ def reading(name: object, error: Callable[[str], Exception], *, wanted: str = "f
     except FileNotFoundError:
         raise error(f"{name}: no such file") from None
     except IsADirectoryError:
-        raise error(f"{name}: is a directory, not a {wanted}") from None
+        article = "an" if wanted[:1].lower() in "aeiou" else "a"
+        raise error(f"{name}: is a directory, not {article} {wanted}") from None
     except OSError as failure:
         raise error(f"{name}: cannot be read ({failure.strerror or failure})") from None

@@ -612,3 +612,10 @@ def test_sound_in_an_mp4_is_read_through_ffmpeg(ending: str, codec: str, tmp_pat
     broken.write_bytes(packed.read_bytes()[:200])
     with pytest.raises(AudioLoadError, match=f"broken{ending}: FFmpeg could not decode its sound"):
         convert(broken, None)
+
+
+def test_a_folder_given_as_a_recording_is_named_in_plain_english(tmp_path, capsys) -> None:
+    from prosody.cli import main
+
+    assert main(["convert", str(tmp_path), "-o", str(tmp_path / "x.fap")]) == 1
+    assert f"{tmp_path}: is a directory, not an audio file" in capsys.readouterr().err
