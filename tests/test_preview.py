@@ -397,6 +397,7 @@ def test_options_that_make_a_stream_are_refused_for_a_stream_shown_as_it_is(tmp_
         assert err.count("\n") == 1 and options[0] in err and "is a stream" in err, err
         if len(options) > 2:
             assert options[2] in err
+        assert (" makes a stream" in err) == (len(options) == 2)  # one option makes, two make
     assert not (tmp_path / "x.gif").exists()
     # the drawing options stay
     assert main(["preview", str(tmp_path / "x.fap"), "-o", str(tmp_path / "x.gif"), "--width", "64",

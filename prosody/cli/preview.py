@@ -116,8 +116,10 @@ def run(args: argparse.Namespace) -> int:
         if given:
             from ..errors import ConfigError
 
-            raise ConfigError(f"{args.input} is a stream, shown as it is: {', '.join(given)} make a stream from a "
-                              f"recording (use them with 'prosody preview RECORDING', or 'prosody convert' first)")
+            verb = "makes" if len(given) == 1 else "make"
+            raise ConfigError(f"{args.input} is a stream, shown as it is: {', '.join(given)} {verb} a stream from a "
+                              f"recording (use {'it' if len(given) == 1 else 'them'} with 'prosody preview "
+                              "RECORDING', or 'prosody convert' first)")
     scales = strip_scales(args.strip_scale)
     face = preview_face(args.face)  # a photo is read, and its face found, before the audio
     audio = args.audio
