@@ -5,14 +5,18 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from audio_features.atomic import atomic_write
 from audio_features.inputs import open_input, reading
 
 from ..errors import ModelError
+
+if TYPE_CHECKING:
+    import numpy as np
 
 #: Largest model file read (the shipped ones are well under 100 kB).
 #: The folder of the shipped models (head and mouth models, JSON).
@@ -127,6 +131,39 @@ def model_payload(payload: object, *, format_name: str, source: str, version: in
         raise ModelError(f"{source}: model version {payload.get('version')!r} is not supported (this release "
                          f"reads version {version})")
     return payload
+
+
+def model_array(payload: dict, key: str, shape: tuple[int, ...], fail: Callable[[str], ModelError]) -> np.ndarray:
+    """The array field ``key`` of a model file's data, checked: of ``shape``, finite, and within
+    :data:`MAX_MODEL_MAGNITUDE` (beyond it the file is damaged or hostile); else ``fail(problem)`` is raised.
+
+    Parameters
+    ----------
+    payload : dict
+        The file's data.
+    key : str
+    shape : tuple of int
+    fail : callable
+        Makes the :class:`ModelError` naming the file from the problem.
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    import math
+
+    import numpy as np
+
+    array = np.array(payload[key], dtype=float)
+    if array.size == 0 and math.prod(shape) == 0:
+        array = array.reshape(shape)
+    if array.shape != shape:
+        raise fail(f"field {key!r} has shape {array.shape!r}, expected {shape!r}")
+    if not np.all(np.isfinite(array)):
+        raise fail(f"field {key!r} holds non-finite numbers")
+    if np.any(np.abs(array) > MAX_MODEL_MAGNITUDE):
+        raise fail(f"field {key!r} holds numbers beyond {MAX_MODEL_MAGNITUDE:g}: not a fitted model")
+    return array
 
 
 Model = TypeVar("Model", bound="JsonModel")

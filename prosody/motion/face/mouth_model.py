@@ -22,7 +22,7 @@ from audio_features.spectral import N_SPECTRAL, cepstra, on_grid
 
 from ...errors import ModelError
 from ...fap.table import DISTANCE_UNITS_PER_REFERENCE
-from ..model_files import MAX_MODEL_MAGNITUDE, MODELS_DIR, JsonModel, model_payload
+from ..model_files import MAX_MODEL_MAGNITUDE, MODELS_DIR, JsonModel, model_array, model_payload
 from .lips import MNS_PER_EYE_WIDTH, MouthShape
 
 MODEL_FORMAT = "visual-prosody-mouth-model"
@@ -354,11 +354,7 @@ class LiveMouthModel(JsonModel):
         shapes = {"weights": (len(model.offsets_s) * N_SPECTRAL + 1, 3), "prior_mean": (N_SPECTRAL,),
                   "prior_var": (N_SPECTRAL,)}
         for key, shape in shapes.items():
-            array = getattr(model, key + "_")
-            if array.shape != shape:
-                raise ModelError(f"{name}: field {key!r} has shape {array.shape!r}, expected {shape!r}")
-            if not np.all(np.isfinite(array)) or np.any(np.abs(array) > MAX_MODEL_MAGNITUDE):
-                raise ModelError(f"{name}: field {key!r} must hold finite numbers within {MAX_MODEL_MAGNITUDE:g}")
+            model_array({key: getattr(model, key + "_")}, key, shape, lambda problem: ModelError(f"{name}: {problem}"))
         if not abs(model.prior_loud_db_) <= 1000:
             raise ModelError(f"{name}: field 'prior_loud_db' must be a number of dB, got {model.prior_loud_db_!r}")
         if np.any(model.prior_var_ <= 0):

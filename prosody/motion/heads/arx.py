@@ -23,13 +23,7 @@ from audio_features import DEFAULT_FPS, Features
 
 from ...errors import ConfigError, ModelError
 from ...fap.table import HEAD_FAPS
-from ..model_files import (
-    MAX_MODEL_MAGNITUDE,
-    MODELS_DIR,
-    JsonModel,
-    TrainingClip,
-    model_payload,
-)
+from ..model_files import MODELS_DIR, JsonModel, TrainingClip, model_array, model_payload
 
 MODEL_FORMAT = "visual-prosody-arx"
 MODEL_VERSION = 1
@@ -364,18 +358,7 @@ class ArxHeadModel(JsonModel):
                 "a": (model.na, n_out, n_out), "b": (model.nb, n_out, n_in), "c": (n_out,),
                 "input_mean": (n_in,), "input_std": (n_in,), "output_scale_au": (n_out,),
             }
-            arrays = {}
-            for key, shape in fields.items():
-                array = np.array(payload[key], dtype=float)
-                if array.size == 0 and math.prod(shape) == 0:
-                    array = array.reshape(shape)
-                if array.shape != shape:
-                    raise fail(f"field {key!r} has shape {array.shape!r}, expected {shape!r}")
-                if not np.all(np.isfinite(array)):
-                    raise fail(f"field {key!r} holds non-finite numbers")
-                if np.any(np.abs(array) > MAX_MODEL_MAGNITUDE):
-                    raise fail(f"field {key!r} holds numbers beyond {MAX_MODEL_MAGNITUDE:g}: not a fitted model")
-                arrays[key] = array
+            arrays = {key: model_array(payload, key, shape, fail) for key, shape in fields.items()}
             if np.any(arrays["input_std"] <= 0) or np.any(arrays["output_scale_au"] <= 0):
                 raise fail("normalisation scales must be positive")
             if list(payload["inputs"]) != list(INPUT_NAMES) or list(payload["outputs"]) != list(HEAD_FAPS):

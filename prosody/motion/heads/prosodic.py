@@ -32,7 +32,7 @@ from ...errors import ConfigError, ModelError
 from ...fap.table import HEAD_FAPS, RADIANS_PER_AU
 from ...validate import valid_seed
 from ..expressivity import Expressivity, shape_head
-from ..model_files import MAX_MODEL_MAGNITUDE, JsonModel, TrainingClip, model_payload
+from ..model_files import JsonModel, TrainingClip, model_array, model_payload
 from ..regression import SPECTRUM_FRAMES, TimingFit, finite_number
 from .settings import OfflineHeadSettings
 
@@ -229,14 +229,7 @@ def _read_fitted_fields(model, payload: dict, fail: Callable[[str], ModelError])
     """Set the learnt attributes a prosodic head model file holds (the arrays of ``model._array_shapes()``,
     the two spreads and the training record), checking each."""
     for key, shape in model._array_shapes().items():
-        array = np.array(payload[key], dtype=float)
-        if array.shape != shape:
-            raise fail(f"field {key!r} has shape {array.shape!r}, expected {shape!r}")
-        if not np.all(np.isfinite(array)):
-            raise fail(f"field {key!r} holds non-finite numbers")
-        if np.any(np.abs(array) > MAX_MODEL_MAGNITUDE):
-            raise fail(f"field {key!r} holds numbers beyond {MAX_MODEL_MAGNITUDE:g}: not a fitted model")
-        setattr(model, key + "_", array)
+        setattr(model, key + "_", model_array(payload, key, shape, fail))
     for key in ("envelope_std", "pitch_std", "velocity_scale", "spread_au", "noise_spread", "output_scale"):
         if np.any(getattr(model, key + "_") <= 0):
             raise fail(f"field {key!r} must hold positive numbers")
