@@ -116,11 +116,11 @@ class OriginPolicy:
             return True
         try:
             origin = normalize_origin(origin)
+            if origin in self.allowed:
+                return True
             own = normalize_origin(f"http://{host_header}")  # the page served here: same host and port
         except ConfigError:
             return False
-        if origin in self.allowed:
-            return True
         return origin == own and trusted_host(urllib.parse.urlsplit(origin).hostname or "")
 
 

@@ -130,7 +130,6 @@ class FrameServer:
         self.make_converter = make_converter
         self.report = report
         self.origins = OriginPolicy(allow_origins)
-        self.allow_origins = self.origins.allowed
         self.expressivity = expressivity or Expressivity()  # of the command's input
         self.on_expressivity = on_expressivity
         self._face = face  # a PhotoHead: the page shows that person's head (its model made on the first request)

@@ -81,10 +81,6 @@ def study_page() -> bytes:
     return resources.files("prosody.study").joinpath("study.html").read_bytes()
 
 
-def _as_is(served: tuple[bytes, str]) -> tuple[bytes, str]:
-    return served
-
-
 #: Largest head-frames file a study serves (a 10-minute stimulus at 30 fps and 30 FAPs is about 5 MB).
 MAX_HEAD_FRAMES_BYTES = 64 << 20
 
@@ -184,8 +180,8 @@ class StudyServer:
             head = photo_head(path)
             model = json.dumps(photo_model_document(head), separators=(",", ":")).encode("utf-8")
             files["/head.json"] = lambda: (model, "application/json")
-            for name, served in photo_images(head).items():
-                files[name] = functools.partial(_as_is, served)
+            images = photo_images(head)
+            files.update({name: functools.partial(images.__getitem__, name) for name in images})
         return files
 
     def __init__(self, plan: StudyPlan, stimuli: str | Path, store: StudyStore, *, host: str = "127.0.0.1",
@@ -219,7 +215,6 @@ class StudyServer:
         self.head_files = self._head_files(manifest)
         self.break_every = break_every
         self.origins = OriginPolicy(allow_origins)
-        self.allow_origins = self.origins.allowed
         self.token = token or secrets.token_urlsafe(18)
         self._page = study_page()
         self.arrivals = _Arrivals()
