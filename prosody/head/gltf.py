@@ -45,6 +45,8 @@ if TYPE_CHECKING:
 
 #: The head's parts drawn with the mouth's material (seen from both sides).
 MOUTH_PARTS = (UPPER_TEETH, LOWER_TEETH, TONGUE, MOUTH_INSIDE)
+#: How far the mouth's inside is set back in a .glb, in cm: a viewer has no depth bias to keep it behind the skin.
+CAVITY_SETBACK_CM = 0.3
 #: The largest FAP value written (the .fap writer's bound).
 FAP_VALUE_LIMIT = float(MAX_PLAYABLE_VALUE)
 
@@ -184,12 +186,16 @@ def glb_document(stream: FapStream, *, rig: HeadRig | None = None, photo: PhotoH
     textured = np.isin(mesh.part, (FACE, EYE_LEFT, EYE_RIGHT)) if photo is not None else np.zeros(len(colors), bool)
     colors[textured] = 1.0
     mouth = np.isin(mesh.part, MOUTH_PARTS)
+    # the mouth's dark inside set back a little: the CPU renderers draw it behind the skin by a depth bias,
+    # which a glTF cannot carry, and where it runs close under the skin below the corners it came through
+    setback = np.zeros((mesh.n_vertices, 3))
+    setback[mesh.part == MOUTH_INSIDE, 2] = -CAVITY_SETBACK_CM
 
     def primitive(selected: np.ndarray, offset: np.ndarray, material: int, with_targets: bool) -> dict:
         index = np.full(mesh.n_vertices, -1, np.int64)
         index[selected] = np.arange(int(selected.sum()))
         triangles = mesh.triangles[selected[mesh.triangles].all(axis=1)]
-        positions = ((place(mesh.vertices[selected]) - offset) / CM_PER_M).astype(np.float32)
+        positions = ((place(mesh.vertices[selected] + setback[selected]) - offset) / CM_PER_M).astype(np.float32)
         attributes = {"POSITION": buffer.add(positions, "VEC3", target=_ARRAY_BUFFER, bounds=True),
                       "NORMAL": buffer.add(normals[selected].astype(np.float32), "VEC3", target=_ARRAY_BUFFER),
                       "COLOR_0": buffer.add(colors[selected].astype(np.float32), "VEC3", target=_ARRAY_BUFFER)}
