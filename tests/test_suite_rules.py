@@ -83,3 +83,48 @@ def test_where_the_shared_data_is_absent_a_marked_test_skips_with_its_reason(pyt
     text = result.stdout.str()
     assert f"real data not found at {missing}" in text
     assert "test_inner.py::test_unmarked_open reads the shared data without @pytest.mark.shared_data" in text
+
+
+SLOW_TESTS = '''
+import os
+import time
+
+import pytest
+
+
+def _burn(seconds):
+    until = time.process_time() + seconds
+    while time.process_time() < until:
+        pass
+
+
+def test_unmarked_and_long(monkeypatch):
+    monkeypatch.setattr(os, "getloadavg", lambda: (0.0, 0.0, 0.0))  # an idle machine, whatever this one is
+    _burn(0.6)
+
+
+@pytest.mark.slow
+def test_marked_and_long():
+    _burn(0.6)
+
+
+def test_unmarked_and_long_on_a_busy_machine(monkeypatch):
+    monkeypatch.setattr(os, "getloadavg", lambda: (4.0 * (os.cpu_count() or 1), 0.0, 0.0))
+    _burn(0.6)
+
+
+def test_unmarked_and_short():
+    _burn(0.05)
+'''
+
+
+def test_an_unmarked_long_test_fails_unless_the_machine_is_busy(pytester):
+    """The tiers' rule: a test over the processor-time limit must carry the slow marker (the limit lowered here
+    to 0.3 s); on a machine busy four times over its cores the limit is stretched four times."""
+    pytester.makeconftest((REPO / "tests" / "conftest.py").read_text())
+    pytester.makeini("[pytest]\nmarkers =\n    shared_data: needs the shared data\n    slow: long\n")
+    pytester.makepyfile(test_inner=SLOW_TESTS)
+    pytester._monkeypatch.setenv("PROSODY_SLOW_CPU_S", "0.3")
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-rA")
+    result.assert_outcomes(passed=3, failed=1)
+    assert "test_inner.py::test_unmarked_and_long took 0.6 s of processor time" in result.stdout.str()
