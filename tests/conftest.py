@@ -90,8 +90,9 @@ pytest_runtest_setup = pytest.hookimpl(wrapper=True)(_watch_shared_reads)
 # make test-fast leaves out the tests marked slow: a test that takes 2 s or more must carry the marker, so that the
 # fast tier stays fast. Time is counted as this process's processor time (all its threads), which a loaded machine
 # changes far less than the time on the clock (the limits stretch with the machine's load: machine_load); a test
-# that waits (servers, browsers, pacing, subprocesses) is held to a looser limit in wall time. The subprocesses' own time is not counted: a child that ends during a later test would be charged to it;
-# nor is the time Numba spends compiling (once per machine: a fresh checkout's first run compiles).
+# that waits (servers, browsers, pacing, subprocesses) is held to a looser limit in wall time. The subprocesses'
+# own time is not counted: a child that ends during a later test would be charged to it; nor is the time Numba
+# spends compiling (once per machine: a fresh checkout's first run compiles).
 # PROSODY_SLOW_CPU_S lowers the limit to find the tests near it (those within a quarter of it are marked too,
 # so that a slower machine does not fail them).
 SLOW_CPU_S = float(os.environ.get("PROSODY_SLOW_CPU_S", "2.0"))
