@@ -358,3 +358,17 @@ def test_the_players_files_play_on_the_head(shared_data, relative, tmp_path) -> 
 
     with Image.open(out) as image:
         assert image.size == (96, 96 + 2 * round(96 / 8)) and image.n_frames >= 1
+
+
+def test_the_rasterisers_workers_wait_asleep_unless_told_otherwise() -> None:
+    """The rasteriser asks OpenMP for sleeping workers (no spinning on a busy machine's cores), and leaves a
+    user's own choice as it is."""
+    import os
+    import subprocess
+    import sys
+
+    probe = "import os, prosody.head.raster; print(os.environ['OMP_WAIT_POLICY'])"
+    quiet = {key: value for key, value in os.environ.items() if key != "OMP_WAIT_POLICY"}
+    said = [subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True
+                           ).stdout.strip() for env in (quiet, {**quiet, "OMP_WAIT_POLICY": "ACTIVE"})]
+    assert said == ["PASSIVE", "ACTIVE"]

@@ -346,9 +346,19 @@ def fill_background(image: np.ndarray, person: np.ndarray, *, margin_px: int) ->
     # coarsest first, each finer width laid over it where it has background enough (blended, no edges)
     filled = np.broadcast_to(image.reshape(-1, 3).mean(axis=0), small.shape).astype(np.float64)
     side = max(small_size)
+
+    def blurred(plane: np.ndarray, sigma: float) -> np.ndarray:
+        # a wide blur is smooth: worked out on a copy as many times smaller as it is wider than 4 pixels
+        step = max(1, int(sigma // 4))
+        if step == 1:
+            return gaussian_filter(plane, sigma, mode="nearest")
+        shrunk = zoom(plane, 1 / step, order=1, grid_mode=True, mode="nearest")
+        out = gaussian_filter(shrunk, sigma / step, mode="nearest")
+        return zoom(out, np.divide(plane.shape, out.shape), order=1, grid_mode=True, mode="nearest")
+
     for sigma in (1.0 * side, 0.3 * side, 0.12 * side, 0.05 * side, 0.02 * side):
-        weight = gaussian_filter(known, sigma, mode="nearest")
-        values = np.stack([gaussian_filter(small[..., k] * known, sigma, mode="nearest") for k in range(3)], -1)
+        weight = blurred(known, sigma)
+        values = np.stack([blurred(small[..., k] * known, sigma) for k in range(3)], -1)
         alpha = np.clip((weight - 0.05) / 0.25, 0.0, 1.0)[..., None]
         filled = alpha * values / np.maximum(weight, 1e-9)[..., None] + (1 - alpha) * filled
     full = np.stack([zoom(filled[..., k], (height / small_size[0], width / small_size[1]), order=1)

@@ -4,17 +4,27 @@ Two passes: the first keeps, for every pixel, the nearest triangle and the pixel
 coordinates in it; the second shades each covered pixel once (or takes its colour from a texture, for the
 photo head), interpolating the vertex normals and colours
 (Phong shading: two directional lights, an ambient term and a weak specular highlight, lit from both sides
-so the inside of the mouth is lit like a surface). Everything runs on the CPU, in one thread, and the result
-is the same on every machine for the same input (no GPU, no driver).
+so the inside of the mouth is lit like a surface). Everything runs on the CPU, the rows of a frame spread over
+its cores (Numba's ``prange``), and the result is the same on every machine for the same input (no GPU, no
+driver).
+
+Numba's OpenMP workers wait for work asleep (``OMP_WAIT_POLICY=PASSIVE`` unless the environment says
+otherwise): a frame is drawn as fast, and on a busy machine the waiting threads no longer spin on the cores
+other programs need (30 photo frames: 0.36 s of processor time instead of 0.43 s on a quiet machine, 0.42 s
+instead of 0.65 s beside two other renderers; the time on the clock the same or less).
 """
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
 
-import numpy as np
-from numba import njit, prange
+# read by OpenMP when Numba first starts its workers (the first frame), so set before any is drawn
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+import numpy as np  # noqa: E402 - after the workers' wait policy
+from numba import njit, prange  # noqa: E402
 
 from .view import AMBIENT, FILL, KEY, SHININESS_DOUBLINGS, SPECULAR, light_directions
 
