@@ -19,6 +19,7 @@ from pathlib import Path
 
 from .errors import ConfigError
 from .fap.exporters import write_bvh, write_csv, write_json, write_livelink
+from .fap.fapfile import write_fap
 from .fap.mouth_cues import (
     write_moho_dat,
     write_preston_blair_dat,
@@ -33,12 +34,6 @@ __all__ = ["CUE_FORMATS", "MOTION_FORMATS", "WRITERS", "Writer", "format_for", "
 Writer = Callable[[FapStream, "str | os.PathLike[str]"], None]
 
 
-def _write_fap(stream: FapStream, path: str | os.PathLike[str]) -> None:
-    from .fap.fapfile import write_fap
-
-    write_fap(stream, path)
-
-
 def _write_physical_csv(stream: FapStream, path: str | os.PathLike[str]) -> None:
     write_csv(stream, path, physical=True)
 
@@ -51,7 +46,7 @@ def _write_glb(stream: FapStream, path: str | os.PathLike[str]) -> None:
 
 #: format name -> (writer, file name endings); longer endings are matched first.
 WRITERS: dict[str, tuple[Writer, tuple[str, ...]]] = {
-    "fap": (_write_fap, (".fap",)),
+    "fap": (write_fap, (".fap",)),
     "livelink": (write_livelink, (".livelink.csv",)),
     "csv-physical": (_write_physical_csv, ()),
     "csv": (write_csv, (".csv",)),
