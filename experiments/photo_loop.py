@@ -8,7 +8,11 @@ drawn at random (``--seed``), becomes the head (:func:`prosody.head.photo.photo_
 - **the closed loop:** known motion (head pitch 9, yaw 14, roll 7 degrees, the jaw to 500 MNS, the brows 250
   ENS, each on its own period) rendered on the photo head by ``prosody preview --face`` and tracked back by
   ``prosody track``: |r| >= 0.9 per head axis with the tracked spread 0.75-1.33 of the true one, the lips
-  >= 0.9, the brows >= 0.7, the face found in >= 98 % of frames.
+  >= 0.9, the brows >= 0.7, the face found in >= 98 % of frames;
+- **the tracker's ruler:** what the tracker reads of the drawn lip opening and inner-brow raise, converted to
+  FAP units as the tracked-motion readers convert people's (the slope of read over drawn; 1 is true size). It
+  says how far a figure in FAP units from tracked people (``experiments/likeness.py``'s first table) is from
+  their true size; the comparison through render and tracker needs no ruler, both sides being read alike.
 
 The control beside each figure is the largest |r| of a tracked curve with a motion it was not given.
 ``python -m experiments.photo_loop [--seconds 20] [--seed 0]``.
@@ -81,8 +85,8 @@ def main(argv: list[str] | None = None) -> int:
           + ", ".join(f"{k} {PHOTO_AMPLITUDES[k]:g} / {PERIODS_S[k]:g} s" for k in PHOTO_AMPLITUDES)
           + f" (deg, MNS, ENS / period); frames drawn with seed {args.seed}")
     print("| person | frame at | size | SSIM still | found | pitch r / spread | yaw r / spread | roll r / spread "
-          "| lips r | brows r | control |r| | pass |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "| lips r | brows r | lips read at | brows read at | control |r| | pass |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     failures = measured = 0
     summary: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory() as folder:
@@ -113,11 +117,13 @@ def main(argv: list[str] | None = None) -> int:
             measured += 1
             axes = " | ".join(f"{result.head_r[a]:.3f} / {result.head_spread[a]:.2f}" for a in ("pitch", "yaw", "roll"))
             print(f"| {name} ({who}) | {at:.2f} s | {size[1]}x{size[0]} | {ssim:.3f} | {100 * result.found:.1f} % "
-                  f"| {axes} | {result.lips_r:.3f} | {result.brows_r:.3f} | {result.crosstalk_r:.3f} "
+                  f"| {axes} | {result.lips_r:.3f} | {result.brows_r:.3f} | {result.lips_gain:.2f} x "
+                  f"| {result.brows_gain:.2f} x | {result.crosstalk_r:.3f} "
                   f"| {'yes' if passed else 'no'} |")
             for key, value in (("ssim", ssim), ("pitch", abs(result.head_r["pitch"])),
                                ("yaw", abs(result.head_r["yaw"])), ("roll", abs(result.head_r["roll"])),
-                               ("lips", result.lips_r), ("brows", result.brows_r), ("control", result.crosstalk_r)):
+                               ("lips", result.lips_r), ("brows", result.brows_r), ("control", result.crosstalk_r),
+                               ("lips read at", result.lips_gain), ("brows read at", result.brows_gain)):
                 summary.setdefault(key, []).append(value)
     print("\nmedian over people: " + ", ".join(f"{k} {np.median(v):.3f} (min {np.min(v):.3f})"
                                                for k, v in summary.items()))

@@ -372,3 +372,34 @@ def test_the_rasterisers_workers_wait_asleep_unless_told_otherwise() -> None:
     said = [subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True
                            ).stdout.strip() for env in (quiet, {**quiet, "OMP_WAIT_POLICY": "ACTIVE"})]
     assert said == ["PASSIVE", "ACTIVE"]
+
+
+def test_the_loop_reads_the_trackers_ruler_as_the_slope_of_read_over_drawn(tmp_path: Path) -> None:
+    """Tracker files written at a known fraction of the drawn motion: the loop's ruler is that fraction."""
+    import csv
+
+    from prosody.evaluation.head_loop import known_motion, measure
+    from prosody.fap.recorded import BROWS_COLUMNS, ENS_PER_EYE_WIDTH, HEAD_CSV_COLUMNS, MOUTH_COLUMNS
+    from prosody.motion.face.lips import MNS_PER_EYE_WIDTH
+
+    stream = known_motion(4.0)
+    n = stream.n_frames
+    rest_opening, rest_brow = 0.01, 0.3  # eye widths: the tracker's reading of a closed mouth, a brow at rest
+    columns = {"rx_rad": stream.curve(48) * RADIANS_PER_AU, "ry_rad": stream.curve(49) * RADIANS_PER_AU,
+               "rz_rad": stream.curve(50) * RADIANS_PER_AU,
+               "lip_opening": rest_opening + 1.7 * stream.curve(3) * MNS_PER_EYE_WIDTH / 1024.0}
+    for side in ("l", "r"):
+        columns[f"inner_height_{side}"] = rest_brow + 0.4 * stream.curve(31) / ENS_PER_EYE_WIDTH
+        columns[f"outer_height_{side}"] = rest_brow + 0.2 * stream.curve(35) / ENS_PER_EYE_WIDTH
+    for suffix, names in ((".head.csv", HEAD_CSV_COLUMNS), (".brows.csv", ("frame", "time_s", *BROWS_COLUMNS)),
+                          (".mouth.csv", ("frame", "time_s", *MOUTH_COLUMNS))):
+        with open(tmp_path / f"loop{suffix}", "w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(names)
+            for k in range(n):
+                writer.writerow([k, k / 30] + [columns[name][k] if name in columns else "" for name in names[2:]])
+    result = measure(stream, tmp_path / "loop")
+    assert result.lips_gain == pytest.approx(1.7, rel=1e-6)
+    assert result.brows_gain == pytest.approx(0.4, rel=1e-6)
+    assert result.head_spread["yaw"] == pytest.approx(1.0, rel=1e-6)
+    assert "read at 1.70 x its size" in "\n".join(result.lines())

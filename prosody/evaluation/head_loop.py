@@ -18,9 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fap.recorded import ENS_PER_EYE_WIDTH
 from ..fap.stream import FapStream
 from ..fap.table import RADIANS_PER_AU
 from ..fap.units import AU_PER_DEGREE
+from ..motion.face.lips import MNS_PER_EYE_WIDTH, inner_opening
 
 #: Periods (s) and amplitudes of the known motion: pitch, yaw, roll in degrees; jaw in MNS; brows in ENS.
 PERIODS_S = {"pitch": 4.1, "yaw": 5.3, "roll": 3.3, "jaw": 1.7, "brows": 2.3}
@@ -68,6 +70,10 @@ class LoopResult:
     #: The control: the largest |r| of a tracked curve with a motion it was not given (another head axis, the
     #: jaw for the brows, the brows for the lips): what a channel leaking into another would show.
     crosstalk_r: float = float("nan")
+    #: The tracker's ruler: the slope of what it reads (converted to FAP units as the tracked-motion readers do)
+    #: over what was drawn, for the inner-lip opening (MNS) and the inner brows (ENS); 1 reads true size.
+    lips_gain: float = float("nan")
+    brows_gain: float = float("nan")
 
     @property
     def passed(self) -> bool:
@@ -80,7 +86,8 @@ class LoopResult:
         head = ", ".join(f"{axis} r {self.head_r[axis]:.3f} spread {self.head_spread[axis]:.2f}"
                          for axis in self.head_r)
         return [f"frames {self.frames}, face found in {100 * self.found:.1f} %",
-                f"head: {head}", f"lip opening vs jaw r {self.lips_r:.3f}", f"brows r {self.brows_r:.3f}",
+                f"head: {head}", f"lip opening vs jaw r {self.lips_r:.3f}, read at {self.lips_gain:.2f} x its size",
+                f"brows r {self.brows_r:.3f}, read at {self.brows_gain:.2f} x their size",
                 f"control: largest |r| of a tracked curve with a motion it was not given {self.crosstalk_r:.3f}",
                 "pass" if self.passed else "FAIL"]
 
@@ -113,4 +120,13 @@ def measure(stream: FapStream, stem: str | Path) -> LoopResult:
                                                  "outer_height_r")], axis=0)
     lips_r, brows_r = r(stream.curve(3), mouth["lip_opening"]), r(stream.curve(31), heights)
     crosstalk += [abs(r(stream.curve(31), mouth["lip_opening"])), abs(r(stream.curve(3), heights))]
-    return LoopResult(head_r, head_spread, lips_r, brows_r, float(found.mean()), n, max(crosstalk))
+
+    def slope(truth: np.ndarray, tracked: np.ndarray) -> float:
+        a, b = pair(truth, tracked)
+        return float(np.polyfit(a, b, 1)[0]) if a.size > 1 and np.ptp(a) > 0 else float("nan")
+
+    opening = inner_opening({f: stream.curve(f) for f in (3, 4, 5)})
+    inner_brow = np.mean([brows["inner_height_l"], brows["inner_height_r"]], axis=0)
+    return LoopResult(head_r, head_spread, lips_r, brows_r, float(found.mean()), n, max(crosstalk),
+                      lips_gain=slope(opening, mouth["lip_opening"] / MNS_PER_EYE_WIDTH * 1024.0),
+                      brows_gain=slope(stream.curve(31), inner_brow * ENS_PER_EYE_WIDTH))
