@@ -14,6 +14,10 @@ chunks with an overlap margin, so memory stays bounded and seams match a single-
 from __future__ import annotations
 
 import math
+import multiprocessing
+import os
+import sys
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -102,6 +106,64 @@ def _frames_on_steps(xs: np.ndarray, values: np.ndarray, *, dt: float, sample_ra
     return dict(zip(steps.tolist(), values.tolist(), strict=False))
 
 
+@dataclass(frozen=True)
+class _ChunkAnalysis:
+    """Praat's F0 and intensity of a stretch of grid frames (see the module doc), as one call."""
+
+    read: SegmentReader
+    sample_rate_hz: int
+    global_peak: float
+    dt: float
+    oversample: int
+    margin_steps: int
+    last_step: int
+    f0_floor_hz: float
+    f0_ceiling_hz: float
+    intensity_min_pitch_hz: float
+
+    def __call__(self, chunk: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """F0 (NaN where unvoiced) and energy (dB) of grid frames ``k0 <= k < k1``."""
+        import parselmouth
+
+        k0, k1 = chunk
+        dt, oversample, rate = self.dt, self.oversample, self.sample_rate_hz
+        core_steps = np.arange(k0, k1) * oversample
+        f0 = np.full(k1 - k0, np.nan)
+        energy = np.full(k1 - k0, ENERGY_FLOOR_DB)
+        # pitch: core plus margin of path-finder context, clipped to the recording
+        j0 = max(0, k0 * oversample - self.margin_steps)
+        j1 = min(self.last_step, (k1 - 1) * oversample + self.margin_steps)
+        start, length = _aligned_segment(j0, j1 - j0 + 1, dt=dt, window_s=PITCH_PERIODS_PER_WINDOW / self.f0_floor_hz,
+                                         sample_rate_hz=rate)
+        samples = self.read(start, length)
+        chunk_peak = float(np.max(np.abs(samples), initial=0.0))
+        if chunk_peak > 0:
+            sound = parselmouth.Sound(samples, sampling_frequency=rate, start_time=start / rate)
+            pitch = sound.to_pitch_ac(
+                time_step=dt,
+                pitch_floor=self.f0_floor_hz,
+                pitch_ceiling=self.f0_ceiling_hz,
+                silence_threshold=PITCH_SILENCE_THRESHOLD * self.global_peak / chunk_peak,
+            )
+            by_step = _frames_on_steps(pitch.xs(), pitch.selected_array["frequency"], dt=dt, sample_rate_hz=rate)
+            # Praat's 0 Hz means unvoiced; inside the package unvoiced is NaN (STYLE.md, Types)
+            values = np.array([by_step.get(j, 0.0) for j in core_steps.tolist()])
+            f0 = np.where(values > 0, values, np.nan)
+
+        window_s = INTENSITY_PERIODS_PER_WINDOW / self.intensity_min_pitch_hz
+        start, length = _aligned_segment(k0 * oversample, (k1 - 1 - k0) * oversample + 1, dt=dt, window_s=window_s,
+                                         sample_rate_hz=rate)
+        samples = self.read(start, length)
+        if np.any(samples):
+            sound = parselmouth.Sound(samples, sampling_frequency=rate, start_time=start / rate)
+            intensity = sound.to_intensity(minimum_pitch=self.intensity_min_pitch_hz, time_step=dt,
+                                           subtract_mean=False)
+            by_step = _frames_on_steps(intensity.xs(), intensity.values[0], dt=dt, sample_rate_hz=rate)
+            values = np.array([by_step.get(j, ENERGY_FLOOR_DB) for j in core_steps.tolist()])
+            energy = np.maximum(values, ENERGY_FLOOR_DB)
+        return f0, energy
+
+
 def analyse_grid(
     read: SegmentReader,
     *,
@@ -116,6 +178,7 @@ def analyse_grid(
     margin_s: float,
     source: str,
     progress: Callable[[int, int], None] | None = None,
+    workers: int = 1,
 ) -> GridAnalysis:
     """Praat F0 (NaN where unvoiced) and intensity (dB) at every grid frame of a recording;
     ``progress(frames_done, frames_total)`` is called after each chunk.
@@ -140,13 +203,14 @@ def analyse_grid(
         How messages name the recording.
     progress : callable, optional
         Called as ``progress(frames_done, frames_total)``.
+    workers : int >= 1
+        Processes that analyse chunks side by side (see :func:`forked_workers`); the result is the same.
 
     Returns
     -------
     GridAnalysis
         F0 and intensity on the grid.
     """
-    import parselmouth
 
     from .tracks import frame_count
 
@@ -163,54 +227,77 @@ def analyse_grid(
         )
     n_frames = frame_count(n_samples / sample_rate_hz, fps=fps)
     dt, oversample = analysis_step(fps)
-    pitch_window_s = PITCH_PERIODS_PER_WINDOW / f0_floor_hz
-    intensity_window_s = INTENSITY_PERIODS_PER_WINDOW / intensity_min_pitch_hz
     chunk_frames = max(1, int(round(chunk_s * fps)))
-    margin_steps = int(round(margin_s / dt))
-    last_step = (n_frames - 1) * oversample
+    analyse = _ChunkAnalysis(read, sample_rate_hz=sample_rate_hz, global_peak=global_peak, dt=dt,
+                             oversample=oversample, margin_steps=int(round(margin_s / dt)),
+                             last_step=(n_frames - 1) * oversample, f0_floor_hz=f0_floor_hz,
+                             f0_ceiling_hz=f0_ceiling_hz, intensity_min_pitch_hz=intensity_min_pitch_hz)
     f0 = np.full(n_frames, np.nan)
     energy = np.full(n_frames, ENERGY_FLOOR_DB)
-
-    for k0 in range(0, n_frames, chunk_frames):
-        if progress is not None:
-            progress(k0, n_frames)
-        k1 = min(n_frames, k0 + chunk_frames)
-        core_steps = np.arange(k0, k1) * oversample
-        # pitch: core plus margin of path-finder context, clipped to the recording
-        j0 = max(0, k0 * oversample - margin_steps)
-        j1 = min(last_step, (k1 - 1) * oversample + margin_steps)
-        start, length = _aligned_segment(j0, j1 - j0 + 1, dt=dt, window_s=pitch_window_s,
-                                         sample_rate_hz=sample_rate_hz)
-        samples = read(start, length)
-        chunk_peak = float(np.max(np.abs(samples), initial=0.0))
-        if chunk_peak > 0:
-            sound = parselmouth.Sound(samples, sampling_frequency=sample_rate_hz, start_time=start / sample_rate_hz)
-            pitch = sound.to_pitch_ac(
-                time_step=dt,
-                pitch_floor=f0_floor_hz,
-                pitch_ceiling=f0_ceiling_hz,
-                silence_threshold=PITCH_SILENCE_THRESHOLD * global_peak / chunk_peak,
-            )
-            frequencies = pitch.selected_array["frequency"]
-            by_step = _frames_on_steps(pitch.xs(), frequencies, dt=dt, sample_rate_hz=sample_rate_hz)
-            # Praat's 0 Hz means unvoiced; inside the package unvoiced is NaN (STYLE.md, Types)
-            values = np.array([by_step.get(j, 0.0) for j in core_steps.tolist()])
-            f0[k0:k1] = np.where(values > 0, values, np.nan)
-
-        start, length = _aligned_segment(k0 * oversample, (k1 - 1 - k0) * oversample + 1, dt=dt,
-                                         window_s=intensity_window_s, sample_rate_hz=sample_rate_hz)
-        samples = read(start, length)
-        if np.any(samples):
-            sound = parselmouth.Sound(samples, sampling_frequency=sample_rate_hz, start_time=start / sample_rate_hz)
-            intensity = sound.to_intensity(minimum_pitch=intensity_min_pitch_hz, time_step=dt, subtract_mean=False)
-            by_step = _frames_on_steps(intensity.xs(), intensity.values[0], dt=dt, sample_rate_hz=sample_rate_hz)
-            values = np.array([by_step.get(j, ENERGY_FLOOR_DB) for j in core_steps.tolist()])
-            energy[k0:k1] = np.maximum(values, ENERGY_FLOOR_DB)
+    chunks = [(k0, min(n_frames, k0 + chunk_frames)) for k0 in range(0, n_frames, chunk_frames)]
+    if progress is not None:
+        progress(0, n_frames)
+    for (k0, k1), (f0_part, energy_part) in _mapped(analyse, chunks, workers):
+        f0[k0:k1], energy[k0:k1] = f0_part, energy_part
+        if progress is not None and k1 < n_frames:
+            progress(k1, n_frames)
     if not np.all(np.isfinite(energy)):  # pragma: no cover - Praat never returns NaN for finite input
         raise AudioLoadError(f"{source}: intensity analysis returned non-finite values")
     if progress is not None:
         progress(n_frames, n_frames)
     return GridAnalysis(f0_hz=f0, energy_db=energy)
+
+
+#: The chunk analyses handed to forked workers, by token (a worker finds its own in the memory it was forked with).
+_FORKED_TASKS: dict[int, Callable] = {}
+_FORKED_LOCK = threading.Lock()
+
+
+def forked_workers(requested: int | None = None) -> int:
+    """How many processes can analyse a recording's chunks side by side here.
+
+    Chunks are shared with the workers by forking (they inherit the samples already in memory, nothing is
+    pickled), which only Linux does safely; elsewhere, and where one core is available, this is 1.
+
+    Parameters
+    ----------
+    requested : int, optional
+        At most this many (default: one per core this process may run on).
+
+    Returns
+    -------
+    int
+        >= 1.
+    """
+    if not sys.platform.startswith("linux") or "fork" not in multiprocessing.get_all_start_methods():
+        return 1
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(cores, cores if requested is None else int(requested)))
+
+
+def _run_forked(token: int, item):
+    return _FORKED_TASKS[token](item)
+
+
+def _mapped(function: Callable, items: list, workers: int):
+    """``(item, function(item))`` for each item, in order: in this process, or by forked workers (where
+    ``workers`` > 1 and there is more than one item; the results are the same)."""
+    workers = min(workers, len(items))
+    if workers <= 1:
+        for item in items:
+            yield item, function(item)
+        return
+    from concurrent.futures import ProcessPoolExecutor
+
+    with _FORKED_LOCK:
+        token = max(_FORKED_TASKS, default=0) + 1
+        _FORKED_TASKS[token] = function
+    try:
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
+            yield from zip(items, pool.map(_run_forked, [token] * len(items), items), strict=True)
+    finally:
+        with _FORKED_LOCK:
+            del _FORKED_TASKS[token]
 
 
 def array_reader(samples: np.ndarray) -> SegmentReader:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import warnings
 
 import numpy as np
@@ -189,6 +191,38 @@ def test_chunked_analysis_equals_single_pass() -> None:
     np.testing.assert_array_equal(whole.f0.voiced, chunked.f0.voiced)
     np.testing.assert_allclose(whole.f0.values, chunked.f0.values, rtol=1e-3, equal_nan=True)
     np.testing.assert_allclose(whole.energy.values, chunked.energy.values, atol=0.01)
+
+
+def test_chunks_analysed_by_forked_workers_give_the_same_features_to_the_bit(tmp_path) -> None:
+    """Several processes analyse the chunks of a recording in memory (an Audio, or a file read whole): the
+    features and the progress reports are those of one process."""
+    import soundfile
+
+    from audio_features.analysis import forked_workers
+
+    sr = 16000
+    rng = np.random.default_rng(11)
+    pieces = []
+    for f0 in rng.uniform(90, 280, size=10):
+        pieces += [harmonic_tone(f0, rng.uniform(0.2, 0.5), sr, amplitude=rng.uniform(0.05, 0.8)),
+                   np.zeros(int(rng.uniform(0.05, 0.2) * sr))]
+    audio = Audio(np.concatenate(pieces), sr)
+    soundfile.write(tmp_path / "speech.wav", audio.samples, sr, subtype="FLOAT")
+    for source in (audio, tmp_path / "speech.wav"):
+        reports: dict[int, list] = {1: [], 3: []}
+        one, three = (extract_features(source, chunk_s=0.6, workers=workers,
+                                       progress=lambda done, total, w=workers: reports[w].append((done, total)))
+                      for workers in (1, 3))
+        assert one.f0.values.tobytes() == three.f0.values.tobytes()
+        assert one.energy.values.tobytes() == three.energy.values.tobytes()
+        assert one.f0_conditioned.values.tobytes() == three.f0_conditioned.values.tobytes()
+        assert reports[1] == reports[3] and len(reports[1]) > 5
+    assert 1 <= forked_workers() <= (os.cpu_count() or 1)
+    assert forked_workers(1) == 1
+    for bad in (0, -2, 1.5, True, "2"):
+        with pytest.raises(ParameterError, match="workers must be a whole number") as caught:
+            extract_features(audio, workers=bad)
+        assert caught.value.parameters == ("workers",)
 
 
 def test_features_csv_columns(tmp_path) -> None:

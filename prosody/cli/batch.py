@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
                            lips=None if args.lips == "none" else args.lips,
                            expressivity=(opt.expressivity(args) or Expressivity()).as_dict(),
                            expression=args.expression, transcripts=args.transcripts, language=args.language,
-                           **opt.channel_kwargs(args), **opt.analysis_kwargs(args))
+                           **opt.channel_kwargs(args), **opt.analysis_kwargs(args, parallel=False))
     if conditions:
         options = dataclasses.replace(options, conditions=tuple(conditions))
     on_outcome = msg.outcome_reporter(args.parser, args.output, "file", len(find_audio_files(args.input)),

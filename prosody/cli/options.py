@@ -254,8 +254,13 @@ def add_face_options(parser: argparse.ArgumentParser) -> None:
                            "(see docs/cli.md)")
 
 
-def analysis_kwargs(args: argparse.Namespace) -> dict:
-    return {"fps": args.fps, "f0_floor_hz": args.f0_floor_hz, "f0_ceiling_hz": args.f0_ceiling_hz}
+def analysis_kwargs(args: argparse.Namespace, *, parallel: bool = True) -> dict:
+    """The analysis settings of a command: its options and, with ``parallel``, every core this process may use
+    (the features do not depend on how many processes analyse them; ``batch`` spreads its files instead)."""
+    from audio_features.analysis import forked_workers
+
+    chosen = {"fps": args.fps, "f0_floor_hz": args.f0_floor_hz, "f0_ceiling_hz": args.f0_ceiling_hz}
+    return {**chosen, "workers": forked_workers()} if parallel else chosen
 
 
 def finite_float(text: str) -> float:

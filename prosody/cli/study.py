@@ -115,7 +115,8 @@ def condition_options(name: str, options: str) -> dict:
         opt.check_motion_options(parsed)
     except ConfigError as error:  # the library's rule, said with the condition's options
         raise ConfigError(f"condition {name}: {msg.said(error, parser)}") from None
-    return opt.motion_kwargs(parsed)
+    # what a condition is, not how many cores draw it (a manifest keeps the same recipe on another machine)
+    return {key: value for key, value in opt.motion_kwargs(parsed).items() if key != "workers"}
 
 
 def study_conditions(plan, path: str | None) -> dict:

@@ -280,7 +280,7 @@ def compare(
         left as it is), as ``convert`` applies them; or its fields.
     **fields
         Any field of the groups above by its name, overriding that group's: ``fps``, ``f0_floor_hz``,
-        ``f0_ceiling_hz`` (analysis); ``model``, ``seed``, ``eyebrow_rule``, ``expressivity`` (motion); ``lips``,
+        ``f0_ceiling_hz``, ``workers`` (analysis); ``model``, ``seed``, ``eyebrow_rule``, ``expressivity`` (motion); ``lips``,
         ``transcript``, ``language``, ``mouth_model``, ``expression``, ``pad``, ``pad_map`` (face); ``gains``,
         ``disabled`` (channels). Typed by :class:`~prosody.motion.settings.SettingsFields`.
 
@@ -298,7 +298,7 @@ def compare(
                               parameter="ground_truth")
         wanted = [c for c in wanted if c is not Condition.GROUND_TRUTH]
     if features is None:
-        features = extract_features(audio, **analysis.as_keywords())
+        features = extract_features(audio, **analysis.as_keywords(), workers=analysis.workers)
     head_model = resolve_head_model(motion.model) if Condition.SPEECH_DRIVEN in wanted else None
     seed, seeds = motion.seed, valid_seeds(seeds)
     eyebrow_rule, expressivity = motion.eyebrow_rule, motion.expressivity

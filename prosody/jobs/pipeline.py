@@ -125,7 +125,7 @@ def convert(
         Gains and channels left out; or its fields as keywords.
     **fields
         Any field of the groups above by its name, overriding that group's: ``fps``, ``f0_floor_hz``,
-        ``f0_ceiling_hz`` (analysis); ``model``, ``seed``, ``eyebrow_rule``, ``expressivity`` (motion); ``lips``,
+        ``f0_ceiling_hz``, ``workers`` (analysis); ``model``, ``seed``, ``eyebrow_rule``, ``expressivity`` (motion); ``lips``,
         ``transcript``, ``language``, ``mouth_model``, ``expression``, ``pad``, ``pad_map`` (face); ``gains``,
         ``disabled`` (channels). Typed by :class:`~prosody.motion.settings.SettingsFields`.
 
@@ -141,7 +141,7 @@ def convert(
     chosen = check_condition(condition, ground_truth=ground_truth, model=motion.model,
                              expressivity=motion.expressivity)
     if features is None:
-        features = extract_features(audio, **analysis.as_keywords(), progress=progress)
+        features = extract_features(audio, **analysis.as_keywords(), workers=analysis.workers, progress=progress)
     head_model = resolve_head_model(motion.model) if chosen is Condition.SPEECH_DRIVEN else None
     states = parse_pad(face.pad) if isinstance(face.pad, str) else list(face.pad or ())
     if states and isinstance(head_model, PadHeadModel):

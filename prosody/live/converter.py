@@ -131,7 +131,8 @@ class LiveConverter:
         Gains and channels left out, as :func:`prosody.jobs.pipeline.convert`'s; or its fields as keywords.
     **fields
         Any field of the three groups above by its name, overriding that group's: ``fps``, ``f0_floor_hz``,
-        ``f0_ceiling_hz``; ``model``, ``seed``, ``eyebrow_rule``, ``expressivity``; ``gains``, ``disabled``.
+        ``f0_ceiling_hz``, ``workers`` (unused: a live stream is analysed as it comes, in this process);
+        ``model``, ``seed``, ``eyebrow_rule``, ``expressivity``; ``gains``, ``disabled``.
         Typed by :class:`~prosody.motion.settings.LiveFields`.
 
     Examples

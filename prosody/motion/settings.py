@@ -80,6 +80,9 @@ class AnalysisSettings:
     fps: float = setting(DEFAULT_FPS, "float > 0", "Frame rate of the motion, frames per second.")
     f0_floor_hz: float = setting(DEFAULT_F0_FLOOR_HZ, "float > 0, in Hz", "Lowest pitch looked for.")
     f0_ceiling_hz: float = setting(DEFAULT_F0_CEILING_HZ, "float > f0_floor_hz, in Hz", "Highest pitch looked for.")
+    workers: int = setting(1, "int >= 1", "Processes that analyse a recording's minutes side by side (on Linux, at "
+                           "most one per core; the features are the same to the last bit). A recording as it "
+                           "streams live is analysed in its own process whatever this says.")
 
     def as_keywords(self) -> dict[str, Any]:
         """The fields as keywords.
@@ -267,6 +270,7 @@ class AnalysisFields(TypedDict, total=False):
     fps: float
     f0_floor_hz: float
     f0_ceiling_hz: float
+    workers: int
 
 
 class MotionFields(TypedDict, total=False):
