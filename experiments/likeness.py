@@ -14,7 +14,10 @@ voice), by speaker:
    ratio (0.5-1.5), and the mouth's r with the person's (>= 0.3) by the shared mouth measure
    (``prosody.measures.mouth_metrics``: the person's opening low-passed at 8 Hz, the best lag within +-0.25 s,
    which absorbs the clips' own sound-to-picture offsets); control: the same render circularly shifted
-   against the person at that lag (mean and spread over speakers).
+   against the person at that lag (mean and spread over speakers). The r is also given over the speakers
+   whose tracked opening is a reliable reference (its two measures, the inner-lip landmarks and MediaPipe's
+   jawOpen, agree at r >= 0.8 over the same frames, as in ``experiments/mouth_videos_loso.py``): a noisy
+   reference lowers any r, whatever the lips.
 
 With ``--lips acoustic`` or ``--lips combined`` the acoustic mouth model is refitted for each speaker without
 that speaker (the shipped model's recipe: the talking-heads clips and the other video speakers), so no figure
@@ -35,9 +38,9 @@ from pathlib import Path
 import numpy as np
 
 from experiments.common import TRACKED_VIDEOS, data_folder, record, tracked_videos
-from experiments.mouth_videos_loso import speakers
+from experiments.mouth_videos_loso import RELIABLE_AGREEMENT, speakers
 from prosody.fap.recorded import read_brows_csv, read_mouth_csv
-from prosody.measures import mouth_metrics
+from prosody.measures import mouth_metrics, opening_agreement
 from prosody.motion.face.lips import MNS_PER_EYE_WIDTH, inner_opening
 from prosody.motion.settings import LIP_METHODS, FaceSettings
 
@@ -177,7 +180,9 @@ def through_render(chosen: list[dict], level: dict[str, dict]) -> None:
             ours_brows = read_brows_csv(work / "tracked" / f"{clip['name']}.brows.csv")
             n = len(ours_mouth.lip_opening)
             person = clip["mouth"].lip_opening[:n]
-            rows.append({"clip": clip, "ours": ours_mouth.lip_opening, "person": person,
+            jaw_open = clip["mouth"].jaw_open
+            agreement = (opening_agreement(person, jaw_open[:n], fps=FPS) if jaw_open is not None else None)
+            rows.append({"clip": clip, "ours": ours_mouth.lip_opening, "person": person, "agreement": agreement,
                          "mouth spread": _spread(ours_mouth.lip_opening) / _spread(person),
                          "closing ours": _closing(ours_mouth.lip_opening), "closing person": _closing(person),
                          "brow spread": _spread(ours_brows.curve(31)) / max(_spread(clip["brows"].curve(31)[:n]), 1e-9),
@@ -198,11 +203,18 @@ def through_render(chosen: list[dict], level: dict[str, dict]) -> None:
 
     closing = [r["closing ours"] / r["closing person"] for r in rows if r["closing person"] > 0]
     controls = np.array([r["control r"] for r in rows])
+    reliable = [r for r in rows if r["agreement"] is not None and r["agreement"] >= RELIABLE_AGREEMENT]
     print(f"\nmouth spread ratio: {share([r['mouth spread'] for r in rows], *PASS['mouth spread'])}")
     print(f"closing, ours over the person's: {share(closing, *PASS['closing ratio'])}")
     print(f"brow spread ratio: {share([r['brow spread'] for r in rows], *PASS['brow spread'])}")
     print(f"mouth r: median {np.median([r['mouth r'] for r in rows]):.2f} (control {np.mean(controls):+.2f} ± "
           f"{np.std(controls):.2f}); {np.mean([r['mouth r'] >= PASS['mouth r'] for r in rows]):.0%} of speakers >= 0.3")
+    if reliable:
+        print(f"mouth r where the person's tracked opening is a reliable reference (its inner-lip and jawOpen "
+              f"measures agree at r >= {RELIABLE_AGREEMENT} over these frames; {len(reliable)} of {len(rows)} "
+              f"speakers): median {np.median([r['mouth r'] for r in reliable]):.2f} (control "
+              f"{np.mean([r['control r'] for r in reliable]):+.2f}); "
+              f"{np.mean([r['mouth r'] >= PASS['mouth r'] for r in reliable]):.0%} of them >= 0.3")
     for key, name in (("mouth spread", "the mouth's opening"), ("brow spread", "the brows")):
         ratios = {row["clip"]["speaker"]: row[key] for row in rows if row[key] > 0}
         gains = {s: float(np.median([1 / r for other, r in ratios.items() if other != s])) for s in ratios}
