@@ -324,11 +324,19 @@ def array_reader(samples: np.ndarray) -> SegmentReader:
     return read
 
 
+def reopenable(sound) -> bool:
+    """Whether an open ``soundfile.SoundFile`` is a file on disk that another process can open by its name
+    (not a stream in memory)."""
+    return isinstance(sound.name, (str, bytes)) and os.path.isfile(sound.name)
+
+
 def sound_file_reader(sound, *, source: str, total: int | None = None) -> SegmentReader:
     """A :data:`SegmentReader` that seeks in an open ``soundfile.SoundFile`` and mixes to mono.
 
     ``total`` is the number of samples to read (default: the header's count); a file that holds fewer, or
-    whose decoder gives up, is reported as truncated or damaged.
+    whose decoder gives up, is reported as truncated or damaged. In a process forked from this one (a worker of
+    :func:`analyse_grid`) it reads through the process's own opening of the file (where :func:`reopenable`),
+    since processes sharing one file position would read each other's places.
 
     Parameters
     ----------
@@ -348,6 +356,18 @@ def sound_file_reader(sound, *, source: str, total: int | None = None) -> Segmen
     from .audio import decode_failure, truncation
 
     total = sound.frames if total is None else total
+    owner, own = os.getpid(), {}
+
+    def handle():
+        pid = os.getpid()
+        if pid == owner:
+            return sound
+        if pid not in own:
+            if not reopenable(sound):  # pragma: no cover - extract_features forks only for a file on disk
+                raise AnalysisError(f"{source}: a stream in memory cannot be read by another process")
+            own.clear()
+            own[pid] = soundfile.SoundFile(sound.name)
+        return own[pid]
 
     def read(start: int, length: int) -> np.ndarray:
         out = np.zeros(length)
@@ -355,6 +375,7 @@ def sound_file_reader(sound, *, source: str, total: int | None = None) -> Segmen
         if hi > lo:
             target = out[lo - start : hi - start]
             try:
+                sound = handle()
                 sound.seek(lo)
                 if sound.channels == 1:
                     got = sound.read(hi - lo, dtype="float64", out=target).shape[0]  # no intermediate copy

@@ -193,11 +193,12 @@ def test_chunked_analysis_equals_single_pass() -> None:
     np.testing.assert_allclose(whole.energy.values, chunked.energy.values, atol=0.01)
 
 
-def test_chunks_analysed_by_forked_workers_give_the_same_features_to_the_bit(tmp_path) -> None:
-    """Several processes analyse the chunks of a recording in memory (an Audio, or a file read whole): the
-    features and the progress reports are those of one process."""
+def test_chunks_analysed_by_forked_workers_give_the_same_features_to_the_bit(tmp_path, monkeypatch) -> None:
+    """Several processes analyse the chunks of a recording (an Audio, a file read whole, a file read chunk by
+    chunk, each worker opening it itself): the features and the progress reports are those of one process."""
     import soundfile
 
+    import audio_features.features as features_module
     from audio_features.analysis import forked_workers
 
     sr = 16000
@@ -208,7 +209,20 @@ def test_chunks_analysed_by_forked_workers_give_the_same_features_to_the_bit(tmp
                    np.zeros(int(rng.uniform(0.05, 0.2) * sr))]
     audio = Audio(np.concatenate(pieces), sr)
     soundfile.write(tmp_path / "speech.wav", audio.samples, sr, subtype="FLOAT")
-    for source in (audio, tmp_path / "speech.wav"):
+    soundfile.write(tmp_path / "stereo.wav", np.column_stack([audio.samples, -0.5 * audio.samples]), sr,
+                    subtype="PCM_16")
+    for source in (audio, tmp_path / "speech.wav", tmp_path / "stereo.wav"):
+        if source == tmp_path / "stereo.wav":  # read chunk by chunk, as a file too long to hold is
+            monkeypatch.setattr(features_module, "IN_MEMORY_SAMPLES", 1000)
+            opened = tmp_path / "opened-by.txt"
+
+            class Logged(soundfile.SoundFile):  # every opening noted with its process
+                def __init__(self, *args, **kwargs) -> None:
+                    with open(opened, "a") as log:
+                        log.write(f"{os.getpid()}\n")
+                    super().__init__(*args, **kwargs)
+
+            monkeypatch.setattr(soundfile, "SoundFile", Logged)
         reports: dict[int, list] = {1: [], 3: []}
         one, three = (extract_features(source, chunk_s=0.6, workers=workers,
                                        progress=lambda done, total, w=workers: reports[w].append((done, total)))
@@ -217,6 +231,8 @@ def test_chunks_analysed_by_forked_workers_give_the_same_features_to_the_bit(tmp
         assert one.energy.values.tobytes() == three.energy.values.tobytes()
         assert one.f0_conditioned.values.tobytes() == three.f0_conditioned.values.tobytes()
         assert reports[1] == reports[3] and len(reports[1]) > 5
+    if forked_workers() > 1:  # each worker read through its own opening of the file, not the parent's
+        assert set(opened.read_text().split()) - {str(os.getpid())}
     assert 1 <= forked_workers() <= (os.cpu_count() or 1)
     assert forked_workers(1) == 1
     for bad in (0, -2, 1.5, True, "2"):
