@@ -133,7 +133,9 @@ def stream_level(chosen: list[dict], lips: str = "visemes") -> dict[str, dict]:
         person_open = clip["mouth"].lip_opening[:n] / MNS_PER_EYE_WIDTH * 1024.0
         ours_brow = stream.curve(31)[:n]
         person_brow = clip["brows"].curve(31)[:n]
-        out[clip["speaker"]] = {"stream": stream, "mouth ours": _spread(ours_open),
+        stream_r, stream_control = _mouth_r(ours_open[: int(SECONDS * FPS)], person_open[: int(SECONDS * FPS)])
+        out[clip["speaker"]] = {"stream": stream, "mouth ours": _spread(ours_open), "mouth r": stream_r,
+                                "control r": stream_control,
                                 "mouth person": _spread(person_open), "closing ours": _closing(ours_open),
                                 "closing person": _closing(person_open), "brow ours": _spread(ours_brow),
                                 "brow person": _spread(person_brow), "sex": clip["sex"]}
@@ -148,11 +150,16 @@ def held_out_gains(level: dict[str, dict], key: str) -> dict[str, float]:
 
 def print_stream_level(level: dict[str, dict]) -> None:
     print("## In the stream (FAP units), by speaker\n")
-    print("| | mouth spread, ours / person's | mouth closing, ours (person's) | brow spread, ours / person's |")
-    print("|---|---|---|---|")
+    print("| | mouth spread, ours / person's | mouth closing, ours (person's) | brow spread, ours / person's "
+          f"| mouth r, first {SECONDS:g} s (control) |")
+    print("|---|---|---|---|---|")
     for speaker, v in level.items():
         print(f"| {speaker} ({v['sex']}) | {v['mouth ours'] / v['mouth person']:.2f} | {v['closing ours']:.2f} "
-              f"({v['closing person']:.2f}) | {v['brow ours'] / max(v['brow person'], 1e-9):.2f} |")
+              f"({v['closing person']:.2f}) | {v['brow ours'] / max(v['brow person'], 1e-9):.2f} "
+              f"| {v['mouth r']:.2f} ({v['control r']:+.2f}) |")
+    stream_r = [v["mouth r"] for v in level.values()]
+    print(f"\nmouth r in the stream, first {SECONDS:g} s: median {np.median(stream_r):.2f} "
+          f"(control {np.mean([v['control r'] for v in level.values()]):+.2f})")
     for key, unit in (("mouth", "opening"), ("brow", "inner brow")):
         ratios = np.array([v[f"{key} ours"] / v[f"{key} person"] for v in level.values() if v[f"{key} person"] > 0])
         gains = held_out_gains(level, key)

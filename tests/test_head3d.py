@@ -403,3 +403,48 @@ def test_the_loop_reads_the_trackers_ruler_as_the_slope_of_read_over_drawn(tmp_p
     assert result.brows_gain == pytest.approx(0.4, rel=1e-6)
     assert result.head_spread["yaw"] == pytest.approx(1.0, rel=1e-6)
     assert "read at 1.70 x its size" in "\n".join(result.lines())
+
+
+def test_the_photo_heads_compiled_posing_is_the_formula_it_stands_for() -> None:
+    """posing.pose and posing.vertex_normals on random data against the formulas written out with NumPy."""
+    from prosody.head import posing
+
+    rng = np.random.default_rng(5)
+    n_rig, n_layer, n_faps = 40, 30, 68
+    fields = rng.normal(size=(n_faps, n_rig, 3)).astype(np.float32)
+    rest = rng.normal(size=(n_rig, 3))
+    values = np.where(rng.random(n_faps) < 0.3, rng.normal(0, 200, n_faps), 0.0)
+    active = np.flatnonzero(values)
+    scale, offset = 1.7, np.array([3.0, -2.0, 0.5])
+    axes = rotation(0.1, -0.2, 0.05)
+    layer = rng.normal(size=(n_layer, 3))
+    skin = np.array([0, 4, 9, 17])
+    nearest = rng.integers(0, n_rig, size=(4, 4))
+    weights = rng.random((4, 4))
+    follows = rng.random(n_rig + n_layer) * (rng.random(n_rig + n_layer) < 0.7)
+    turning = np.flatnonzero(follows > 0)
+    pivot, turn = np.array([0.5, -4.0, -1.0]), rotation(0.2, 0.3, -0.1)
+
+    moved = np.tensordot(values[active], fields[active].astype(float), axes=1)
+    expected = np.vstack([scale * ((rest + moved) @ axes.T) + offset, layer])
+    expected[n_rig + skin] += scale * ((moved[nearest] * weights[..., None]).sum(axis=1) @ axes.T)
+    still = expected.copy()
+    expected[turning] += follows[turning, None] * ((expected[turning] - pivot) @ turn.T + pivot - expected[turning])
+    for turned, want in ((True, expected), (False, still)):
+        points = np.empty((n_rig + n_layer, 3))
+        posing.pose(values, active, fields, rest, scale, axes, offset, layer, skin, nearest, weights, turning,
+                    follows, pivot, turned, turn, points)
+        np.testing.assert_allclose(points, want, rtol=1e-12, atol=1e-12)
+
+    triangles = rng.integers(0, n_rig - 5, size=(25, 3)).astype(np.int32)  # the last 5 vertices unused
+    normals = np.zeros((n_rig, 3))
+    posing.vertex_normals(expected, triangles, normals)
+    faces = np.cross(expected[triangles[:, 1]] - expected[triangles[:, 0]],
+                     expected[triangles[:, 2]] - expected[triangles[:, 0]])
+    summed = np.zeros((n_rig, 3))
+    np.add.at(summed, triangles.reshape(-1), np.repeat(faces, 3, axis=0))
+    lengths = np.linalg.norm(summed, axis=1, keepdims=True)
+    np.testing.assert_allclose(normals, summed / np.maximum(lengths, 1e-12), rtol=1e-12, atol=1e-12)
+    assert not normals[-5:].any()
+    assert posing.bounds(expected, np.array([1, 3])) == (min(expected[[1, 3], 0]), min(expected[[1, 3], 1]),
+                                                         max(expected[[1, 3], 0]), max(expected[[1, 3], 1]))

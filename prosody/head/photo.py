@@ -41,6 +41,7 @@ import numpy as np
 
 from ..errors import PhotoError
 from ..fap.table import HEAD_FAPS, N_FAPS, RADIANS_PER_AU
+from . import posing
 from .landmarks import INSTALL_HINT, faces_in_image
 from .mesh import (
     EYE_LEFT,
@@ -612,7 +613,7 @@ class PhotoRenderer:
         self.background = np.asarray(background, np.float32) / 255.0
         # normals and light for the head's own triangles only: the person's grid is drawn as photographed
         self._rig_triangles = np.ascontiguousarray(rig_triangles)
-        self._corners = self._rig_triangles.reshape(-1)
+        self._rig_rest = mesh.vertices.astype(np.float64)
         self._n_rig = n_rig
         self._normal_buffer = np.zeros((n_rig + len(head.layer_uv), 3))
         self.relight = relight
@@ -666,23 +667,14 @@ class PhotoRenderer:
         The head turns about the neck by FAP 48-50 in the camera's axes, from the pose it has in the photo
         (that pose is its neutral one): a nod is about the picture's horizontal, whatever the photo's pose."""
         values = np.nan_to_num(np.asarray(values, float).reshape(N_FAPS))
-        head = self.head
         angles = [values[f - 1] * RADIANS_PER_AU for f in HEAD_FAPS]
         still = values.copy()
         still[[f - 1 for f in HEAD_FAPS]] = 0.0
-        rig = head.rig.deform(still)
-        layer = self._layer_rest
-        if self._skin.size:
-            moved = rig[:N_FACE_VERTICES] - self._rest_face
-            shift = (moved[self._skin_nearest] * self._skin_weights[..., None]).sum(axis=1)
-            if np.any(shift):
-                layer = layer.copy()
-                layer[self._skin] += head.scale * shift @ head.rotation.T
-        points = np.vstack([head.to_photo(rig), layer])
-        if any(angles):
-            turning = self._turning
-            turned = (points[turning] - self._pivot) @ rotation(*angles).T + self._pivot
-            points[turning] += self._follows[turning, None] * (turned - points[turning])
+        rig, head = self.head.rig, self.head
+        points = np.empty((self._n_rig + len(self._layer_rest), 3))
+        posing.pose(still, np.flatnonzero((still != 0) & rig.moving), rig.fields, self._rig_rest, head.scale,
+                    head.rotation, head.offset, self._layer_rest, self._skin, self._skin_nearest, self._skin_weights,
+                    self._turning, self._follows, self._pivot, bool(any(angles)), rotation(*angles), points)
         return points
 
     def _perspective(self, points: np.ndarray) -> np.ndarray:
@@ -724,14 +716,8 @@ class PhotoRenderer:
 
     def _normals(self, points: np.ndarray) -> np.ndarray:
         """Vertex normals of the head's triangles (zero on the person's grid, which is not lit)."""
-        t = self._rig_triangles
-        face_normals = np.cross(points[t[:, 1]] - points[t[:, 0]], points[t[:, 2]] - points[t[:, 0]])
-        repeated = np.repeat(face_normals, 3, axis=0)
-        summed = np.column_stack([np.bincount(self._corners, weights=repeated[:, k], minlength=self._n_rig)
-                                  for k in range(3)])
-        out = self._normal_buffer
-        out[:self._n_rig] = summed / np.maximum(np.linalg.norm(summed, axis=1, keepdims=True), 1e-12)
-        return out
+        posing.vertex_normals(points, self._rig_triangles, self._normal_buffer[:self._n_rig])
+        return self._normal_buffer
 
     def render(self, values: np.ndarray, *, whole: bool = False) -> np.ndarray:
         """RGB uint8 (height, width, 3) of one frame's 68 FAP values (NaN and 0 are neutral).
@@ -774,7 +760,7 @@ class PhotoRenderer:
     def _changed_window(self, screen: np.ndarray) -> tuple[int, int, int, int]:
         """The pixel rows and columns (top, bottom, left, right) outside which the frame is the rest frame: the
         box round the triangles that any FAP can move or relight, where they are and where they were."""
-        xy = screen[self._movable, :2]
-        low = np.minimum(xy.min(axis=0), self._movable_rest[0]) / self.supersample - 1
-        high = np.maximum(xy.max(axis=0), self._movable_rest[1]) / self.supersample + 1
+        low_x, low_y, high_x, high_y = posing.bounds(screen, self._movable)
+        low = np.minimum([low_x, low_y], self._movable_rest[0]) / self.supersample - 1
+        high = np.maximum([high_x, high_y], self._movable_rest[1]) / self.supersample + 1
         return int(np.floor(low[1])), int(np.ceil(high[1])), int(np.floor(low[0])), int(np.ceil(high[0]))
