@@ -448,3 +448,20 @@ def test_the_photo_heads_compiled_posing_is_the_formula_it_stands_for() -> None:
     assert not normals[-5:].any()
     assert posing.bounds(expected, np.array([1, 3])) == (min(expected[[1, 3], 0]), min(expected[[1, 3], 1]),
                                                          max(expected[[1, 3], 0]), max(expected[[1, 3], 1]))
+
+
+def test_the_teeth_are_shaded_as_in_a_mouth_darker_at_the_corners_and_the_gums() -> None:
+    from prosody.head.mesh import LOWER_TEETH, TEETH, TEETH_CORNER_SHADE, TEETH_GUM_SHADE, UPPER_TEETH
+
+    mesh = head_mesh.build_head()
+    for part in (UPPER_TEETH, LOWER_TEETH):
+        chosen = mesh.part == part
+        x, y, colours = mesh.vertices[chosen, 0], mesh.vertices[chosen, 1], mesh.colors[chosen]
+        share = colours[:, 0] / TEETH[0]
+        np.testing.assert_allclose(colours / np.asarray(TEETH), np.repeat(share[:, None], 3, axis=1), rtol=1e-6)
+        gum = (y > y.mean()) if part == UPPER_TEETH else (y < y.mean())
+        middle = np.abs(x) < 1e-6
+        assert share[middle & ~gum] == pytest.approx(1.0)
+        assert share[middle & gum] == pytest.approx(TEETH_GUM_SHADE)
+        corners = np.abs(x) == np.abs(x).max()
+        np.testing.assert_allclose(share[corners & ~gum], TEETH_CORNER_SHADE, rtol=1e-6)
