@@ -200,6 +200,32 @@ class StreamingAnalyser:
             energy = max(by_step.get(k * self._oversample, ENERGY_FLOOR_DB), ENERGY_FLOOR_DB)
         return f0, float(energy)
 
+    def checked(self, samples: np.ndarray, *, held: int = 0) -> np.ndarray:
+        """``samples`` as the flat float array :meth:`push` takes, after ``held`` samples not pushed yet.
+
+        Raises
+        ------
+        AudioLoadError
+            A sample is not finite (its number counted from the stream's start).
+        """
+        samples = np.asarray(samples, dtype=float).reshape(-1)
+        finite = np.isfinite(samples)
+        if not finite.all():
+            bad = self._received + held + int(np.argmin(finite))
+            raise AudioLoadError(f"sample {bad} is not finite; audio must have no NaN or infinity")
+        return samples
+
+    def samples_needed(self) -> int:
+        """Samples that must have arrived (counted from the stream's start) before the next frame can be computed:
+        audio pushed before that gives no frame, however it is cut.
+
+        Returns
+        -------
+        int
+        """
+        (p_start, p_length), (i_start, i_length) = self._segments(self._next_frame)
+        return max(p_start + p_length, i_start + i_length)
+
     def _ready(self, k: int, *, total: int | None) -> bool:
         if total is not None:
             return k < _frame_count(total, self.sample_rate_hz, self.fps)
@@ -245,11 +271,7 @@ class StreamingAnalyser:
         """
         if self._finished:
             raise ParameterError("push() after finish(): start a new StreamingAnalyser for new audio")
-        samples = np.asarray(samples, dtype=float).reshape(-1)
-        finite = np.isfinite(samples)
-        if not finite.all():
-            bad = self._received + int(np.argmin(finite))
-            raise AudioLoadError(f"sample {bad} is not finite; audio must have no NaN or infinity")
+        samples = self.checked(samples)
         self._buffer = np.concatenate([self._buffer, samples])
         self._received += samples.size
         return self._run()

@@ -413,3 +413,33 @@ def test_stream_takes_the_lip_gain_and_an_expression(tmp_path, capsys):
     a, b = read_fap(tmp_path / "a.fap").stream, read_fap(tmp_path / "b.fap").stream
     np.testing.assert_allclose(b.curve(16), 0.5 * a.curve(16), atol=1)  # no expression moves FAP 16
     assert b.curve(41).max() > 50 and 41 not in a.active_faps  # joy lifts the cheeks
+
+
+def test_audio_that_completes_no_frame_is_held_so_each_frame_is_analysed_in_one_push() -> None:
+    """10 ms pieces from a pipe: the analysis runs once per completed frame (not once per piece), each frame is
+    given out by the piece that completes the analysis its look-ahead waits for, and a non-finite sample among
+    held ones is named by its place in the stream."""
+    from audio_features.errors import AudioLoadError
+
+    sr = 16000
+    signal = harmonic_tone(180.0, 3.0, sr, amplitude=0.3)
+    piece = sr // 100
+    held = LiveConverter(sr, lookahead_ms=100)
+    pushes = []
+    analyse = held.analyser.push
+    held.analyser.push = lambda samples: (pushes.append(samples.size), analyse(samples))[1]
+    given = [[frame.frame for frame in held.push(signal[k:k + piece])] for k in range(0, signal.size, piece)]
+    assert len(pushes) == held.analyser.frames_done < len(given)
+    assert sum(pushes) == held.analyser.samples_received <= signal.size
+    # each frame is given out by the piece that completes the analysis of the frame its look-ahead needs
+    from audio_features.streaming import StreamingAnalyser
+
+    reference = StreamingAnalyser(sr)
+    completes = [reference.push(signal[k:k + piece])[0].size > 0 for k in range(0, signal.size, piece)]
+    first = next(i for i, frames in enumerate(given) if frames)
+    assert [bool(frames) for frames in given][first:] == completes[first:]
+    assert sum(completes[:first + 1]) == held.lookahead_frames + 1
+    broken = LiveConverter(sr)
+    broken.push(np.zeros(100))  # held: no frame is complete yet
+    with pytest.raises(AudioLoadError, match="sample 105 is not finite"):
+        broken.push(np.array([0.0, 0.1, 0.2, 0.3, 0.4, np.nan]))

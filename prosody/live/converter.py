@@ -194,6 +194,8 @@ class LiveConverter:
             self._shapers = (HeadShaper(controls, fps=self.fps), BrowShaper(controls, fps=self.fps))
         self._next = 0
         self.finished = False
+        self._pending: list[np.ndarray] = []
+        self._pending_samples = 0
 
     @property
     def expressivity(self) -> Expressivity:
@@ -284,10 +286,23 @@ class LiveConverter:
         """
         if self.finished:
             raise ConfigError("push() after finish(): make a new LiveConverter for new audio")
+        # audio that completes no frame is kept until some does (a pipe gives 10 ms pieces, a frame needs 33 ms):
+        # the frames and the moment each is given out are the same, the work per piece a third
+        samples = self.analyser.checked(samples, held=self._pending_samples)
+        self._pending.append(samples)
+        self._pending_samples += samples.size
+        if self.analyser.samples_received + self._pending_samples < self.analyser.samples_needed():
+            return []
+        return self._frames(*self._take_pending(), final=False)
+
+    def _take_pending(self) -> tuple[np.ndarray, np.ndarray]:
+        """Push the audio kept so far to the analysis and the mouth: the F0 and energy of the frames it completes."""
+        samples = self._pending[0] if len(self._pending) == 1 else np.concatenate(self._pending)
+        self._pending, self._pending_samples = [], 0
         f0, energy = self.analyser.push(samples)
         if self._mouth is not None:
             self._mouth.push(samples)
-        return self._frames(f0, energy, final=False)
+        return f0, energy
 
     def finish(self) -> list[LiveFrame]:
         """The audio has ended.
@@ -300,10 +315,11 @@ class LiveConverter:
         if self.finished:
             return []
         self.finished = True
+        early = self._frames(*self._take_pending(), final=False) if self._pending else []
         f0, energy = self.analyser.finish()
         if self._mouth is not None:
             self._mouth.finish()
-        return self._frames(f0, energy, final=True)
+        return early + self._frames(f0, energy, final=True)
 
 
 class FrameRecorder:
