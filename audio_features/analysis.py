@@ -251,6 +251,9 @@ def analyse_grid(
 #: The chunk analyses handed to forked workers, by token (a worker finds its own in the memory it was forked with).
 _FORKED_TASKS: dict[int, Callable] = {}
 _FORKED_LOCK = threading.Lock()
+#: How long the workers may take to answer for one item (a minute's analysis takes well under a second) before
+#: they are stopped and the rest is analysed in this process.
+FORKED_PATIENCE_S = 120.0
 
 
 def forked_workers(requested: int | None = None) -> int:
@@ -275,29 +278,38 @@ def forked_workers(requested: int | None = None) -> int:
     return max(1, min(cores, cores if requested is None else int(requested)))
 
 
-def _run_forked(token: int, item):
+def _run_forked(task: tuple[int, object]):
+    token, item = task
     return _FORKED_TASKS[token](item)
 
 
 def _mapped(function: Callable, items: list, workers: int):
     """``(item, function(item))`` for each item, in order: in this process, or by forked workers (where
-    ``workers`` > 1 and there is more than one item; the results are the same)."""
+    ``workers`` > 1 and there is more than one item; the results are the same). Workers that give no answer for
+    :data:`FORKED_PATIENCE_S` (a worker killed, a lock a thread held when the process forked) are stopped and
+    the items left are done here."""
     workers = min(workers, len(items))
-    if workers <= 1:
-        for item in items:
-            yield item, function(item)
-        return
-    from concurrent.futures import ProcessPoolExecutor
-
-    with _FORKED_LOCK:
-        token = max(_FORKED_TASKS, default=0) + 1
-        _FORKED_TASKS[token] = function
-    try:
-        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
-            yield from zip(items, pool.map(_run_forked, [token] * len(items), items), strict=True)
-    finally:
+    done = 0
+    if workers > 1:
         with _FORKED_LOCK:
-            del _FORKED_TASKS[token]
+            token = max(_FORKED_TASKS, default=0) + 1
+            _FORKED_TASKS[token] = function
+        pool = multiprocessing.get_context("fork").Pool(workers)
+        try:
+            answers = pool.imap(_run_forked, [(token, item) for item in items])
+            for item in items:
+                result = answers.next(timeout=FORKED_PATIENCE_S)
+                done += 1
+                yield item, result
+        except multiprocessing.TimeoutError:
+            pass
+        finally:
+            pool.terminate()
+            pool.join()
+            with _FORKED_LOCK:
+                del _FORKED_TASKS[token]
+    for item in items[done:]:
+        yield item, function(item)
 
 
 def array_reader(samples: np.ndarray) -> SegmentReader:

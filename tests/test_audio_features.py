@@ -385,3 +385,31 @@ def test_integer_samples_read_quickly_are_libsndfiles_doubles_bit_for_bit(tmp_pa
     with soundfile.SoundFile(path) as sound:
         got = read_whole(sound)
     assert got.dtype == np.float64 and np.array_equal(got, expected)
+
+
+def test_forked_workers_that_stop_answering_leave_the_rest_to_this_process(monkeypatch) -> None:
+    """A worker that hangs (killed, or stuck on a lock it inherited) is given up after the patience, and what is
+    left is analysed here; an error in a worker is the caller's error."""
+    import time
+
+    import audio_features.analysis as analysis
+
+    if analysis.forked_workers() < 2:
+        pytest.skip("one core: no workers are forked")
+    parent = os.getpid()
+
+    def square_here(item: int) -> int:
+        if os.getpid() != parent and item >= 3:
+            time.sleep(60)  # a worker that never answers
+        return item * item
+
+    monkeypatch.setattr(analysis, "FORKED_PATIENCE_S", 0.5)
+    started = time.monotonic()
+    assert list(analysis._mapped(square_here, list(range(6)), 2)) == [(k, k * k) for k in range(6)]
+    assert time.monotonic() - started < 10
+
+    def fails(item: int) -> int:
+        raise ParameterError(f"item {item} is bad")
+
+    with pytest.raises(ParameterError, match="item 0 is bad"):
+        list(analysis._mapped(fails, [0, 1, 2], 2))
