@@ -338,7 +338,17 @@ def array_reader(samples: np.ndarray) -> SegmentReader:
 
 def reopenable(sound) -> bool:
     """Whether an open ``soundfile.SoundFile`` is a file on disk that another process can open by its name
-    (not a stream in memory)."""
+    (not a stream in memory).
+
+    Parameters
+    ----------
+    sound : soundfile.SoundFile
+        An open file.
+
+    Returns
+    -------
+    bool
+    """
     return isinstance(sound.name, (str, bytes)) and os.path.isfile(sound.name)
 
 

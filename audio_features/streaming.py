@@ -203,6 +203,18 @@ class StreamingAnalyser:
     def checked(self, samples: np.ndarray, *, held: int = 0) -> np.ndarray:
         """``samples`` as the flat float array :meth:`push` takes, after ``held`` samples not pushed yet.
 
+        Parameters
+        ----------
+        samples : numpy.ndarray
+            Mono samples at the analyser's rate.
+        held : int >= 0
+            Samples the caller received before these and has not pushed yet (for the number in the error).
+
+        Returns
+        -------
+        numpy.ndarray
+            float64, flat.
+
         Raises
         ------
         AudioLoadError

@@ -41,6 +41,12 @@ def pose(values, active, fields, rest, scale, rotation, offset, layer_rest, skin
         The neck's pivot, photo axes.
     turned, turn : bool, float (3, 3)
         Whether the head turns, and the turn's rotation.
+    points : float (n_rig + n_layer, 3)
+        Written: the vertices.
+
+    Returns
+    -------
+    None
     """
     n_rig = rest.shape[0]
     moved = np.zeros((n_rig, 3))
@@ -78,7 +84,21 @@ def pose(values, active, fields, rest, scale, rotation, offset, layer_rest, skin
 @njit(cache=True, nogil=True)
 def vertex_normals(points, triangles, out):  # pragma: no cover - compiled
     """Unit normals (the sum of the triangles' area-weighted normals round each vertex) of the vertices
-    ``triangles`` use, into ``out``'s first rows; a vertex no triangle uses keeps a zero normal."""
+    ``triangles`` use, into ``out``'s first rows; a vertex no triangle uses keeps a zero normal.
+
+    Parameters
+    ----------
+    points : float (n, 3)
+        The vertices.
+    triangles : int (m, 3)
+        The triangles whose normals count.
+    out : float (k, 3)
+        Written: the normals of vertices 0 to k - 1.
+
+    Returns
+    -------
+    None
+    """
     n = out.shape[0]
     sums = np.zeros((n, 3))
     for t in range(triangles.shape[0]):
@@ -97,7 +117,20 @@ def vertex_normals(points, triangles, out):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True)
 def bounds(screen, chosen):  # pragma: no cover - compiled
-    """(x low, y low, x high, y high) of the chosen rows of ``screen``."""
+    """The box round some points.
+
+    Parameters
+    ----------
+    screen : float (n, 2 or more)
+        Points (x, y first).
+    chosen : int (k,)
+        The rows that count.
+
+    Returns
+    -------
+    tuple of float
+        (x low, y low, x high, y high).
+    """
     low_x = low_y = np.inf
     high_x = high_y = -np.inf
     for i in chosen:

@@ -292,8 +292,11 @@ class _RigBuilder:
             lid_line = np.interp(side, sorted(sign * layout[list((LIDS_LEFT if sign > 0 else LIDS_RIGHT)[0]), 0]),
                                  layout[list((LIDS_LEFT if sign > 0 else LIDS_RIGHT)[0]), 1][
                                      np.argsort(sign * layout[list((LIDS_LEFT if sign > 0 else LIDS_RIGHT)[0]), 0])])
+            # below the brow, the skin down to the lid's fold stretches evenly (no band of stretched skin under
+            # the brow, which on a photo head reads as a light smear)
+            below = np.maximum(down_y - lid_line - 0.05, 0.3)
             vertical = np.where(y >= down_y, _falloff(np.maximum(y - up_y, 0), 3.0),
-                                _falloff(down_y - y, max(1e-3, 1.0)) * (y > lid_line + 0.05))
+                                _falloff(down_y - y, below) * (y > lid_line + 0.05))
             lateral = _falloff(np.maximum(side - positions[-1], 0), 1.5)
             region = vertical * lateral * face * (side > -positions[0])
             for fap, hat in zip((inner_fap, middle_fap, outer_fap), hats, strict=True):
