@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-
 import warnings
 
 import numpy as np
@@ -211,21 +210,21 @@ def test_chunks_analysed_by_forked_workers_give_the_same_features_to_the_bit(tmp
     soundfile.write(tmp_path / "speech.wav", audio.samples, sr, subtype="FLOAT")
     soundfile.write(tmp_path / "stereo.wav", np.column_stack([audio.samples, -0.5 * audio.samples]), sr,
                     subtype="PCM_16")
+    opened = tmp_path / "opened-by.txt"
     for source in (audio, tmp_path / "speech.wav", tmp_path / "stereo.wav"):
         if source == tmp_path / "stereo.wav":  # read chunk by chunk, as a file too long to hold is
             monkeypatch.setattr(features_module, "IN_MEMORY_SAMPLES", 1000)
-            opened = tmp_path / "opened-by.txt"
 
             class Logged(soundfile.SoundFile):  # every opening noted with its process
-                def __init__(self, *args, **kwargs) -> None:
-                    with open(opened, "a") as log:
+                def __init__(self, *args, log_file=opened, **kwargs) -> None:
+                    with open(log_file, "a") as log:
                         log.write(f"{os.getpid()}\n")
                     super().__init__(*args, **kwargs)
 
             monkeypatch.setattr(soundfile, "SoundFile", Logged)
         reports: dict[int, list] = {1: [], 3: []}
         one, three = (extract_features(source, chunk_s=0.6, workers=workers,
-                                       progress=lambda done, total, w=workers: reports[w].append((done, total)))
+                                       progress=lambda done, total, w=workers, r=reports: r[w].append((done, total)))
                       for workers in (1, 3))
         assert one.f0.values.tobytes() == three.f0.values.tobytes()
         assert one.energy.values.tobytes() == three.energy.values.tobytes()

@@ -443,3 +443,27 @@ def test_audio_that_completes_no_frame_is_held_so_each_frame_is_analysed_in_one_
     broken.push(np.zeros(100))  # held: no frame is complete yet
     with pytest.raises(AudioLoadError, match="sample 105 is not finite"):
         broken.push(np.array([0.0, 0.1, 0.2, 0.3, 0.4, np.nan]))
+
+
+def test_a_reader_that_knows_what_the_next_frame_waits_for_reads_that_much_in_one_wait() -> None:
+    """``byte_chunks(wanted=...)`` gives chunks of exactly the samples asked for (whole sample frames, the last
+    what is left), and a converter asks for what its next frame waits for: one chunk per frame made."""
+    import io
+
+    from audio_features.pcm import PcmFormat
+    from prosody.live.converter import byte_chunks
+
+    samples = (np.arange(1000) % 200 - 100).astype("<i2")
+    asked = iter([100, 250, 1, 0, 649, 10])
+    rate, chunks = byte_chunks(io.BytesIO(samples.tobytes()), raw=PcmFormat(16000, "s16le"), wanted=lambda: next(asked))
+    got = list(chunks)
+    assert rate == 16000 and [chunk.size for chunk in got] == [100, 250, 1, 1, 648]  # 0 asks for one
+    np.testing.assert_array_equal(np.concatenate(got), samples / 32768.0)
+
+    sr = 16000
+    tone = (harmonic_tone(200.0, 2.0, sr, amplitude=0.3) * 32767).astype("<i2")
+    converter = LiveConverter(sr, lookahead_ms=0)
+    _, chunks = byte_chunks(io.BytesIO(tone.tobytes()), raw=PcmFormat(sr, "s16le"), wanted=converter.samples_wanted)
+    given = [len(converter.push(chunk)) for chunk in chunks]
+    assert given[:-1] == [1] * (len(given) - 1)  # every chunk but the rest at the end completes one frame
+    assert converter.analyser.frames_done == len(given) - 1

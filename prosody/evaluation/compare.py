@@ -280,9 +280,9 @@ def compare(
         left as it is), as ``convert`` applies them; or its fields.
     **fields
         Any field of the groups above by its name, overriding that group's: ``fps``, ``f0_floor_hz``,
-        ``f0_ceiling_hz``, ``workers`` (analysis); ``model``, ``seed``, ``eyebrow_rule``, ``expressivity`` (motion); ``lips``,
-        ``transcript``, ``language``, ``mouth_model``, ``expression``, ``pad``, ``pad_map`` (face); ``gains``,
-        ``disabled`` (channels). Typed by :class:`~prosody.motion.settings.SettingsFields`.
+        ``f0_ceiling_hz``, ``workers`` (analysis); ``model``, ``seed``, ``eyebrow_rule``, ``expressivity``
+        (motion); ``lips``, ``transcript``, ``language``, ``mouth_model``, ``expression``, ``pad``, ``pad_map``
+        (face); ``gains``, ``disabled`` (channels). Typed by :class:`~prosody.motion.settings.SettingsFields`.
 
     Returns
     -------

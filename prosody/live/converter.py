@@ -13,7 +13,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -295,6 +295,16 @@ class LiveConverter:
             return []
         return self._frames(*self._take_pending(), final=False)
 
+    def samples_wanted(self) -> int:
+        """Samples still to come before the next frame can be analysed (at least 1): what a reader that waits for
+        whole frames reads next.
+
+        Returns
+        -------
+        int
+        """
+        return max(1, self.analyser.samples_needed() - self.analyser.samples_received - self._pending_samples)
+
     def _take_pending(self) -> tuple[np.ndarray, np.ndarray]:
         """Push the audio kept so far to the analysis and the mouth: the F0 and energy of the frames it completes."""
         samples = self._pending[0] if len(self._pending) == 1 else np.concatenate(self._pending)
@@ -384,10 +394,14 @@ class IncompleteSampleWarning(UserWarning):
 
 
 def byte_chunks(stream, *, raw: PcmFormat | None = None, source: str = "<stdin>",
-                read_size: int = 4096) -> tuple[int, Iterator[np.ndarray]]:
+                read_size: int = 4096, wanted: Callable[[], int] | None = None) -> tuple[int, Iterator[np.ndarray]]:
     """``(sample rate, chunks)`` of audio arriving on a binary stream: a WAV stream (its header read
     first; a length the header does not know is read to the end) or, with ``raw``, headerless samples.
-    Chunks are given as soon as bytes arrive."""
+
+    Chunks are given as soon as bytes arrive; with ``wanted`` (the samples its reader can use next, as
+    :meth:`LiveConverter.samples_wanted` says), each chunk is that many samples, read in one wait (fewer at the
+    end): a pipe that delivers 10 ms pieces wakes the reader once a frame, when the frame can be made, not three
+    times."""
     import warnings
 
     read = getattr(stream, "read1", stream.read)
@@ -399,7 +413,13 @@ def byte_chunks(stream, *, raw: PcmFormat | None = None, source: str = "<stdin>"
     def chunks() -> Iterator[np.ndarray]:
         remaining = limit
         while remaining is None or remaining > 0:
-            data = read(read_size if remaining is None else min(read_size, remaining))
+            if wanted is None:
+                size = read_size
+            else:  # whole sample frames, at most a second's, so a slow source never holds a long wait
+                samples = min(max(1, wanted()), raw.sample_rate_hz)
+                size = max(1, samples * raw.frame_bytes - decoder.pending_bytes)
+            size = size if remaining is None else min(size, remaining)
+            data = read(size) if wanted is None else stream.read(size)
             if not data:
                 break
             if remaining is not None:

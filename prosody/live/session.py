@@ -87,12 +87,14 @@ class AudioSource:
         """The stream's name: the file's stem, or ``stream``."""
         return Path(self.input).stem if self.input not in (None, "-") else "stream"
 
-    def open(self, *, paced: bool = False) -> tuple[int, Iterator[np.ndarray]]:
-        """(sample rate, chunks of mono samples); ``paced`` reads a file at its own pace."""
+    def open(self, *, paced: bool = False,
+             wanted: Callable[[], int] | None = None) -> tuple[int, Iterator[np.ndarray]]:
+        """(sample rate, chunks of mono samples); ``paced`` reads a file at its own pace; standard input is read
+        ``wanted()`` samples at a time where that is given (see :func:`~prosody.live.converter.byte_chunks`)."""
         if self.mic:
             return microphone_chunks(sample_rate_hz=self.mic_rate)
         if self.input == "-":
-            return byte_chunks(sys.stdin.buffer, raw=self.raw, source="<stdin>")
+            return byte_chunks(sys.stdin.buffer, raw=self.raw, source="<stdin>", wanted=wanted)
         assert self.input is not None
         return file_chunks(self.input, realtime=self.realtime or paced)
 
@@ -295,8 +297,10 @@ class StreamSession:
         if source is None:
             options.make_converter(PROBE_RATE_HZ)  # the converter's options are checked before anything listens
             return self._serve_only()
-        rate, chunks = source.open(paced=options.loop)
+        made: list[LiveConverter] = []  # the converter says how much audio its next frame waits for
+        rate, chunks = source.open(paced=options.loop, wanted=lambda: made[0].samples_wanted())
         converter = options.make_converter(rate)
+        made.append(converter)
         senders = self._link_senders(converter.fps)
         with contextlib.ExitStack() as running:
             for sender in senders:
