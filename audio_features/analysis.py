@@ -20,6 +20,7 @@ import sys
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -378,7 +379,8 @@ def sound_file_reader(sound, *, source: str, total: int | None = None) -> Segmen
     from .audio import decode_failure, truncation
 
     total = sound.frames if total is None else total
-    owner, own = os.getpid(), {}
+    owner = os.getpid()
+    own: dict[int, Any] = {}  # this process's own opening of the file, where it is not the owner
 
     def handle():
         pid = os.getpid()

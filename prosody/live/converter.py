@@ -416,8 +416,8 @@ def byte_chunks(stream, *, raw: PcmFormat | None = None, source: str = "<stdin>"
             if wanted is None:
                 size = read_size
             else:  # whole sample frames, at most a second's, so a slow source never holds a long wait
-                samples = min(max(1, wanted()), raw.sample_rate_hz)
-                size = max(1, samples * raw.frame_bytes - decoder.pending_bytes)
+                count = min(max(1, wanted()), raw.sample_rate_hz)
+                size = max(1, count * raw.frame_bytes - decoder.pending_bytes)
             size = size if remaining is None else min(size, remaining)
             data = read(size) if wanted is None else stream.read(size)
             if not data:
