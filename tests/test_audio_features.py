@@ -177,14 +177,19 @@ def test_bad_parameters_are_named() -> None:
         extract_features(Audio(harmonic_tone(200, 0.5, 8000), 8000), f0_ceiling_hz=4500)
 
 
-def test_chunked_analysis_equals_single_pass() -> None:
-    sr = 16000
-    rng = np.random.default_rng(7)
+def tones_and_pauses(seed: int, count: int, *, pitch_hz=(100, 300), tone_s=(0.2, 0.6), pause_s=(0.05, 0.3),
+                     sr: int = 16000) -> Audio:
+    """Harmonic tones of random pitch, length and level, each followed by a pause of digital silence."""
+    rng = np.random.default_rng(seed)
     pieces = []
-    for f0 in rng.uniform(100, 300, size=8):
-        pieces += [harmonic_tone(f0, rng.uniform(0.2, 0.6), sr, amplitude=rng.uniform(0.05, 0.8)),
-                   np.zeros(int(rng.uniform(0.05, 0.3) * sr))]
-    audio = Audio(np.concatenate(pieces), sr)
+    for f0 in rng.uniform(*pitch_hz, size=count):
+        pieces += [harmonic_tone(f0, rng.uniform(*tone_s), sr, amplitude=rng.uniform(0.05, 0.8)),
+                   np.zeros(int(rng.uniform(*pause_s) * sr))]
+    return Audio(np.concatenate(pieces), sr)
+
+
+def test_chunked_analysis_equals_single_pass() -> None:
+    audio = tones_and_pauses(7, 8)
     whole = extract_features(audio, chunk_s=3600)
     chunked = extract_features(audio, chunk_s=0.7, margin_s=1.0)
     np.testing.assert_array_equal(whole.f0.voiced, chunked.f0.voiced)
@@ -201,12 +206,7 @@ def test_chunks_analysed_by_forked_workers_give_the_same_features_to_the_bit(tmp
     from audio_features.analysis import forked_workers
 
     sr = 16000
-    rng = np.random.default_rng(11)
-    pieces = []
-    for f0 in rng.uniform(90, 280, size=10):
-        pieces += [harmonic_tone(f0, rng.uniform(0.2, 0.5), sr, amplitude=rng.uniform(0.05, 0.8)),
-                   np.zeros(int(rng.uniform(0.05, 0.2) * sr))]
-    audio = Audio(np.concatenate(pieces), sr)
+    audio = tones_and_pauses(11, 10, pitch_hz=(90, 280), tone_s=(0.2, 0.5), pause_s=(0.05, 0.2), sr=sr)
     soundfile.write(tmp_path / "speech.wav", audio.samples, sr, subtype="FLOAT")
     soundfile.write(tmp_path / "stereo.wav", np.column_stack([audio.samples, -0.5 * audio.samples]), sr,
                     subtype="PCM_16")
