@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
+import signal
 import sys
 import threading
 from collections.abc import Callable
@@ -284,6 +285,14 @@ def _run_forked(task: tuple[int, object]):
     return _FORKED_TASKS[token](item)
 
 
+def _forked_worker_starts() -> None:
+    """In a forked worker: SIGTERM ends it at once, whatever handler the program set (a program's own handler,
+    as the command line's that unwinds like Ctrl-C, could leave a worker holding the pool's lock), and Ctrl-C
+    at the terminal is the calling process's to handle (it stops the workers)."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _mapped(function: Callable, items: list, workers: int):
     """``(item, function(item))`` for each item, in order: in this process, or by forked workers (where
     ``workers`` > 1 and there is more than one item; the results are the same). Workers that give no answer for
@@ -295,17 +304,22 @@ def _mapped(function: Callable, items: list, workers: int):
         with _FORKED_LOCK:
             token = max(_FORKED_TASKS, default=0) + 1
             _FORKED_TASKS[token] = function
-        pool = multiprocessing.get_context("fork").Pool(workers)
+        pool = multiprocessing.get_context("fork").Pool(workers, initializer=_forked_worker_starts)
+        finished = False
         try:
             answers = pool.imap(_run_forked, [(token, item) for item in items])
             for item in items:
                 result = answers.next(timeout=FORKED_PATIENCE_S)
                 done += 1
                 yield item, result
+            finished = True
         except multiprocessing.TimeoutError:
             pass
         finally:
-            pool.terminate()
+            if finished:  # the workers leave when told there is no more work: no signal
+                pool.close()
+            else:
+                pool.terminate()
             pool.join()
             with _FORKED_LOCK:
                 del _FORKED_TASKS[token]

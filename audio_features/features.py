@@ -317,6 +317,22 @@ def _scan_file(sound, *, source: str) -> tuple[float, int]:
     return peak, offset
 
 
+def largest_magnitude(samples: np.ndarray) -> float:
+    """The largest absolute value of finite samples (0 for none), without an array of their magnitudes (a
+    10-minute recording's would be 77 MB, new memory that costs more to touch than the search).
+
+    Parameters
+    ----------
+    samples : numpy.ndarray
+        Finite values.
+
+    Returns
+    -------
+    float
+    """
+    return float(max(np.max(samples, initial=0.0), -np.min(samples, initial=0.0)))
+
+
 def read_all_mono(sound, *, source: str, exact: bool) -> np.ndarray:
     """The whole of an open sound file as mono float64 samples.
 
@@ -350,6 +366,8 @@ def read_all_mono(sound, *, source: str, exact: bool) -> np.ndarray:
     if exact and data.shape[0] < sound.frames:
         raise AudioLoadError(truncation(source, sound.format, sound.frames, data.shape[0]))
     mono = data.reshape(-1) if data.shape[1] == 1 else data.mean(axis=1)  # one channel: a view, no copy
+    if np.isfinite(mono.sum()):  # (no array of a flag per sample; a sum that overflows is looked at below)
+        return mono
     finite = np.isfinite(mono)
     if not finite.all():
         bad = int(np.argmin(finite))
@@ -428,7 +446,7 @@ def extract_features(
     if isinstance(source, Audio):
         name = source.source
         grid = analyse_grid(array_reader(source.samples), n_samples=source.samples.shape[0],
-                            sample_rate_hz=source.sample_rate_hz, global_peak=float(np.max(np.abs(source.samples))),
+                            sample_rate_hz=source.sample_rate_hz, global_peak=largest_magnitude(source.samples),
                             source=name, **settings, workers=parallel)
         duration_s = source.duration_s
     else:
@@ -443,7 +461,7 @@ def extract_features(
                 samples = read_all_mono(sound, source=name, exact=not estimated)
                 n_samples = samples.shape[0]
                 check_shape(n_samples, source=name, sample_rate_hz=sound.samplerate)
-                reader, peak = array_reader(samples), float(np.max(np.abs(samples)))
+                reader, peak = array_reader(samples), largest_magnitude(samples)
                 shareable = True
             else:
                 peak, counted = _scan_file(sound, source=name)

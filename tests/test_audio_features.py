@@ -412,3 +412,33 @@ def test_forked_workers_that_stop_answering_leave_the_rest_to_this_process(monke
 
     with pytest.raises(ParameterError, match="item 0 is bad"):
         list(analysis._mapped(fails, [0, 1, 2], 2))
+
+
+def test_forked_workers_finish_cleanly_under_a_program_that_handles_sigterm(tmp_path) -> None:
+    """The command line turns SIGTERM into KeyboardInterrupt; a worker that kept that handler, stopped by a
+    signal, died holding the pool's lock (the caller then waited for ever) or printed a traceback. Workers now
+    leave when told there is no more work, and a signal stops them outright."""
+    import subprocess
+    import sys
+    import textwrap
+
+    script = tmp_path / "handled.py"
+    script.write_text(textwrap.dedent(f"""
+        import signal, sys
+        sys.path.insert(0, {str(REPO)!r})
+        from audio_features.analysis import _mapped
+
+        def terminated(signum, frame):
+            raise KeyboardInterrupt
+
+        def square(x):
+            return x * x
+
+        signal.signal(signal.SIGTERM, terminated)
+        for _ in range(40):
+            assert [r for _, r in _mapped(square, list(range(8)), 2)] == [x * x for x in range(8)]
+        print("done")
+    """))
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "done", done.stderr[-2000:]
+    assert "Traceback" not in done.stderr and "KeyboardInterrupt" not in done.stderr
