@@ -108,6 +108,22 @@ def _frames_on_steps(xs: np.ndarray, values: np.ndarray, *, dt: float, sample_ra
     return dict(zip(steps.tolist(), values.tolist(), strict=False))
 
 
+def largest_magnitude(samples: np.ndarray) -> float:
+    """The largest absolute value of finite samples (0 for none), without an array of their magnitudes (a
+    10-minute recording's would be 77 MB, new memory that costs more to touch than the search).
+
+    Parameters
+    ----------
+    samples : numpy.ndarray
+        Finite values.
+
+    Returns
+    -------
+    float
+    """
+    return float(max(np.max(samples, initial=0.0), -np.min(samples, initial=0.0)))
+
+
 @dataclass(frozen=True)
 class _ChunkAnalysis:
     """Praat's F0 and intensity of a stretch of grid frames (see the module doc), as one call."""
@@ -138,7 +154,7 @@ class _ChunkAnalysis:
         start, length = _aligned_segment(j0, j1 - j0 + 1, dt=dt, window_s=PITCH_PERIODS_PER_WINDOW / self.f0_floor_hz,
                                          sample_rate_hz=rate)
         samples = self.read(start, length)
-        chunk_peak = float(np.max(np.abs(samples), initial=0.0))
+        chunk_peak = largest_magnitude(samples)
         if chunk_peak > 0:
             sound = parselmouth.Sound(samples, sampling_frequency=rate, start_time=start / rate)
             pitch = sound.to_pitch_ac(
@@ -213,7 +229,6 @@ def analyse_grid(
     GridAnalysis
         F0 and intensity on the grid.
     """
-
     from .tracks import frame_count
 
     if not MIN_F0_FLOOR_HZ <= f0_floor_hz < f0_ceiling_hz:

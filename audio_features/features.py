@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from .analysis import analyse_grid, array_reader, forked_workers, reopenable, sound_file_reader
+from .analysis import analyse_grid, array_reader, forked_workers, largest_magnitude, reopenable, sound_file_reader
 from .atomic import atomic_write
 from .audio import (
     ESTIMATED_LENGTH_FORMATS,
@@ -315,22 +315,6 @@ def _scan_file(sound, *, source: str) -> tuple[float, int]:
     except (soundfile.SoundFileError, RuntimeError) as error:
         raise AudioLoadError(decode_failure(source, sound.format, error)) from None
     return peak, offset
-
-
-def largest_magnitude(samples: np.ndarray) -> float:
-    """The largest absolute value of finite samples (0 for none), without an array of their magnitudes (a
-    10-minute recording's would be 77 MB, new memory that costs more to touch than the search).
-
-    Parameters
-    ----------
-    samples : numpy.ndarray
-        Finite values.
-
-    Returns
-    -------
-    float
-    """
-    return float(max(np.max(samples, initial=0.0), -np.min(samples, initial=0.0)))
 
 
 def read_all_mono(sound, *, source: str, exact: bool) -> np.ndarray:

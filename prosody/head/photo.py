@@ -631,7 +631,6 @@ class PhotoRenderer:
         weights *= (reach / weights.sum(axis=1))[:, None]
         self._skin = np.flatnonzero(reach > 0)
         self._skin_nearest, self._skin_weights = nearest[self._skin], weights[self._skin]
-        self._rest_face = rest_face
         self._follows = np.concatenate([mesh.turn_share(), head.layer_weight])
         self._turning = np.flatnonzero(self._follows > 0)
         self._lit = np.isin(mesh.part, _TEXTURED_PARTS)
