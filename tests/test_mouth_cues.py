@@ -54,6 +54,25 @@ def test_a_single_frame_does_not_flicker_but_a_short_closure_stays() -> None:
     assert shapes == ["B", "A", "B", "X"]  # and the recording's last frame is idle
 
 
+def test_at_100_fps_a_shape_shorter_than_a_twentieth_of_a_second_joins_its_neighbour() -> None:
+    """On Rhubarb's 0.01 s grid the rule is the same in time as a single frame at 30 fps: a shape held under
+    0.05 s (4 frames) joins the one before it; 5 frames stay; a closure of 2 frames stays, lengthened to 0.05 s
+    into the shape before it (a 24 fps player would miss 0.02 s), and into the one after where the one before is
+    itself short."""
+    from prosody.fap.mouth_cues import CUE_FPS
+
+    def shapes(segments):
+        opening = OPENING_SCALE * np.concatenate([np.full(n, value) for n, value in segments])
+        curves = {3: 0.60 * opening, 4: -0.15 * opening, 5: -0.25 * opening}
+        return [(cue.start_s, cue.shape) for cue in mouth_cues(FapStream.from_curves(curves, fps=CUE_FPS))]
+
+    assert shapes([(20, 150.0), (4, 330.0), (20, 150.0), (2, 0.0), (20, 150.0)]) == [
+        (0.0, "B"), (0.41, "A"), (0.46, "B"), (0.65, "X")]
+    assert shapes([(20, 150.0), (5, 330.0), (2, 0.0), (20, 150.0)]) == [
+        (0.0, "B"), (0.2, "D"), (0.25, "A"), (0.3, "B"), (0.46, "X")]
+    assert shapes([(20, 150.0), (5, 330.0), (20, 150.0)]) == [(0.0, "B"), (0.2, "D"), (0.25, "B"), (0.44, "X")]
+
+
 def test_the_viseme_said_gives_its_shape_whatever_the_lips_opening() -> None:
     # FAP 1 (the viseme said) over lips held half open: the cues follow the visemes, as Rhubarb follows phones
     said = [(10, 0), (6, 10), (3, 1), (6, 10), (4, 2), (6, 13), (5, 11), (6, 12), (6, 14), (12, 0)]
@@ -186,6 +205,33 @@ def test_the_viseme_said_is_in_json_outputs_and_never_in_fap_files(tmp_path: Pat
     said = capsys.readouterr()
     assert "FAPs 3 4 5" in said.out + said.err  # the message names what the file holds
     assert 1 not in read_fap(tmp_path / "a9.fap").stream.active_faps
+
+
+def test_convert_puts_cues_on_rhubarbs_grid_unless_a_frame_rate_is_given(tmp_path: Path) -> None:
+    """Rhubarb's cues start on any 0.01 s; ours changed only on the 1/30 s frames. Now the cue formats are made at
+    100 fps, on the command line and in the library alike; --fps 30 (or fps=30) keeps the 30 fps frames."""
+    from conftest import REPO
+
+    from prosody.jobs.pipeline import convert
+
+    speech = str(REPO / "samples" / "arctic_a0009.wav")
+
+    def off_the_frames(rows) -> int:
+        # a frame k/30 s written to 0.01 s is within 0.15 frames of k; the other starts on the 0.01 s grid are 0.2+ off
+        return sum(abs(start * 30 - round(start * 30)) > 0.16 for start, _ in rows)
+
+    assert main(["convert", speech, "-o", str(tmp_path / "a.rhubarb.tsv"), "-q"]) == 0
+    assert main(["convert", speech, "-o", str(tmp_path / "b.rhubarb.tsv"), "-q", "--fps", "30"]) == 0
+    assert off_the_frames(_read_tsv(tmp_path / "a.rhubarb.tsv")) >= 3
+    # (at 30 fps the last cue but one, the closing X, may take the recording's last 0.01 s: off the frames)
+    assert off_the_frames(_read_tsv(tmp_path / "b.rhubarb.tsv")[:-2]) == 0
+    assert convert(speech, tmp_path / "c.rhubarb.json").fps == 100
+    assert convert(speech, tmp_path / "d.rhubarb.json", fps=30).fps == 30
+    assert convert(speech, tmp_path / "e.fap").fps == 30  # other formats keep the motion's 30 fps
+    assert main(["convert", speech, "-o", str(tmp_path / "f.fap"), "-q"]) == 0
+    from prosody.fap.fapfile import read_fap
+
+    assert read_fap(tmp_path / "f.fap").stream.fps == 30
 
 
 @pytest.mark.parametrize("ending", [".rhubarb.json", ".dat"])

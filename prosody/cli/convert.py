@@ -87,7 +87,11 @@ def _write_cues(args: argparse.Namespace, path: str, format_name: str, *, progre
     from ..jobs.pipeline import convert
     from ..outputs import write_stream
 
-    stream = convert(args.input, None, base=args.base, progress=progress, **opt.motion_kwargs(args))
+    from ..fap.mouth_cues import CUE_FPS
+
+    settings = opt.motion_kwargs(args)
+    settings.setdefault("fps", CUE_FPS)  # Rhubarb's 0.01 s grid, unless --fps says otherwise
+    stream = convert(args.input, None, base=args.base, progress=progress, **settings)
     with open_sound_file(args.input) as sound:
         duration_s = sound.frames / sound.samplerate if sound.frames > 0 else None
     write_stream(stream, path, format_name, sound_file=args.input, duration_s=duration_s,
@@ -134,6 +138,6 @@ def add_parser(commands) -> None:
                          help="with a .glb output: the head of the person in PHOTO (a JPEG or PNG of one person, "
                               "roughly frontal), textured by the photo, with their hair, neck and shoulders and "
                               "the photo's background behind (needs pip install 'visual-prosody[track]')")
-    opt.add_analysis_options(convert)
+    opt.add_analysis_options(convert, cues=True)
     opt.add_eyebrow_options(convert)
     convert.set_defaults(handler=run)

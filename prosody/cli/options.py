@@ -92,9 +92,13 @@ def add_seeds_option(parser: argparse.ArgumentParser) -> None:
                              "control) over N seeds from --seed on (default 10); the written streams use --seed")
 
 
-def add_analysis_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--fps", type=number_in(1, 1000), default=DEFAULT_FPS,
-                        help="frames per second of the output grid (default 30, 1 to 1000; frame k is at k/fps s)")
+def add_analysis_options(parser: argparse.ArgumentParser, *, cues: bool = False) -> None:
+    """The analysis options; with ``cues``, ``--fps`` left out means the library's choice (30, or 100 for the
+    mouth cues' formats)."""
+    default = "30; 100 for the mouth cues' formats, Rhubarb's 0.01 s grid" if cues else "30"
+    parser.add_argument("--fps", type=number_in(1, 1000), default=None if cues else DEFAULT_FPS,
+                        help=f"frames per second of the output grid (default {default}; 1 to 1000; frame k is at "
+                             "k/fps s)")
     parser.add_argument("--f0-floor", dest="f0_floor_hz", type=positive_float, default=DEFAULT_F0_FLOOR_HZ,
                         metavar="HZ",
                         help=f"lowest F0 the pitch tracker looks for, in Hz (default {DEFAULT_F0_FLOOR_HZ:g})")
@@ -260,6 +264,8 @@ def analysis_kwargs(args: argparse.Namespace, *, parallel: bool = True) -> dict:
     from audio_features.analysis import forked_workers
 
     chosen = {"fps": args.fps, "f0_floor_hz": args.f0_floor_hz, "f0_ceiling_hz": args.f0_ceiling_hz}
+    if chosen["fps"] is None:  # not given: the library chooses by the output
+        del chosen["fps"]
     return {**chosen, "workers": forked_workers()} if parallel else chosen
 
 

@@ -21,8 +21,10 @@ draws each shape at that size shows the lips as near as six shapes can; from lip
 (they do not tell the lower lip under the teeth, /f v/, 45 MNS open, from a mouth half closed).
 
 Either way, a closed mouth (A) becomes X where it stays closed for :data:`IDLE_S` or more, at the start and end, and
-where the stream has no lips; H (the tongue raised for a long L) is never given. A shape held for a single frame
-joins the cue before it (the first: the one after), closures excepted, so that no cue flickers.
+where the stream has no lips; H (the tongue raised for a long L) is never given. A shape held shorter than
+:data:`MIN_SHAPE_S` joins the cue before it (the first: the one after), closures excepted, so that no cue flickers.
+Cues change on the stream's frames: ``prosody.jobs.pipeline.convert`` makes the mouth cues' formats at
+:data:`CUE_FPS`, so that they sit on Rhubarb's 0.01 s grid, unless asked for another frame rate.
 
 Files (Rhubarb's own layouts, so that the plugins of Blender, Godot, Unity, Spine, OpenToonz, After Effects and
 Moho read them): ``.rhubarb.tsv`` (``start<TAB>shape`` per cue, then the end of the recording with the closed
@@ -77,6 +79,12 @@ VISEME_SHAPES = {0: "A", 1: "A", 2: "G", 3: "B", 4: "B", 5: "B", 6: "B", 7: "B",
 PUCKER_MNS = 300.0
 #: A closed mouth held this long is idle (X).
 IDLE_S = 0.3
+#: A shape held shorter than this joins the one before it (a single frame at 30 fps; 4 frames at 100 fps).
+#: Rhubarb's own timing keeps its shapes 5-7 hundredths of a second or more for the same reason: shorter ones
+#: flicker.
+MIN_SHAPE_S = 0.05
+#: The frame rate mouth cues are made at, unless another is asked for: Rhubarb's resolution of 0.01 s.
+CUE_FPS = 100.0
 #: Frame rate of Moho switch files (Rhubarb's default).
 DAT_FPS = 24.0
 RESOLUTION_S = 0.01
@@ -115,7 +123,7 @@ def frame_shapes(stream: FapStream) -> list[str]:
         # the lips closed about a /p b m/ by coarticulation are closed; /f v/'s nearly closed lips stay G
         shapes[known & (opening < CLOSED_MNS) & (shapes != "G")] = "A"
     out = shapes.tolist()
-    _merge_single_frames(out)
+    _merge_short_runs(out, max(1, math.ceil(MIN_SHAPE_S * stream.fps - 1e-9)))
     # closed for long, at the ends, or without lips: idle
     idle_frames = max(1, math.ceil(IDLE_S * stream.fps - 1e-9))
     k = 0
@@ -134,16 +142,36 @@ def frame_shapes(stream: FapStream) -> list[str]:
     return out
 
 
-def _merge_single_frames(shapes: list[str]) -> None:
-    """A shape held one frame between two others joins the one before it (the first frame: the one after)."""
+def _merge_short_runs(shapes: list[str], shortest: int) -> None:
+    """A shape held fewer than ``shortest`` frames joins the one before it (the first run: the one after), so that
+    no cue flickers. A closure that short is kept, and lengthened to ``shortest`` frames: into the shape before it
+    (as Rhubarb brings a short closure's start forward), then into the one after, each left ``shortest`` long, so
+    that a player at its own frame rate shows it."""
     k = 0
     while k < len(shapes):
-        end = k + 1
-        while end < len(shapes) and shapes[end] == shapes[k]:
-            end += 1
-        if end - k == 1 and len(shapes) > 1 and shapes[k] != "A":  # closures are kept, however short
-            shapes[k] = shapes[k - 1] if k > 0 else shapes[end]
+        end = _run_end(shapes, k)
+        if end - k < shortest and end - k < len(shapes):
+            if shapes[k] != "A":
+                replacement = shapes[k - 1] if k > 0 else shapes[end]
+                shapes[k:end] = [replacement] * (end - k)
+            else:
+                before = k
+                while before > 0 and shapes[before - 1] == shapes[k - 1]:
+                    before -= 1
+                start = min(max(end - shortest, before + shortest), k) if k > 0 else k
+                after = _run_end(shapes, end) if end < len(shapes) else end
+                stop = max(min(start + shortest, after - shortest), end)
+                shapes[start:stop] = ["A"] * (stop - start)
+                end = stop
         k = end
+
+
+def _run_end(shapes: list[str], k: int) -> int:
+    """The end of the run of one shape that starts at ``k``."""
+    end = k + 1
+    while end < len(shapes) and shapes[end] == shapes[k]:
+        end += 1
+    return end
 
 
 def check_extended_shapes(shapes: str) -> str:

@@ -9,10 +9,11 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from audio_features import Features, extract_features
+from audio_features import DEFAULT_FPS, Features, extract_features
 
 from ..errors import ConfigError, ParameterNote
 from ..fap.fapfile import read_fap
+from ..fap.mouth_cues import CUE_FPS
 from ..fap.recorded import fit_to_grid, read_motion
 from ..fap.stream import FapStream
 from ..fap.table import EYEBROW_FAPS
@@ -98,7 +99,10 @@ def convert(
     audio : path
         Speech recording.
     output : path, optional
-        File to write; the format comes from ``output_format`` or the extension (``.fap``, ...).
+        File to write; the format comes from ``output_format`` or the extension (``.fap``, ...). The mouth cues'
+        formats (``.rhubarb.json``, ``.dat``, ...) are made at 100 frames a second
+        (:data:`prosody.fap.mouth_cues.CUE_FPS`), so that the cues sit on Rhubarb Lip Sync's 0.01 s grid, unless
+        ``fps`` is given as a keyword (or another than the default in ``analysis``).
     condition : Condition or str
         ``speech`` (default), ``random``, ``none`` or ``truth`` (or the full names).
     ground_truth : path, optional
@@ -133,10 +137,15 @@ def convert(
     -------
     FapStream
     """
-    analysis, motion, face, channels = settings_groups("convert", fields, analysis=analysis, motion=motion, face=face,
-                                                       channels=channels)
     if output is not None and not os.fspath(output):
         raise ConfigError("output: no output file name given")
+    if output is not None and features is None and "fps" not in fields and analysis.fps == DEFAULT_FPS:
+        from ..outputs import CUE_FORMATS, format_for
+
+        if format_for(output, output_format) in CUE_FORMATS:
+            fields["fps"] = CUE_FPS  # mouth cues on Rhubarb's 0.01 s grid
+    analysis, motion, face, channels = settings_groups("convert", fields, analysis=analysis, motion=motion, face=face,
+                                                       channels=channels)
     channels.check_leaves_output(lips=face.lips is not None, face_layer=bool(face.expression or face.pad))
     chosen = check_condition(condition, ground_truth=ground_truth, model=motion.model,
                              expressivity=motion.expressivity)
