@@ -100,6 +100,7 @@ class StreamingAnalyser:
         self._pitch_window_s = PITCH_PERIODS_PER_WINDOW / self.f0_floor_hz
         self._intensity_window_s = INTENSITY_PERIODS_PER_WINDOW / self.intensity_min_pitch_hz
         self._margin_steps = int(round(context_s / self._dt))
+        self._segments_of: tuple[int, tuple[tuple[int, int], tuple[int, int]]] | None = None
         self._buffer = np.zeros(0)
         self._buffer_start = 0  # absolute index of the buffer's first sample
         self._received = 0
@@ -131,6 +132,14 @@ class StreamingAnalyser:
 
     # the segments of one frame -------------------------------------------------------------------------
     def _segments(self, k: int) -> tuple[tuple[int, int], tuple[int, int]]:
+        # asked for the next frame several times a push (is it ready, what to keep, how much audio to wait for)
+        if self._segments_of is not None and self._segments_of[0] == k:
+            return self._segments_of[1]
+        segments = self._segments_at(k)
+        self._segments_of = (k, segments)
+        return segments
+
+    def _segments_at(self, k: int) -> tuple[tuple[int, int], tuple[int, int]]:
         step = k * self._oversample
         first = max(0, step - self._margin_steps)
         pitch = _aligned_segment(first, step - first + 1, dt=self._dt, window_s=self._pitch_window_s,

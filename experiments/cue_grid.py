@@ -7,7 +7,8 @@ frames. Both are made here from the same recognised phones (the default visemes,
 as a 2D player shows cues (each shape held for its cue at the visemes' size, ``experiments.mouth_loco.CUE_SHAPES``)
 on the tracked mouth's 30 fps frames. Measures as ``experiments/mouth_videos_loso.py`` (opening r at the best lag
 within +-0.25 s, closure F1, relative closure F1, each beside its mismatched-audio control), plus the cues' own
-timing: the shortest cue but the last (which may be the recording's last 0.01 s), and the shortest idle run (X) inside the speech, which Rhubarb keeps at 0.12 s or more.
+timing: the shortest cue but the last (which may be the recording's last 0.01 s), and the shortest idle run (X)
+inside the speech, which Rhubarb keeps at 0.12 s or more.
 Nothing here is fitted: the grid is Rhubarb's, and the shortest shape (``MIN_SHAPE_S``) keeps the 30 fps rule
 (one frame joins its neighbour).
 

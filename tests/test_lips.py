@@ -573,3 +573,17 @@ def test_a_paragraph_spoken_by_an_espeak_voice_aligns_with_its_exact_text(tmp_pa
     assert said[:9] == ["DH", "AH", "K", "W", "IH", "K", "B", "R", "AW"]  # the quick brow(n)
     assert said[-5:] == ["L", "EY", "SH", "AH", "N"]  # (circu)lation
     assert 0.9 * 23 * 10 < len(said) < 1.1 * 300  # about ten phones a second, all of them aligned
+
+
+def test_a_live_frames_lip_values_are_the_offline_geometrys_to_the_bit() -> None:
+    """The live path takes one frame's lips in plain floats (``shape_fap_values``); they must be exactly what
+    ``shape_faps`` gives for the same shape, noise cut included (values under 1e-9 are 0)."""
+    from prosody.motion.face.lips import shape_fap_values
+
+    rng = np.random.default_rng(7)
+    for opening, rounding, spread in [(200.0, 0.0, 0.0), (0.0, 0.0, 0.0), (1e-12, -1e-12, 3e-10),
+                                      *rng.normal(0, [300.0, 0.2, 0.1], size=(50, 3)).tolist()]:
+        offline = shape_faps(MouthShape(np.array([opening]), np.array([rounding]), np.array([spread])))
+        live = shape_fap_values(opening, rounding, spread)
+        assert live.keys() == offline.keys() - {VISEME_FAP}
+        assert all(live[fap] == float(offline[fap][0]) for fap in live)

@@ -84,10 +84,9 @@ def _write_cues(args: argparse.Namespace, path: str, format_name: str, *, progre
     """Convert and write mouth cues with their own options (the recording's path and length, as Rhubarb's)."""
     from audio_features.audio import open_sound_file
 
+    from ..fap.mouth_cues import CUE_FPS
     from ..jobs.pipeline import convert
     from ..outputs import write_stream
-
-    from ..fap.mouth_cues import CUE_FPS
 
     settings = opt.motion_kwargs(args)
     settings.setdefault("fps", CUE_FPS)  # Rhubarb's 0.01 s grid, unless --fps says otherwise

@@ -35,7 +35,7 @@ from ..motion.face.expressions import (
     mix_with_lips,
     parse_expressions,
 )
-from ..motion.face.lips import LIP_FAPS, shape_faps
+from ..motion.face.lips import LIP_FAPS, shape_fap_values
 from ..motion.heads.live import DEFAULT_LOOKAHEAD_MS, LiveHeadModel, LivePerlin, live_brows
 from ..motion.limits import limit_frame
 from ..motion.model_files import MODELS_DIR, read_model_json
@@ -253,7 +253,7 @@ class LiveConverter:
             k = self._next
             self._next += 1
             if self._mouth is not None:
-                value.update({fap: float(curve[0]) for fap, curve in shape_faps(self._mouth.shape(k)).items()})
+                value.update(shape_fap_values(*self._mouth.values(k)))
             faps = {fap: value[fap] * self._gain[fap] for fap in self.faps if fap in value}
             if self._expression:
                 faps = self._with_expression(faps, k / self.fps)

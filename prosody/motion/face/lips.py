@@ -293,21 +293,40 @@ def shape_faps(shape: MouthShape, *, gain: float = 1.0) -> dict[int, np.ndarray]
     >>> float(faps[3][0] - faps[4][0] - faps[5][0])  # the inner-lip opening
     200.0
     """
-    curves: dict[int, np.ndarray] = {}
-    for fap, share in OPENING_SHARES.items():
-        curves[fap] = gain * share * shape.opening
-    curves[8] = curves[9] = MIDPOINT_FOLLOW * curves[4]
-    curves[10] = curves[11] = MIDPOINT_FOLLOW * curves[5]
-    curves[16] = curves[17] = gain * PROTRUSION_MNS * shape.rounding
-    curves[6] = curves[7] = gain * 512.0 * shape.spread
-    for inner, outer in OUTER_OF_INNER.items():
-        if inner in curves:
-            curves[outer] = curves[inner]
+    curves = _lip_geometry(shape.opening, shape.rounding, shape.spread, gain)
     # rounding noise of the blend (1e-20 where a shape is 0) is no motion
     out = {fap: np.where(np.abs(curves[fap]) < 1e-9, 0.0, curves[fap]) for fap in LIP_FAPS}
     if shape.viseme is not None and gain > 0:
         out[VISEME_FAP] = np.asarray(shape.viseme, float)
     return out
+
+
+def shape_fap_values(opening: float, rounding: float, spread: float) -> dict[int, float]:
+    """:func:`shape_faps` of one frame's shape, in plain floats (the same values, for a live frame).
+
+    Examples
+    --------
+    >>> values = shape_fap_values(200.0, 0.0, 0.0)
+    >>> values[3] - values[4] - values[5]
+    200.0
+    """
+    curves = _lip_geometry(opening, rounding, spread, 1.0)
+    return {fap: 0.0 if abs(curves[fap]) < 1e-9 else curves[fap] for fap in LIP_FAPS}
+
+
+def _lip_geometry(opening, rounding, spread, gain: float) -> dict:
+    """The lip FAPs of a shape, for arrays or floats alike (the same arithmetic either way)."""
+    curves = {}
+    for fap, share in OPENING_SHARES.items():
+        curves[fap] = gain * share * opening
+    curves[8] = curves[9] = MIDPOINT_FOLLOW * curves[4]
+    curves[10] = curves[11] = MIDPOINT_FOLLOW * curves[5]
+    curves[16] = curves[17] = gain * PROTRUSION_MNS * rounding
+    curves[6] = curves[7] = gain * 512.0 * spread
+    for inner, outer in OUTER_OF_INNER.items():
+        if inner in curves:
+            curves[outer] = curves[inner]
+    return curves
 
 
 def inner_opening(curves: dict[int, np.ndarray]) -> np.ndarray:

@@ -11,7 +11,6 @@ turns into lip FAPs. It is trained on recordings with a video-tracked ``<clip>.m
 from __future__ import annotations
 
 import os
-from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -369,13 +368,15 @@ class LiveMouth:
         from audio_features.spectral import CepstraStream
 
         self.model, self.fps = model, fps
+        self._offsets_s = np.array(model.offsets_s)
         self._cepstra = CepstraStream(sample_rate_hz)
         self._standardizer = RunningStandardizer(model.prior_mean_, model.prior_var_)
         self._frames = np.zeros((0, N_SPECTRAL))
         self._gates = np.zeros(0)
         self._db = np.zeros(0)
         self._first = 0  # absolute index of self._frames[0]
-        self._recent_db: deque[float] = deque(maxlen=LOUD_WINDOW_FRAMES)
+        # the last minute's levels, oldest overwritten (the quantile does not depend on their order)
+        self._recent_db = np.empty(LOUD_WINDOW_FRAMES)
         self._loud: float | None = None
         self._heard = 0  # 10 ms frames heard
 
@@ -384,15 +385,17 @@ class LiveMouth:
             return
         gates = []
         levels = frame_db(frames)
-        for db in levels:
+        for db in levels.tolist():
             # the loud level of the last minute (its 95th percentile), as the whole recording's offline, taken
             # anew every LOUD_EVERY_FRAMES frames (0.1 s: a minute's level moves little in that time)
-            self._recent_db.append(float(db))
+            self._recent_db[self._heard % LOUD_WINDOW_FRAMES] = db
             self._heard += 1
             if self._loud is None or self._heard % LOUD_EVERY_FRAMES == 0:
                 # at the start of a stream the training recordings' loud level stands in for one not yet heard
-                self._loud = max(float(np.quantile(np.array(self._recent_db), 0.95)), self.model.prior_loud_db_)
-            gates.append(float(voice_gate(np.array(db), self._loud)))
+                self._loud = max(float(np.quantile(self._recent_db[:min(self._heard, LOUD_WINDOW_FRAMES)], 0.95)),
+                                 self.model.prior_loud_db_)
+            # voice_gate's formula on one value, in plain floats (the same arithmetic, without an array a frame)
+            gates.append(min(max((db - (self._loud - QUIET_BELOW_LOUD_DB)) / GATE_RAMP_DB, 0.0), 1.0))
         self._frames = np.vstack([self._frames, self._standardizer.push(frames)])
         self._gates = np.concatenate([self._gates, gates])
         self._db = np.concatenate([self._db, levels])
@@ -405,8 +408,13 @@ class LiveMouth:
 
     def shape(self, k: int) -> MouthShape:
         """The mouth's shape at grid frame ``k`` (features beyond those in are held at the newest)."""
+        opening, rounding, spread = self.values(k)
+        return MouthShape(np.array([opening]), np.array([rounding]), np.array([spread]))
+
+    def values(self, k: int) -> tuple[float, float, float]:
+        """The opening, rounding and spread of :meth:`shape` as plain floats; frames before ``k`` are let go."""
         last = self._first + self._frames.shape[0] - 1
-        index = np.round((k / self.fps + np.array(self.model.offsets_s)) * 100).astype(int)
+        index = np.round((k / self.fps + self._offsets_s) * 100).astype(int)
         index = np.clip(index, 0, max(last, 0)) - self._first
         row = self._frames[np.clip(index, 0, self._frames.shape[0] - 1)].reshape(-1) if self._frames.size else \
             np.zeros(len(self.model.offsets_s) * N_SPECTRAL)
@@ -429,7 +437,7 @@ class LiveMouth:
             self._gates = self._gates[oldest - 100:]
             self._db = self._db[oldest - 100:]
             self._first += oldest - 100
-        return MouthShape(np.array([opening]), np.array([rounding]), np.array([spread]))
+        return float(opening), float(rounding), float(spread)
 
 
 def live_mouth_clips(folder: str | os.PathLike[str], *,

@@ -737,10 +737,14 @@ class LiveHead:
         j = min(j, self._rows - 1)
         return self._per_frame[len(self._per_frame) - (self._rows - j)]
 
-    def _smoothed(self, j: int) -> np.ndarray:
+    def _smoothed_at(self, k: int) -> np.ndarray:
+        """The per-frame features about each offset from frame ``k``, each the mean of ``smoothing`` frames
+        (one row an offset), from one block of the frames they span."""
         before = self._smoothing // 2
-        rows = [self._row(i) for i in range(j - before, j - before + self._smoothing)]
-        return np.mean(rows, axis=0)
+        first = k + min(self._offsets) - before
+        block = np.array([self._row(i) for i in range(first, k + max(self._offsets) - before + self._smoothing)])
+        return np.array([block[k + offset - before - first:k + offset - before - first + self._smoothing].mean(axis=0)
+                         for offset in self._offsets])
 
     def _give(self) -> np.ndarray:
         model = self.model
@@ -750,7 +754,7 @@ class LiveHead:
         if self._rows == 0:
             envelope, pitch = model.idle_ratio, 0.0
         else:
-            smoothed = [self._smoothed(k + offset) for offset in self._offsets]
+            smoothed = self._smoothed_at(k)
             envelope = self._linear(smoothed, ENVELOPE_FEATURES, model.envelope_weights_, model.envelope_mean_,
                                     model.envelope_std_)
             envelope = max(max(envelope, model.idle_ratio) ** model.envelope_power, model.idle_ratio)
@@ -760,9 +764,9 @@ class LiveHead:
         return self._synthesis.step(envelope, pitch)
 
     @staticmethod
-    def _linear(smoothed: list[np.ndarray], columns: tuple[int, ...], weights: np.ndarray, mean: np.ndarray,
+    def _linear(smoothed: np.ndarray, columns: tuple[int, ...], weights: np.ndarray, mean: np.ndarray,
                 spread: np.ndarray) -> float:
-        row = np.concatenate([values[list(columns)] for values in smoothed])
+        row = smoothed[:, list(columns)].reshape(-1)  # each offset's columns in turn
         return float(((row - mean) / spread) @ weights[:-1] + weights[-1])
 
 
