@@ -1,7 +1,7 @@
 """The photo head's closed loop and its likeness to the photo (part of ``make evaluate``).
 
-For each of several people of ``<shared data>/talking-videos`` (women and men), one frame of their clip,
-drawn at random (``--seed``), becomes the head (:func:`prosody.head.photo.photo_head`):
+For each of several people of ``<shared data>/talking-videos`` (women and men), frames of their clip drawn at
+random (``--frames``, 3 by default, from ``--seed``) each become the head (:func:`prosody.head.photo.photo_head`):
 
 - **the photo kept:** a still stream's frame against the photo, SSIM of the grey images (scikit-image's
   ``structural_similarity``) at the photo's size; pass mark 0.8;
@@ -14,8 +14,10 @@ drawn at random (``--seed``), becomes the head (:func:`prosody.head.photo.photo_
   says how far a figure in FAP units from tracked people (``experiments/likeness.py``'s first table) is from
   their true size; the comparison through render and tracker needs no ruler, both sides being read alike.
 
-The control beside each figure is the largest |r| of a tracked curve with a motion it was not given.
-``python -m experiments.photo_loop [--seconds 20] [--seed 0]``.
+The control beside each figure is the largest |r| of a tracked curve with a motion it was not given. Each
+person-frame passes or fails on its own; the last lines count them, and the people who pass on every frame.
+Frame ``j`` of seed ``s`` is frame 0 of seed ``s + j``.
+``python -m experiments.photo_loop [--seconds 20] [--seed 0] [--frames 3]``.
 """
 
 from __future__ import annotations
@@ -74,6 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--frames", type=int, default=3, help="frames of each person's clip, each a photo")
     parser.add_argument("--keep", default=None, help="copy the photos, videos and tracks to this folder")
     parser.add_argument("--only", default=None, help="only the clips whose name holds this text")
     args = parser.parse_args(argv)
@@ -88,16 +91,18 @@ def main(argv: list[str] | None = None) -> int:
           "| lips r | brows r | lips read at | brows read at | control |r| | pass |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     failures = measured = 0
+    passes: dict[str, list[bool]] = {}
     summary: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory() as folder:
         work = Path(folder)
         write_fap(stream, work / "loop.fap")
-        for index, (clip, who) in enumerate(PEOPLE):
+        people = [(index, clip, who, j) for index, (clip, who) in enumerate(PEOPLE) for j in range(args.frames)]
+        for index, clip, who, j in people:
             name = Path(clip).stem
             if args.only and args.only not in name:
                 continue
             photo = work / f"{name}.png"
-            at = grab_frame(videos / clip, args.seed * 1000 + index, photo)
+            at = grab_frame(videos / clip, (args.seed + j) * 1000 + index, photo)
             ssim, size = ssim_still(photo)
             subprocess.run([sys.executable, "-m", "prosody", "preview", str(work / "loop.fap"), "-o",
                             str(work / f"{name}.mp4"), "--face", str(photo), "--brow-scale", "1", "--no-strip",
@@ -115,6 +120,7 @@ def main(argv: list[str] | None = None) -> int:
                       and result.found >= head_loop.PASS_FOUND and ssim >= PASS_SSIM)
             failures += not passed
             measured += 1
+            passes.setdefault(name, []).append(passed)
             axes = " | ".join(f"{result.head_r[a]:.3f} / {result.head_spread[a]:.2f}" for a in ("pitch", "yaw", "roll"))
             print(f"| {name} ({who}) | {at:.2f} s | {size[1]}x{size[0]} | {ssim:.3f} | {100 * result.found:.1f} % "
                   f"| {axes} | {result.lips_r:.3f} | {result.brows_r:.3f} | {result.lips_gain:.2f} x "
@@ -127,7 +133,9 @@ def main(argv: list[str] | None = None) -> int:
                 summary.setdefault(key, []).append(value)
     print("\nmedian over people: " + ", ".join(f"{k} {np.median(v):.3f} (min {np.min(v):.3f})"
                                                for k, v in summary.items()))
-    print(f"{measured - failures} of {measured} people pass every mark")
+    print(f"{measured - failures} of {measured} person-frames pass every mark; "
+          f"{sum(all(v) for v in passes.values())} of {len(passes)} people on every frame of theirs ("
+          + ", ".join(f"{name} {sum(v)} of {len(v)}" for name, v in passes.items()) + ")")
     return 0
 
 
