@@ -641,7 +641,8 @@ class PhotoRenderer:
         self._shading = np.ones(n_rig)
         self._shading[:N_FACE_VERTICES] = np.clip(from_edge / RELIGHT_FADE_CM, 0.0, 1.0)
         rest = self.vertices(np.zeros(N_FAPS))
-        self._rest_light = self._light(self._normals(rest)[:n_rig])
+        self._rest_normals = self._normals(rest)[:n_rig].copy()
+        self._rest_light = self._light(self._rest_normals)
         self.perspective = perspective
         self._camera = np.array([head.width / 2, -head.height / 2, head.scale * CAMERA_DISTANCE_CM])
         self._rest_perspective = self._perspective(rest)
@@ -708,6 +709,20 @@ class PhotoRenderer:
             layer[self._skin] = (rig[:N_FACE_VERTICES][self._skin_nearest] * self._skin_weights[..., None]).sum(axis=1)
         return np.vstack([rig, layer])
 
+    def _turned_normals(self, values: np.ndarray) -> np.ndarray:
+        """The head's rest normals turned as the head turns (each vertex by its share of the turn): a nod or a
+        turn lights the face anew, but the skin's own stretching (a brow raised, the jaw opened) relights
+        nothing, as the photo's own shading moves with the skin (lit by its stretched normals, the skin between
+        a raised brow and the eye showed as a light smear)."""
+        values = np.nan_to_num(values)
+        angles = [values[f - 1] * RADIANS_PER_AU for f in HEAD_FAPS]
+        if not any(angles):
+            return self._rest_normals
+        rest = self._rest_normals
+        share = self._follows[:self._n_rig, None]
+        mixed = rest + share * (rest @ rotation(*angles).T - rest)
+        return mixed / np.maximum(np.linalg.norm(mixed, axis=1, keepdims=True), 1e-12)
+
     @staticmethod
     def _light(normals: np.ndarray) -> np.ndarray:
         """How much light a surface of these normals takes from a light above the camera, with ambient."""
@@ -742,7 +757,7 @@ class PhotoRenderer:
             # the light stays where it was when the photo was taken: a turned surface darkens or brightens by
             # its light now over its light then
             colors = colors.copy()
-            now, then = self._light(normals[:self._n_rig][self._lit]), self._rest_light[self._lit]
+            now, then = self._light(self._turned_normals(values)[self._lit]), self._rest_light[self._lit]
             gain = np.clip(now / np.maximum(then, RELIGHT_AMBIENT), 0.6, 1.4)
             share = self._shading[self._lit]
             colors[:self._n_rig][self._lit] = (1 + share * (gain - 1))[:, None]
