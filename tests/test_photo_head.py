@@ -293,3 +293,17 @@ def test_a_turned_head_carries_no_strip_of_background_with_it(render_photo) -> N
     assert carried.sum() / outline <= 5.0
     still = PhotoRenderer(head).render(np.zeros(68))
     assert np.abs(still.astype(int) - photo.astype(int)).mean() < 1.0  # at rest: the photo, outline and all
+
+
+def test_a_brow_raise_moves_the_photos_skin_without_relighting_it(head) -> None:
+    """The photo's own shading moves with its skin: lit by the stretched skin's normals, a brow raise drew a
+    light band between brow and eye. Only the head's turn relights the face (a nod lights it anew)."""
+    renderer = PhotoRenderer(head)
+    lit = renderer._lit
+    rest = renderer._frame(np.zeros(68))[2][:renderer._n_rig][lit]
+    raised = renderer._frame(_values(f31=150, f32=150, f33=150, f34=150, f35=150, f36=150, f3=400))[2]
+    np.testing.assert_array_equal(raised[:renderer._n_rig][lit], rest)
+    nodded = renderer._frame(_values(f48=_degrees(9)))[2][:renderer._n_rig][lit]
+    assert np.abs(nodded - rest).max() > 0.05  # the turn still relights
+    # and the raise moves the brows' pixels: the frame is not the rest frame there
+    assert not np.array_equal(renderer.render(_values(f31=150, f32=150)), renderer.render(np.zeros(68)))
