@@ -307,3 +307,30 @@ def test_a_brow_raise_moves_the_photos_skin_without_relighting_it(head) -> None:
     assert np.abs(nodded - rest).max() > 0.05  # the turn still relights
     # and the raise moves the brows' pixels: the frame is not the rest frame there
     assert not np.array_equal(renderer.render(_values(f31=150, f32=150)), renderer.render(np.zeros(68)))
+
+
+def test_the_mouths_drawn_inside_is_softened_to_the_photo(head, monkeypatch) -> None:
+    """The inside (teeth, tongue, cavity) is drawn with edges a pixel sharp against a photo whose own spread over
+    two or three: softened where it shows, its steepest steps fall, and nothing else in the frame changes."""
+    import prosody.head.photo as photo
+
+    opened = _values(f3=500)
+    soft_renderer = PhotoRenderer(head)
+    soft, soft_rest = soft_renderer.render(opened), soft_renderer.render(np.zeros(68))
+    monkeypatch.setattr(photo, "INSIDE_SOFTNESS_PX", 0.0)
+    sharp_renderer = PhotoRenderer(head)
+    sharp = sharp_renderer.render(opened)
+    changed = np.any(soft != sharp, axis=2)
+    rows, columns = np.nonzero(changed)
+    assert rows.size, "the open mouth's inside is softened"
+    # only round the mouth: a box a fifth of the frame's width at most
+    assert np.ptp(columns) < 0.2 * soft.shape[1] and np.ptp(rows) < 0.2 * soft.shape[0]
+    box = (slice(rows.min(), rows.max() + 1), slice(columns.min(), columns.max() + 1))
+
+    def steepest(image: np.ndarray) -> float:
+        grey = _grey(image[box])
+        return float(np.percentile(np.abs(np.diff(grey, axis=0)), 99))
+
+    assert steepest(soft) < 0.8 * steepest(sharp)
+    # a closed mouth shows no inside: the rest frame is the same either way
+    assert np.array_equal(soft_rest, sharp_renderer.render(np.zeros(68)))
