@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import os
 import shutil
 import sys
@@ -146,11 +147,30 @@ class CompileTime:
 CompileTime.install()
 
 
+class CollectTime:
+    """Seconds the garbage collector spent while a test ran: a full collection walks every object the whole
+    session keeps (seconds on a loaded machine), started by whichever test happens to allocate at that moment,
+    so it is not that test's own time."""
+
+    seconds = 0.0
+    _started = 0.0
+
+    @classmethod
+    def callback(cls, phase: str, _info: dict) -> None:
+        if phase == "start":
+            cls._started = time.perf_counter()
+        else:
+            cls.seconds += time.perf_counter() - cls._started
+
+
+gc.callbacks.append(CollectTime.callback)
+
+
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_call(item: pytest.Item):
-    cpu, wall, compiling = time.process_time(), time.perf_counter(), CompileTime.seconds
+    cpu, wall, compiling = time.process_time(), time.perf_counter(), CompileTime.seconds + CollectTime.seconds
     result = yield from _watch_shared_reads(item)
-    compiling = CompileTime.seconds - compiling
+    compiling = CompileTime.seconds + CollectTime.seconds - compiling
     cpu, wall = time.process_time() - cpu - compiling, time.perf_counter() - wall - compiling
     load = machine_load()
     if item.get_closest_marker("slow") is None and (cpu >= SLOW_CPU_S * load or wall >= SLOW_WALL_S * load):

@@ -139,11 +139,8 @@ def convert(
     """
     if output is not None and not os.fspath(output):
         raise ConfigError("output: no output file name given")
-    if output is not None and features is None and "fps" not in fields and analysis.fps == DEFAULT_FPS:
-        from ..outputs import CUE_FORMATS, format_for
-
-        if format_for(output, output_format) in CUE_FORMATS:
-            fields["fps"] = CUE_FPS  # mouth cues on Rhubarb's 0.01 s grid
+    if _writes_cues_at_the_default_rate(output, output_format, features, analysis, fields):
+        fields["fps"] = CUE_FPS  # mouth cues on Rhubarb's 0.01 s grid
     analysis, motion, face, channels = settings_groups("convert", fields, analysis=analysis, motion=motion, face=face,
                                                        channels=channels)
     channels.check_leaves_output(lips=face.lips is not None, face_layer=bool(face.expression or face.pad))
@@ -179,6 +176,17 @@ def convert(
 
         write_stream(stream, output, output_format, sound_file=audio, duration_s=features.duration_s)
     return stream
+
+
+def _writes_cues_at_the_default_rate(output, output_format: str | None, features: Features | None,
+                                     analysis: AnalysisSettings, fields: Mapping) -> bool:
+    """Whether ``convert`` writes mouth cues with no frame rate asked for (none given as a keyword, the default in
+    ``analysis``, no features already on a grid): those are made at :data:`CUE_FPS`."""
+    if output is None or features is not None or "fps" in fields or analysis.fps != DEFAULT_FPS:
+        return False
+    from ..outputs import CUE_FORMATS, format_for
+
+    return format_for(output, output_format) in CUE_FORMATS
 
 
 def _base_motion(base: str | os.PathLike[str], stream: FapStream) -> FapStream:
