@@ -24,23 +24,13 @@ import numpy as np
 
 from audio_features.phones import recognise_phones
 from experiments.common import data_folder, record
-from experiments.mouth_loco import CUE_SHAPES, FPS, measured
+from experiments.mouth_loco import FPS, measured, played_cues
 from experiments.mouth_videos_loso import load_clips, reference_table, summary_table
 from prosody.fap.mouth_cues import CUE_FPS, mouth_cues
 from prosody.fap.stream import FapStream
 from prosody.motion.face.lips import shape_faps, shapes_from_phones
 
 GRIDS = {"frames": FPS, "grid": CUE_FPS}
-
-
-def played(cues, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Cues as a player shows them on the tracked mouth's frames: (opening MNS, rounding) per frame."""
-    opening, rounding = np.zeros(n), np.zeros(n)
-    times = np.arange(n) / FPS
-    for cue in cues:
-        inside = (times >= cue.start_s - 1e-9) & (times < cue.end_s - 1e-9)
-        opening[inside], rounding[inside] = CUE_SHAPES[cue.shape]
-    return opening, rounding
 
 
 def main() -> None:
@@ -58,7 +48,7 @@ def main() -> None:
             frames = int(np.ceil(duration * fps))
             faps = shape_faps(shapes_from_phones(phones, frames, fps=fps))
             cues = mouth_cues(FapStream.from_curves(faps, fps=fps), duration_s=duration)
-            rows[key][clip["speaker"]].append(measured(*played(cues, n), clip))
+            rows[key][clip["speaker"]].append(measured(*played_cues(cues, n), clip))
             lengths = [cue.end_s - cue.start_s for cue in cues[:-1]]  # the last: up to the recording's end
             timing[key]["cues"].append(len(cues))
             timing[key]["shortest"].append(min(lengths))

@@ -62,7 +62,12 @@ def cue_curves(faps: dict, n: int) -> tuple[np.ndarray, np.ndarray]:
     from prosody.fap.mouth_cues import mouth_cues
     from prosody.fap.stream import FapStream
 
-    cues = mouth_cues(FapStream.from_curves({fap: values[:n] for fap, values in faps.items()}, fps=FPS))
+    return played_cues(mouth_cues(FapStream.from_curves({fap: values[:n] for fap, values in faps.items()}, fps=FPS)),
+                       n)
+
+
+def played_cues(cues, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Mouth cues (``MouthCue``) as a player shows them on ``n`` frames at :data:`FPS`: (opening MNS, rounding)."""
     opening, rounding = np.zeros(n), np.zeros(n)
     times = np.arange(n) / FPS
     for cue in cues:
