@@ -605,6 +605,7 @@ class PhotoRenderer:
         # the mouth's inside is seen through the lips' opening only, never through the skin round it
         self._behind = np.zeros(n_rig + len(head.layer_uv))
         self._behind[:n_rig][np.isin(mesh.part, _SHADED_PARTS)] = MOUTH_DEPTH_BIAS_CM * head.scale
+        self._inside_vertices = np.flatnonzero(np.isin(mesh.part, _SHADED_PARTS))
         self.uv = np.vstack([head.uv, head.layer_uv])
         self.colors = np.vstack([mesh.colors.astype(np.float64), np.ones((len(head.layer_uv), 3))])
         # the mouth's inside as bright as the photo's light: its colours times the face's brightness in the
@@ -715,16 +716,16 @@ class PhotoRenderer:
         return np.vstack([rig, layer])
 
     def _turned_normals(self, values: np.ndarray) -> np.ndarray:
-        """The head's rest normals turned as the head turns (each vertex by its share of the turn): a nod or a
-        turn lights the face anew, but the skin's own stretching (a brow raised, the jaw opened) relights
+        """The lit vertices' rest normals turned as the head turns (each vertex by its share of the turn): a nod
+        or a turn lights the face anew, but the skin's own stretching (a brow raised, the jaw opened) relights
         nothing, as the photo's own shading moves with the skin (lit by its stretched normals, the skin between
         a raised brow and the eye showed as a light smear)."""
         values = np.nan_to_num(values)
         angles = [values[f - 1] * RADIANS_PER_AU for f in HEAD_FAPS]
+        rest = self._rest_normals[self._lit]
         if not any(angles):
-            return self._rest_normals
-        rest = self._rest_normals
-        share = self._follows[:self._n_rig, None]
+            return rest
+        share = self._follows[:self._n_rig][self._lit, None]
         mixed = rest + share * (rest @ rotation(*angles).T - rest)
         return mixed / np.maximum(np.linalg.norm(mixed, axis=1, keepdims=True), 1e-12)
 
@@ -752,9 +753,10 @@ class PhotoRenderer:
         frame = rasterise_textured(screen, self.triangles, normals, colors, self.uv, self.textured, self.texture,
                                    self.background, factor=self.supersample, canvas=self._canvas, window=window,
                                    base=self._rest_frame)
-        return self._softened_inside(frame, window)
+        return self._softened_inside(frame, screen, window)
 
-    def _softened_inside(self, frame: np.ndarray, window: tuple[int, int, int, int] | None) -> np.ndarray:
+    def _softened_inside(self, frame: np.ndarray, screen: np.ndarray,
+                         window: tuple[int, int, int, int] | None) -> np.ndarray:
         """The mouth's inside (drawn, not photographed) as soft as the photo: where it shows and a little round it,
         the frame blurred by :data:`INSIDE_SOFTNESS_PX`, so that its edges against the lips and the teeth's
         edges are no sharper than the photo's own."""
@@ -762,22 +764,32 @@ class PhotoRenderer:
 
         f = self.supersample
         top, bottom, left, right = window if window is not None else (0, self.height - 1, 0, self.width - 1)
-        top, bottom, left, right = max(top, 0), min(bottom, self.height - 1), max(left, 0), min(right, self.width - 1)
+        # only where the inside can show: the box round its vertices (a few hundred, against a window's samples)
+        inside_xy = screen[self._inside_vertices, :2] / f
+        top, bottom = max(top, int(inside_xy[:, 1].min()) - 1, 0), min(bottom, int(inside_xy[:, 1].max()) + 1,
+                                                                       self.height - 1)
+        left, right = max(left, int(inside_xy[:, 0].min()) - 1, 0), min(right, int(inside_xy[:, 0].max()) + 1,
+                                                                       self.width - 1)
         if top > bottom or left > right:
             return frame
         nearest = self._canvas.nearest[top * f:(bottom + 1) * f, left * f:(right + 1) * f]
         inside = (nearest >= 0) & ~self.textured[np.maximum(nearest, 0)]
         if not inside.any():
             return frame
-        share = inside.reshape(bottom - top + 1, f, right - left + 1, f).mean(axis=(1, 3))
+        share = np.zeros((bottom - top + 1, right - left + 1), np.float32)  # each pixel's share of samples inside
+        samples = inside.view(np.uint8)
+        for row in range(f):
+            for column in range(f):
+                share += samples[row::f, column::f]
+        share /= f * f
         sigma = INSIDE_SOFTNESS_PX * self.zoom
         margin = int(np.ceil(3 * sigma)) + 1
         rows, columns = np.nonzero(share)
         r0, r1 = max(rows.min() - margin, 0), min(rows.max() + margin + 1, share.shape[0])
         c0, c1 = max(columns.min() - margin, 0), min(columns.max() + margin + 1, share.shape[1])
         region = frame[top + r0:top + r1, left + c0:left + c1].astype(np.float32)
-        weight = np.clip(2.0 * gaussian_filter(share[r0:r1, c0:c1].astype(np.float32), sigma), 0.0, 1.0)[..., None]
-        blurred = gaussian_filter(region, (sigma, sigma, 0))
+        weight = np.clip(2.0 * gaussian_filter(share[r0:r1, c0:c1], sigma, truncate=3.0), 0.0, 1.0)[..., None]
+        blurred = gaussian_filter(region, (sigma, sigma, 0), truncate=3.0)
         frame[top + r0:top + r1, left + c0:left + c1] = np.rint(region + weight * (blurred - region)).astype(np.uint8)
         return frame
 
@@ -790,7 +802,7 @@ class PhotoRenderer:
             # the light stays where it was when the photo was taken: a turned surface darkens or brightens by
             # its light now over its light then
             colors = colors.copy()
-            now, then = self._light(self._turned_normals(values)[self._lit]), self._rest_light[self._lit]
+            now, then = self._light(self._turned_normals(values)), self._rest_light[self._lit]
             gain = np.clip(now / np.maximum(then, RELIGHT_AMBIENT), 0.6, 1.4)
             share = self._shading[self._lit]
             colors[:self._n_rig][self._lit] = (1 + share * (gain - 1))[:, None]
