@@ -271,6 +271,10 @@ _FORKED_LOCK = threading.Lock()
 #: How long the workers may take to answer for one item (a minute's analysis takes well under a second) before
 #: they are stopped and the rest is analysed in this process.
 FORKED_PATIENCE_S = 120.0
+#: How long stopping the workers after a failure may take (s); past it they are left to stop on their own. A
+#: worker killed while it sends its answer keeps the answers' lock for ever, and the pool's own ``terminate``
+#: then waits for it without end.
+FORKED_STOP_S = 5.0
 
 
 def forked_workers(requested: int | None = None) -> int:
@@ -331,15 +335,28 @@ def _mapped(function: Callable, items: list, workers: int):
         except multiprocessing.TimeoutError:
             pass
         finally:
-            if finished:  # the workers leave when told there is no more work: no signal
-                pool.close()
-            else:
-                pool.terminate()
-            pool.join()
+            _stop_workers(pool, finished=finished)
             with _FORKED_LOCK:
                 del _FORKED_TASKS[token]
     for item in items[done:]:
         yield item, function(item)
+
+
+def _stop_workers(pool, *, finished: bool) -> None:
+    """End a pool of forked workers: told there is no more work when all went well (no signal), else stopped,
+    waiting at most :data:`FORKED_STOP_S` for that (see there)."""
+    if finished:
+        pool.close()
+        pool.join()
+        return
+
+    def stop() -> None:
+        pool.terminate()
+        pool.join()
+
+    stopper = threading.Thread(target=stop, name="stopping forked workers", daemon=True)
+    stopper.start()
+    stopper.join(FORKED_STOP_S)
 
 
 def array_reader(samples: np.ndarray) -> SegmentReader:

@@ -414,6 +414,57 @@ def test_forked_workers_that_stop_answering_leave_the_rest_to_this_process(monke
         list(analysis._mapped(fails, [0, 1, 2], 2))
 
 
+def test_stopping_forked_workers_never_waits_for_ever(monkeypatch) -> None:
+    """A worker killed while it sends its answer keeps the answers' lock, and the pool's own ``terminate`` then
+    waits without end (a fresh clone's suite hung there once). Here ``terminate`` finds that lock held, as such a
+    worker leaves it: the rest is still analysed in this process, after at most the stopping's patience."""
+    import multiprocessing
+    import multiprocessing.pool
+    import threading
+    import time
+
+    import audio_features.analysis as analysis
+
+    if analysis.forked_workers() < 2:
+        pytest.skip("one core: no workers are forked")
+    fork, held = multiprocessing.get_context("fork"), []
+
+    class KilledWhileAnswering(multiprocessing.pool.Pool):
+        def terminate(self) -> None:
+            self._outqueue._wlock.acquire()
+            held.append(self)
+            super().terminate()
+
+    class Context:
+        @staticmethod
+        def Pool(processes, initializer=None):  # noqa: N802 - multiprocessing's name
+            return KilledWhileAnswering(processes, initializer=initializer, context=fork)
+
+    parent = os.getpid()
+
+    def square_here(item: int) -> int:
+        if os.getpid() != parent and item >= 3:
+            time.sleep(60)  # a worker that never answers: the pool is stopped
+        return item * item
+
+    monkeypatch.setattr(analysis.multiprocessing, "get_context", lambda method: Context())
+    monkeypatch.setattr(analysis, "FORKED_PATIENCE_S", 0.5)
+    monkeypatch.setattr(analysis, "FORKED_STOP_S", 1.0, raising=False)
+    results: list = []
+    worker = threading.Thread(target=lambda: results.extend(analysis._mapped(square_here, list(range(6)), 2)),
+                              daemon=True)
+    started = time.monotonic()
+    worker.start()
+    worker.join(20)
+    try:
+        assert not worker.is_alive(), "stopping the workers waited for a lock no one will release"
+        assert results == [(k, k * k) for k in range(6)]
+        assert time.monotonic() - started < 10
+    finally:
+        for pool in held:  # let the stopping finish, so nothing is left behind
+            pool._outqueue._wlock.release()
+
+
 def test_forked_workers_finish_cleanly_under_a_program_that_handles_sigterm(tmp_path) -> None:
     """The command line turns SIGTERM into KeyboardInterrupt; a worker that kept that handler, stopped by a
     signal, died holding the pool's lock (the caller then waited for ever) or printed a traceback. Workers now
