@@ -66,7 +66,12 @@ def frame_db(frames: np.ndarray) -> np.ndarray:
 
 def voice_gate(db: np.ndarray, loud_db: float | np.ndarray) -> np.ndarray:
     """0 where a frame is :data:`QUIET_BELOW_LOUD_DB` below the loud level, 1 from 10 dB above that."""
-    return np.clip((db - (loud_db - QUIET_BELOW_LOUD_DB)) / GATE_RAMP_DB, 0.0, 1.0)
+    return np.clip(_gate_ramp(db, loud_db), 0.0, 1.0)
+
+
+def _gate_ramp(db, loud_db):
+    """The voice gate before it is held to 0..1 (arrays or plain floats, the same arithmetic)."""
+    return (db - (loud_db - QUIET_BELOW_LOUD_DB)) / GATE_RAMP_DB
 
 
 def dip_gate(db: np.ndarray, peak_db: np.ndarray) -> np.ndarray:
@@ -394,8 +399,8 @@ class LiveMouth:
                 # at the start of a stream the training recordings' loud level stands in for one not yet heard
                 self._loud = max(float(np.quantile(self._recent_db[:min(self._heard, LOUD_WINDOW_FRAMES)], 0.95)),
                                  self.model.prior_loud_db_)
-            # voice_gate's formula on one value, in plain floats (the same arithmetic, without an array a frame)
-            gates.append(min(max((db - (self._loud - QUIET_BELOW_LOUD_DB)) / GATE_RAMP_DB, 0.0), 1.0))
+            # voice_gate of one value, in plain floats (without an array a frame)
+            gates.append(min(max(_gate_ramp(db, self._loud), 0.0), 1.0))
         self._frames = np.vstack([self._frames, self._standardizer.push(frames)])
         self._gates = np.concatenate([self._gates, gates])
         self._db = np.concatenate([self._db, levels])
