@@ -150,22 +150,32 @@
   }
 
   // A person's head from a photo (prosody/head/photo.py, model "kind": "photo"): vertices in the photo's pixels
-  // (x right, y up, z towards the camera); the face and the person's grid show the photo as it was taken, the
-  // mouth's inside is lit; the head turns about the pivot by each vertex's share, and the motion is laid over
-  // the photo's framing as a camera photo.camera_px away sees it (PhotoRenderer does the same on the CPU).
+  // (x right, y up, z towards the camera); the face and the person's grid show the photo as it was taken (the
+  // face shaded anew as it turns, the light staying put), the mouth's inside is lit; the head turns about the
+  // pivot by each vertex's share, and the motion is laid over the photo's framing as a camera photo.camera_px
+  // away sees it (PhotoRenderer does the same on the CPU).
   const PHOTO_VERTEX = `
     attribute vec3 position; attribute vec3 rest; attribute vec3 normal; attribute vec3 color;
     attribute float rotates; attribute vec2 uv; attribute float textured; attribute float behind;
+    attribute vec3 restNormal; attribute float relit;
     uniform mat3 turn; uniform vec3 pivot; uniform vec4 photo;  // width, height, camera distance, depth range
-    varying vec3 vNormal; varying vec3 vColor; varying vec2 vUV; varying float vTextured;
+    uniform vec3 relightDirection; uniform vec3 relightLimits;  // ambient share, lowest and highest gain
+    varying vec3 vNormal; varying vec3 vColor; varying vec2 vUV; varying float vTextured; varying float vGain;
     vec2 seen(vec3 p) {
       vec2 centre = vec2(0.5 * photo.x, -0.5 * photo.y);
       return centre + (p.xy - centre) * (photo.z / max(photo.z - p.z, 0.001 * photo.z));
     }
+    float light(vec3 n) { return relightLimits.x + (1.0 - relightLimits.x) * max(dot(n, relightDirection), 0.0); }
     void main() {
       vec3 p = position, n = normal;
+      vGain = 1.0;
       if (rotates > 0.0) {
         p = mix(position, turn * (position - pivot) + pivot, rotates); n = normalize(mix(normal, turn * normal, rotates));
+        if (relit > 0.0) {  // the light stays where it was in the photo: a turned surface takes its light now
+          vec3 turned = normalize(mix(restNormal, turn * restNormal, rotates));  // over its light then
+          float gain = clamp(light(turned) / max(light(restNormal), relightLimits.x), relightLimits.y, relightLimits.z);
+          vGain = 1.0 + relit * (gain - 1.0);
+        }
       }
       vec2 xy = rest.xy + seen(p) - seen(rest);
       float z = clamp((behind - (p.z - pivot.z)) / photo.w, -1.0, 1.0);
@@ -176,10 +186,14 @@
     precision mediump float;
     uniform sampler2D image;
     uniform vec3 light0; uniform vec3 light1; uniform vec4 strengths; uniform float shininess;
-    varying vec3 vNormal; varying vec3 vColor; varying vec2 vUV; varying float vTextured;
+    varying vec3 vNormal; varying vec3 vColor; varying vec2 vUV; varying float vTextured; varying float vGain;
     void main() {
       // the photo's alpha is the person's coverage: round the outline the background behind the canvas shows
-      if (vTextured > 0.5) { vec4 t = texture2D(image, vUV); gl_FragColor = vec4(t.rgb * t.a, t.a); return; }
+      if (vTextured > 0.5) {
+        vec4 t = texture2D(image, vUV);
+        gl_FragColor = vec4(min(t.rgb * vGain, vec3(1.0)) * t.a, t.a);
+        return;
+      }
       vec3 n = normalize(vNormal);
       if (n.z < 0.0) n = -n;
       float diffuse = strengths.z + strengths.x * max(dot(n, light0), 0.0) + strengths.y * max(dot(n, light1), 0.0);
@@ -199,6 +213,11 @@
       this.attribute("uv", new Float32Array(model.uv), 2);
       this.attribute("textured", new Float32Array(model.textured), 1);
       this.attribute("behind", new Float32Array(model.behind), 1);
+      const relight = model.relight;
+      this.attribute("restNormal", new Float32Array(relight.normals), 3);
+      this.attribute("relit", new Float32Array(relight.shares), 1);
+      gl.uniform3fv(gl.getUniformLocation(program, "relightDirection"), relight.direction);
+      gl.uniform3f(gl.getUniformLocation(program, "relightLimits"), relight.ambient, relight.range[0], relight.range[1]);
       const texture = gl.createTexture();
       gl.bindTexture(gl.TEXTURE_2D, texture);
       gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);

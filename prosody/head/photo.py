@@ -95,8 +95,10 @@ MOUTH_DEPTH_BIAS_CM = 3.0
 #: blends the inside into the lips; 1.5 smears the teeth.
 INSIDE_SOFTNESS_PX = 0.9
 #: The light that stays put while the head turns (towards the light, camera axes) and its ambient share.
-_RELIGHT_DIRECTION = np.array([0.0, 0.35, 1.0]) / np.linalg.norm([0.0, 0.35, 1.0])
+RELIGHT_DIRECTION = np.array([0.0, 0.35, 1.0]) / np.linalg.norm([0.0, 0.35, 1.0])
 RELIGHT_AMBIENT = 0.35  # > 0: the ratio below is bounded
+#: A turned surface's light over its light in the photo is kept within these bounds.
+RELIGHT_RANGE = (0.6, 1.4)
 #: The shading of a turned face fades out over this distance towards the face's edge (cm).
 RELIGHT_FADE_CM = 2.0
 #: Side of the person layer's grid cells, as a fraction of the photo's longer side.
@@ -705,6 +707,18 @@ class PhotoRenderer:
         """float (n,): how much further back each vertex is drawn (the mouth's inside), in the photo's pixels."""
         return self._behind
 
+    @property
+    def relit(self) -> tuple[np.ndarray, np.ndarray]:
+        """How a turn relights each drawn vertex: its normal at rest (n, 3; in the photo's axes) and the share of
+        its light change it shows (n; 0 where the turn relights nothing: the person's grid, the mouth's inside,
+        which is lit by its own normals, and every vertex when ``relight`` is off)."""
+        normals = np.zeros((len(self._follows), 3))
+        share = np.zeros(len(self._follows))
+        if self.relight:
+            normals[:self._n_rig][self._lit] = self._rest_normals[self._lit]
+            share[:self._n_rig][self._lit] = self._shading[self._lit]
+        return normals, share
+
     def field(self, fap: int) -> np.ndarray:
         """float (n, 3): how every drawn vertex moves per unit of ``fap`` in the photo's axes (pixels), the person's
         grid following the face's skin (the head's turns, FAP 48-50, are not fields)."""
@@ -732,7 +746,7 @@ class PhotoRenderer:
     @staticmethod
     def _light(normals: np.ndarray) -> np.ndarray:
         """How much light a surface of these normals takes from a light above the camera, with ambient."""
-        return RELIGHT_AMBIENT + (1 - RELIGHT_AMBIENT) * np.clip(normals @ _RELIGHT_DIRECTION, 0.0, None)
+        return RELIGHT_AMBIENT + (1 - RELIGHT_AMBIENT) * np.clip(normals @ RELIGHT_DIRECTION, 0.0, None)
 
     def _normals(self, points: np.ndarray) -> np.ndarray:
         """Vertex normals of the head's triangles (zero on the person's grid, which is not lit)."""
@@ -803,7 +817,7 @@ class PhotoRenderer:
             # its light now over its light then
             colors = colors.copy()
             now, then = self._light(self._turned_normals(values)), self._rest_light[self._lit]
-            gain = np.clip(now / np.maximum(then, RELIGHT_AMBIENT), 0.6, 1.4)
+            gain = np.clip(now / np.maximum(then, RELIGHT_AMBIENT), *RELIGHT_RANGE)
             share = self._shading[self._lit]
             colors[:self._n_rig][self._lit] = (1 + share * (gain - 1))[:, None]
         s = self.supersample * self.zoom

@@ -88,7 +88,14 @@ def photo_model_document(head) -> dict:
     which vertices show the photo (``uv``, 0..1 from the top-left corner) and which are lit (the mouth's inside);
     the photo's size and its camera for the motion's perspective; the images at :data:`PHOTO_TEXTURE_PATH` and
     :data:`PHOTO_BACKGROUND_PATH` (:func:`photo_images`)."""
-    from .photo import CAMERA_DISTANCE_CM, MOUTH_DEPTH_BIAS_CM, PhotoRenderer
+    from .photo import (
+        CAMERA_DISTANCE_CM,
+        MOUTH_DEPTH_BIAS_CM,
+        RELIGHT_AMBIENT,
+        RELIGHT_DIRECTION,
+        RELIGHT_RANGE,
+        PhotoRenderer,
+    )
 
     renderer = PhotoRenderer(head)
     rest = renderer.vertices(np.zeros(N_FAPS))
@@ -104,6 +111,7 @@ def photo_model_document(head) -> dict:
                                 "offsets": np.round(field[moved], 6).reshape(-1).tolist()}
     uv = renderer.uv / np.array([head.width, head.height])
     textured = np.isin(np.arange(len(rest)), np.unique(renderer.triangles[renderer.textured]))
+    rest_normals, relit = renderer.relit
     return {
         "format": "visual-prosody-head", "version": 1, "kind": "photo",
         "vertices": np.round(rest, 3).reshape(-1).tolist(),
@@ -113,6 +121,9 @@ def photo_model_document(head) -> dict:
         "uv": np.round(uv, 5).reshape(-1).tolist(),
         "behind": np.round(renderer.behind_px, 3).tolist(),
         "rotates": np.round(renderer.follows, 3).tolist(),
+        "relight": {"normals": np.round(rest_normals, 4).reshape(-1).tolist(), "shares": np.round(relit, 3).tolist(),
+                    "direction": np.round(RELIGHT_DIRECTION, 6).tolist(), "ambient": RELIGHT_AMBIENT,
+                    "range": list(RELIGHT_RANGE)},
         "fields": fields,
         "supported": list(head.rig.supported),
         "pivot": np.round(renderer.pivot, 3).tolist(),
