@@ -3,7 +3,8 @@ videos (30 speakers).
 
 ``prosody convert -o X.rhubarb.json`` makes its cues at 100 frames a second (``prosody.fap.mouth_cues.CUE_FPS``),
 so that they start and end on Rhubarb Lip Sync's own 0.01 s grid; before, they changed on the motion's 30 fps
-frames. Both are made here from the same recognised phones (the default visemes, no transcript) and played back
+frames. Both are made here from the same recognised phones (the default visemes, no transcript, their openings
+fitted without the held-out speaker as ``experiments/viseme_fit.py`` fits them) and played back
 as a 2D player shows cues (each shape held for its cue at the visemes' size, ``experiments.mouth_loco.CUE_SHAPES``)
 on the tracked mouth's 30 fps frames. Measures as ``experiments/mouth_videos_loso.py`` (opening r at the best lag
 within +-0.25 s, closure F1, relative closure F1, each beside its mismatched-audio control), plus the cues' own
@@ -26,6 +27,7 @@ from audio_features.phones import recognise_phones
 from experiments.common import data_folder, record
 from experiments.mouth_loco import FPS, measured, played_cues
 from experiments.mouth_videos_loso import load_clips, reference_table, summary_table
+from experiments.viseme_fit import fitting_clips, held_out_visemes
 from prosody.fap.mouth_cues import CUE_FPS, mouth_cues
 from prosody.fap.stream import FapStream
 from prosody.motion.face.lips import shape_faps, shapes_from_phones
@@ -35,6 +37,9 @@ GRIDS = {"frames": FPS, "grid": CUE_FPS}
 
 def main() -> None:
     clips = load_clips()
+    for clip in clips:
+        clip["phones"] = recognise_phones(clip["audio"])
+    visemes = held_out_visemes(fitting_clips(clips))  # the shipped openings' recipe, without the speaker
     names = sorted({clip["speaker"] for clip in clips})
     sexes = {clip["speaker"]: clip["sex"] for clip in clips}
     print(f"{len(clips)} clips, {len(names)} speakers\n")
@@ -43,10 +48,10 @@ def main() -> None:
     for clip in clips:
         n = clip["mouth"].n_frames
         duration = n / FPS
-        phones = recognise_phones(clip["audio"])
+        phones = clip["phones"]
         for key, fps in GRIDS.items():
             frames = int(np.ceil(duration * fps))
-            faps = shape_faps(shapes_from_phones(phones, frames, fps=fps))
+            faps = shape_faps(shapes_from_phones(phones, frames, fps=fps, visemes=visemes[clip["speaker"]]))
             cues = mouth_cues(FapStream.from_curves(faps, fps=fps), duration_s=duration)
             rows[key][clip["speaker"]].append(measured(*played_cues(cues, n), clip))
             lengths = [cue.end_s - cue.start_s for cue in cues[:-1]]  # the last: up to the recording's end

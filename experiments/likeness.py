@@ -19,9 +19,10 @@ voice), by speaker:
    jawOpen, agree at r >= 0.8 over the same frames, as in ``experiments/mouth_videos_loso.py``): a noisy
    reference lowers any r, whatever the lips.
 
-With ``--lips acoustic`` or ``--lips combined`` the acoustic mouth model is refitted for each speaker without
-that speaker (the shipped model's recipe: the talking-heads clips and the other video speakers), so no figure
-comes from a model that heard the person.
+The visemes' openings are fitted for each speaker without that speaker (``experiments/viseme_fit.py``, the
+shipped openings' recipe), and with ``--lips acoustic`` or ``--lips combined`` the acoustic mouth model is
+refitted for each speaker without that speaker (the shipped model's recipe: the talking-heads clips and the other
+video speakers), so no figure comes from a model that heard the person.
 
 ``python -m experiments.likeness [--stream-only] [--speakers N] [--lips METHOD]``.
 """
@@ -114,15 +115,19 @@ def held_out_models(chosen: list[dict], folder: Path) -> dict[str, Path]:
 
 def stream_level(chosen: list[dict], lips: str = "visemes") -> dict[str, dict]:
     """Per speaker: spreads and closings of ours and the person's, in FAP units."""
+    from experiments.viseme_fit import fitting_clips, held_out_visemes, using_visemes
     from prosody.jobs.pipeline import convert
 
     out = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        visemes = held_out_visemes(fitting_clips())  # the shipped openings' recipe, without the speaker
     with tempfile.TemporaryDirectory() as folder:
         models = held_out_models(chosen, Path(folder)) if lips in ("acoustic", "combined") else {}
         streams = {}
         for clip in chosen:
             model = models.get(clip["speaker"])
-            with warnings.catch_warnings():
+            with warnings.catch_warnings(), using_visemes(visemes[clip["speaker"]]):
                 warnings.simplefilter("ignore")
                 streams[clip["speaker"]] = convert(clip["audio"], None, lips=lips,
                                                    **({"mouth_model": str(model)} if model else {}))

@@ -11,7 +11,8 @@ averaged first), then again for women and for men apart (``videos_speakers.csv``
 count as one speaker of unknown sex). Methods:
 
 - visemes: phones recognised without a transcript (the default lips; the English model, also on the French and
-  German clips);
+  German clips), the visemes' openings fitted without the held-out speaker (``experiments/viseme_fit.py``: the
+  shipped openings' recipe on every other speaker's clips);
 - acoustic, shipped: the acoustic mouth model ``prosody`` ships (fitted on the talking-heads clips);
 - acoustic, held out: the same model refitted on the talking-heads clips and every other video speaker;
 - combined: the mean of the visemes' and the held-out acoustic model's mouths (opening and rounding);
@@ -156,6 +157,8 @@ def reference_table(rows: dict[str, dict[str, list]], labels: dict[str, str], cl
 
 
 def main() -> None:
+    from experiments.viseme_fit import fitting_clips, held_out_visemes
+
     clips = load_clips()
     heads = heads_training()
     names = sorted({clip["speaker"] for clip in clips})
@@ -165,12 +168,15 @@ def main() -> None:
     rows: dict[str, dict[str, list]] = {key: defaultdict(list)
                                         for key in ("visemes", "shipped", "held", "combined", "closing", "loudness")}
     shipped = AcousticMouthModel.load(HEADS_MOUTH_MODEL_PATH)  # no speaker of these videos in its training
+    for clip in clips:
+        clip["phones"] = recognise_phones(clip["audio"])
+    visemes = held_out_visemes(fitting_clips(clips))  # the shipped openings' recipe, without the speaker
     for speaker in names:
         held = [clip for clip in clips if clip["speaker"] == speaker]
         model = AcousticMouthModel().fit(heads + [c["training"] for c in clips if c["speaker"] != speaker])
         for clip in held:
             n = clip["mouth"].n_frames
-            faps = shape_faps(shapes_from_phones(recognise_phones(clip["audio"]), n, fps=FPS))
+            faps = shape_faps(shapes_from_phones(clip["phones"], n, fps=FPS, visemes=visemes[speaker]))
             phones_mouth = (inner_opening(faps)[:n], faps[16][:n])
             rows["visemes"][speaker].append(measured(*phones_mouth, clip))
             for key, chosen in (("shipped", shipped), ("held", model)):
@@ -184,7 +190,7 @@ def main() -> None:
             rows["closing"][speaker].append(measured(np.where(closed, phones_mouth[0], mean_opening), mean_rounding,
                                                      clip))
             rows["loudness"][speaker].append(measured(clip["energy"], clip["energy"], clip))
-    labels = {"visemes": "visemes (default, phone loop)",
+    labels = {"visemes": "visemes (default, phone loop; openings fitted without the speaker)",
               "shipped": "acoustic, trained on the talking-heads clips alone",
               "held": "acoustic, refitted without the held-out speaker (the shipped model's recipe)",
               "combined": "combined: mean of visemes and acoustic held out",

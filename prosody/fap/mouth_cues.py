@@ -15,10 +15,12 @@ Otherwise (the acoustic lips, a file of lip FAPs) each frame's shape is read fro
 opening ``FAP 3 - FAP 4 - FAP 5`` in MNS and the rounding ``(FAP 16 + FAP 17) / 2`` over :data:`PUCKER_MNS`. An
 opening below :data:`CLOSED_MNS` is A; any other frame takes the shape of :data:`SHAPE_SIZES` nearest to it, a
 rounding of :data:`ROUNDING_WEIGHT` counting as much as 100 MNS of opening (both times :data:`OPENING_SCALE`).
-The sizes are the project's visemes' (``prosody.motion.face.lips``: /a/ 330 MNS, /e/ 260, /i/ and the consonants
-110-190, /p b m/ 0, all times :data:`OPENING_SCALE`; /u/ rounded 0.2, /o/ and /r/ 0.1-0.12), so a player that
-draws each shape at that size shows the lips as near as six shapes can; from lip FAPs alone G is never given
-(they do not tell the lower lip under the teeth, /f v/, 45 MNS open, from a mouth half closed).
+The sizes are the shapes' as a player draws them, after the visemes as set by hand (/a/ 330 MNS, /e/ 260, /i/ and
+the consonants 110-190, /p b m/ 0, all times :data:`OPENING_SCALE`; /u/ rounded 0.2, /o/ and /r/ 0.1-0.12), so a
+player that draws each shape at that size shows the lips as near as six shapes can; from lip FAPs alone G is
+never given (they do not tell the lower lip under the teeth, /f v/, from a mouth half closed). The visemes'
+own openings are fitted to people's mouths (``prosody.motion.face.lips``); every one but silence's, /p b m/'s and
+/f v/'s is above :data:`CLOSED_MNS`, so that cues of phones close only where the lips do.
 
 Either way, a closed mouth (A) becomes X where it stays closed for :data:`IDLE_S` or more, at the start and end, and
 where the stream has no lips; H (the tongue raised for a long L) is never given. A shape held shorter than
@@ -58,8 +60,8 @@ SHAPES = ("A", "B", "C", "D", "E", "F", "G", "H", "X")
 #: Rhubarb's shape names in the Preston Blair set (its ``--datUsePrestonBlair``).
 PRESTON_BLAIR = {"A": "MBP", "B": "etc", "C": "E", "D": "AI", "E": "O", "F": "U", "G": "FV", "H": "L",
                  "X": "rest"}
-#: The visemes' openings are their hand-set sizes times this (``prosody.motion.face.lips.OPENING_SCALE``, people's
-#: size): the shapes' sizes below scale with them, so the cues are the same at any scale.
+#: The shapes' sizes are the visemes' hand-set sizes times this (people's size through render and tracker), and
+#: the closed mouth's bound with them.
 OPENING_SCALE = 1.75
 #: Below this opening (MNS, half of B's) the lips are closed: A, whatever their rounding.
 CLOSED_MNS = 75.0 * OPENING_SCALE

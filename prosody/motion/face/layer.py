@@ -14,7 +14,7 @@ import numpy as np
 from ...errors import ConfigError
 from ...fap.stream import FapStream
 from .expressions import ExpressionSegment, add_brow_raises, expression_curves, mix_with_lips
-from .lips import LIP_METHODS, OPENING_SCALE, MouthShape, inner_opening, shape_faps, shapes_from_phones
+from .lips import LIP_METHODS, MouthShape, inner_opening, shape_faps, shapes_from_phones
 from .pad import PadSegment, pad_face_curves
 
 
@@ -61,8 +61,9 @@ def stream_mouth(stream: FapStream) -> tuple[np.ndarray, np.ndarray] | None:
     return inner_opening(curves), rounding
 
 
-#: ``combined`` keeps the visemes' mouth where they close it (an inner-lip opening under this, MNS).
-COMBINED_CLOSED_MNS = 30.0 * OPENING_SCALE
+#: ``combined`` keeps the visemes' mouth where they close it (an inner-lip opening under this, MNS: about a
+#: millimetre).
+COMBINED_CLOSED_MNS = 52.5
 
 
 def lip_curves(audio, n_frames: int, *, fps: float, method: str = "visemes", transcript: str | None = None,

@@ -11,13 +11,14 @@ three numbers, which are turned into low-level lip FAPs by one fixed geometry (:
 - ``spread``: change of mouth width as a fraction of its rest width (each inner and outer corner, FAP 6, 7,
   53, 54, moves by half of it: ``512 * spread`` MW).
 
-The shapes in :data:`VISEMES` are set from phonetic descriptions of the visemes (open vowels widest, /i/ and
+The shapes in :data:`VISEMES` were set from phonetic descriptions of the visemes (open vowels widest, /i/ and
 /e/ spread, /o/, /u/, /r/ and the postalveolars rounded, bilabials closed, the neutral face's mouth closed as
-MPEG-4 defines it), in a speaker's typical range (an open /a/ about 7 mm). They were not fitted to the
-evaluation clips: ``experiments/mouth_loco.py`` also fits them by least squares to video-tracked mouths, and
-shapes fitted on four speakers follow the fifth less well (mouth-opening r 0.30) than these (0.37), the
-tracked mouths being too noisy to pin fifteen shapes down. Tracked openings are measured in outer-eye-corner
-widths; the conversion takes the mouth-nose separation as 0.22 of that width (adult proportions).
+MPEG-4 defines it); their openings are now fitted by least squares to the video-tracked mouths of 35 speakers
+(``experiments/viseme_fit.py``), silence and /p b m/ held closed and every other viseme but /f v/ held at least
+:data:`MIN_OPEN_MNS` apart. Held out by speaker, the fitted openings follow people's mouths better than the
+hand-set ones did (see that experiment); rounding and spread stay as set by hand. Tracked openings are measured
+in outer-eye-corner widths; the conversion takes the mouth-nose separation as 0.22 of that width (adult
+proportions).
 
 Coarticulation (:func:`blend`): every phone segment ``i`` has a dominance over time
 
@@ -34,7 +35,7 @@ while a vowel lends its shape to the consonants around it.
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -99,36 +100,39 @@ class Viseme:
 #: Exponent ``c`` of the dominance functions (1: exponential, as Cohen and Massaro's default).
 DOMINANCE_EXPONENT = 1.0
 
-# Openings in MNS as set by hand (scaled by OPENING_SCALE below). Dominance: vowels 1 at 12/s (anticipation
-# 9/s), consonants 0.6 at 15/s, silence 0.8 at 10/s; labiodentals
-# 6 at 40/s; bilabials 50 at 80/s, so that a 30 ms /p/ between two open vowels closes the lips to 11 MNS (a
-# fifth of a millimetre): with 10 at 60/s it left 48 MNS. On the talking-heads clips that choice leaves the
-# opening r as it was (0.37) and lifts the closure F1 from 0.27 to 0.31.
+# Openings in MNS, fitted by least squares to the tracked mouths of the talking videos (30 speakers) and the
+# talking-heads clips (5 speakers) on the phones recognised without a transcript, each clip aligned by its own
+# sound-to-picture lag; silence and /p b m/ held closed, /th dh/, /n l/ and /u/ at the floor MIN_OPEN_MNS
+# (``experiments/viseme_fit.py``; held out by speaker they raise the mouth-opening r from 0.318 to 0.358 on the
+# videos and from 0.356 to 0.396 on the talking heads). The fit gives /e/ nearly /a/'s opening, /o/ less than
+# /e/, and /th dh/, /n l/ and /u/ (rounded) barely open, as these people's tracked lips are. The hand-set
+# openings they replace (MNS, times 1.75: /a/ 578, /e/ 455, /o/ 490, /i/ and /k g/ 332, /u/ 298, the other
+# consonants 192-280, /f v/ 79) gave a closer /e/ and a wider /o/ and /u/.
+# Rounding and spread are set by hand from phonetic descriptions. Dominance: vowels 1 at 12/s (anticipation
+# 9/s), consonants 0.6 at 15/s, silence 0.8 at 10/s; labiodentals 6 at 40/s; bilabials 50 at 80/s, so that a
+# 30 ms /p/ between two open vowels closes the lips to a thirtieth of their opening (22 MNS between two /a/):
+# with 10 at 60/s it left a seventh. On the talking-heads clips that choice left the opening r as it was and lifted the
+# closure F1 from 0.27 to 0.31.
 VISEMES: tuple[Viseme, ...] = (
     Viseme(0, "neutral", ("SIL",), 0.0, 0.00, 0.000, 0.8, 10.0, 10.0),
     Viseme(1, "p_b_m", ("P", "B", "M"), 0.0, 0.02, -0.010, 50.0, 80.0, 80.0),
-    Viseme(2, "f_v", ("F", "V"), 45.0, 0.00, -0.010, 6.0, 40.0, 40.0),
+    Viseme(2, "f_v", ("F", "V"), 134.0, 0.00, -0.010, 6.0, 40.0, 40.0),
     Viseme(3, "th_dh", ("TH", "DH"), 150.0, -0.02, 0.010, 0.6, 15.0, 15.0),
-    Viseme(4, "t_d", ("T", "D"), 150.0, -0.02, 0.010, 0.6, 15.0, 15.0),
-    Viseme(5, "k_g", ("K", "G", "NG", "HH"), 190.0, -0.01, 0.010, 0.6, 15.0, 15.0),
-    Viseme(6, "ch_jh_sh", ("CH", "JH", "SH", "ZH"), 130.0, 0.15, -0.030, 0.6, 15.0, 15.0),
-    Viseme(7, "s_z", ("S", "Z"), 110.0, -0.02, 0.010, 0.6, 15.0, 15.0),
-    Viseme(8, "n_l", ("N", "L"), 160.0, -0.01, 0.010, 0.6, 15.0, 15.0),
-    Viseme(9, "r", ("R", "ER"), 150.0, 0.10, -0.020, 0.6, 15.0, 15.0),
-    Viseme(10, "a", ("AA", "AE", "AH", "AW", "AY"), 330.0, -0.02, 0.020, 1.0, 9.0, 12.0),
-    Viseme(11, "e", ("EH", "EY"), 260.0, -0.03, 0.030, 1.0, 9.0, 12.0),
-    Viseme(12, "i", ("IH", "IY", "Y"), 190.0, -0.04, 0.040, 1.0, 9.0, 12.0),
-    Viseme(13, "o", ("AO", "OW", "OY"), 280.0, 0.12, -0.030, 1.0, 9.0, 12.0),
-    Viseme(14, "u", ("UH", "UW", "W"), 170.0, 0.20, -0.050, 1.0, 9.0, 12.0),
+    Viseme(4, "t_d", ("T", "D"), 379.0, -0.02, 0.010, 0.6, 15.0, 15.0),
+    Viseme(5, "k_g", ("K", "G", "NG", "HH"), 425.0, -0.01, 0.010, 0.6, 15.0, 15.0),
+    Viseme(6, "ch_jh_sh", ("CH", "JH", "SH", "ZH"), 276.0, 0.15, -0.030, 0.6, 15.0, 15.0),
+    Viseme(7, "s_z", ("S", "Z"), 299.0, -0.02, 0.010, 0.6, 15.0, 15.0),
+    Viseme(8, "n_l", ("N", "L"), 150.0, -0.01, 0.010, 0.6, 15.0, 15.0),
+    Viseme(9, "r", ("R", "ER"), 246.0, 0.10, -0.020, 0.6, 15.0, 15.0),
+    Viseme(10, "a", ("AA", "AE", "AH", "AW", "AY"), 656.0, -0.02, 0.020, 1.0, 9.0, 12.0),
+    Viseme(11, "e", ("EH", "EY"), 618.0, -0.03, 0.030, 1.0, 9.0, 12.0),
+    Viseme(12, "i", ("IH", "IY", "Y"), 426.0, -0.04, 0.040, 1.0, 9.0, 12.0),
+    Viseme(13, "o", ("AO", "OW", "OY"), 390.0, 0.12, -0.030, 1.0, 9.0, 12.0),
+    Viseme(14, "u", ("UH", "UW", "W"), 150.0, 0.20, -0.050, 1.0, 9.0, 12.0),
 )
-#: The openings above were set by hand; drawn on the head and read back by the face tracker beside people
-#: saying the same words (30 speakers of talking-head videos), the mouth opened 0.71 as far as theirs (median).
-#: Every viseme's opening is scaled by this: the people's spread over ours, fitted leaving each speaker out,
-#: was 1.41 at the hand-set sizes and 1.26 more at 1.4 (the tracker reads openings less than linearly); at
-#: 1.75 the mouth opens 0.84-0.87 as far as people's (median; ``experiments/likeness.py``). It is also
-#: :data:`prosody.fap.mouth_cues.OPENING_SCALE`, which sizes the mouth cues' shapes.
-OPENING_SCALE = 1.75
-VISEMES = tuple(replace(viseme, opening=viseme.opening * OPENING_SCALE) for viseme in VISEMES)
+#: The least opening of a viseme that keeps the lips apart (MNS; about 3 mm): every viseme but silence, /p b m/
+#: and /f v/ (the lower lip under the teeth) opens at least this far, in the fit of the openings too.
+MIN_OPEN_MNS = 150.0
 #: ARPAbet phone (or SIL) -> its viseme.
 VISEME_OF_PHONE: dict[str, Viseme] = {phone: viseme for viseme in VISEMES for phone in viseme.phones}
 
@@ -217,9 +221,11 @@ def blend(times_s: np.ndarray, segments: Sequence[tuple[float, float]], targets:
     return out.reshape((times_s.size, *targets.shape[1:]))
 
 
-def viseme_weights(times_s: np.ndarray, phones: Sequence, *, visemes: Sequence[Viseme] = VISEMES) -> np.ndarray:
+def viseme_weights(times_s: np.ndarray, phones: Sequence, *, visemes: Sequence[Viseme] | None = None) -> np.ndarray:
     """Each viseme's share of the blend at every time, shape (n, 15): rows sum to 1. The blended shape is
-    these weights times the visemes' shapes (what :func:`fit_shapes` fits)."""
+    these weights times the visemes' shapes (what :func:`fit_shapes` fits). ``visemes``: default
+    :data:`VISEMES`."""
+    visemes = VISEMES if visemes is None else visemes
     by_number = {viseme.number: i for i, viseme in enumerate(visemes)}
     lookup = {phone: viseme for viseme in visemes for phone in viseme.phones}
     chosen = [lookup.get(viseme_of(phone.label).phones[0], visemes[0]) for phone in phones]
@@ -242,10 +248,11 @@ class MouthShape:
 
 
 def shapes_from_phones(phones: Sequence, n_frames: int, *, fps: float,
-                       visemes: Sequence[Viseme] = VISEMES) -> MouthShape:
+                       visemes: Sequence[Viseme] | None = None) -> MouthShape:
     """The mouth shape at every frame of a grid, from timed phones (objects with ``label``, ``start_s``,
     ``end_s``), coarticulated by :func:`blend`, with the viseme said at each frame (:func:`said_visemes`). No
-    phones: a neutral mouth."""
+    phones: a neutral mouth. ``visemes``: the shapes (default :data:`VISEMES`, read when called)."""
+    visemes = VISEMES if visemes is None else visemes
     if n_frames == 0 or len(phones) == 0:
         neutral = visemes[0]
         return MouthShape(np.full(n_frames, neutral.opening), np.full(n_frames, neutral.rounding),
@@ -335,10 +342,12 @@ def inner_opening(curves: dict[int, np.ndarray]) -> np.ndarray:
 
 
 def fit_shapes(weights: Iterable[np.ndarray], targets: Iterable[np.ndarray], *, ridge: float = 1e-3,
-               closed: Sequence[int] = (1,), nonnegative: bool = False) -> np.ndarray:
+               closed: Sequence[int] = (1,), nonnegative: bool = False,
+               minimum: Sequence[float] | np.ndarray | None = None) -> np.ndarray:
     """Least-squares viseme values from blend weights (rows summing to 1) and a target track per recording:
     ``targets ~ weights @ values``. Visemes in ``closed`` are held at 0 (the bilabial closure). With
-    ``nonnegative``, values are kept >= 0 (openings).
+    ``nonnegative``, values are kept >= 0 (openings); ``minimum`` (15 values) keeps each viseme's value at or
+    above its own bound.
 
     Returns
     -------
@@ -353,8 +362,10 @@ def fit_shapes(weights: Iterable[np.ndarray], targets: Iterable[np.ndarray], *, 
     free = [j for j in range(rows.shape[1]) if j not in closed]
     design = np.vstack([rows[:, free], np.sqrt(ridge) * np.eye(len(free))])
     padded = np.concatenate([values, np.zeros(len(free))])
-    bounds = (0.0, np.inf) if nonnegative else (-np.inf, np.inf)
-    solution = lsq_linear(design, padded, bounds=bounds).x
+    lower = np.full(len(free), 0.0 if nonnegative else -np.inf)
+    if minimum is not None:
+        lower = np.maximum(lower, np.asarray(minimum, float)[free])
+    solution = lsq_linear(design, padded, bounds=(lower, np.inf)).x
     out = np.zeros(rows.shape[1])
     out[free] = solution
     return out

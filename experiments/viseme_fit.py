@@ -1,0 +1,187 @@
+"""The visemes' openings fitted to people's tracked mouths, held out by speaker (``make evaluate``), and the fit
+that ``prosody/motion/face/lips.py`` ships.
+
+Data: the clips of the talking videos tracked by ``prosody track`` (30 speakers, as
+``experiments/mouth_videos_loso.py`` uses them) and the seven talking-heads clips (five speakers).
+
+The recipe (:func:`fit_openings`):
+
+- the phones recognised without a transcript (the default lips), each frame's viseme weights at 30 fps by the
+  shipped dominance functions (``viseme_weights``);
+- the target: the person's inner-lip opening in MNS above the clip's own closed level (its 5th percentile), as
+  ``experiments/mouth_loco.py`` converts it;
+- each clip's target moved by its own sound-to-picture lag, the best lag within +-0.25 s of the hand-set
+  shapes' opening against it (the mouth measure's lag): the clips' offsets differ by up to a quarter of a second,
+  and an unaligned fit blurs every shape towards the mean;
+- least squares of the targets on the weights (``fit_shapes``): silence and /p b m/ held at 0 (MPEG-4's neutral
+  mouth is closed, and a bilabial closes it), every other viseme but /f v/ at least ``MIN_OPEN_MNS`` apart (the
+  lips never shut on a /th/ or an /n/, and mouth cues keep those open), openings >= 0. Rounding and spread stay
+  as set by hand.
+
+Held out: for each speaker, the openings fitted on every other speaker's clips (videos and talking heads) make
+that speaker's lips, beside the hand-set shapes (the default before, :data:`HAND_SET_OPENINGS`); the measures of
+``experiments/mouth_videos_loso.py`` (opening r at the best lag within +-0.25 s, closure F1, relative closure F1,
+each beside its mismatched-audio control and chance spread), and the paired difference by speaker. Then the fit
+on every clip: the openings ``VISEMES`` ships, compared with it.
+
+Usage: python -m experiments.viseme_fit
+"""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+import warnings
+from collections import defaultdict
+from collections.abc import Iterator, Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from audio_features import load_audio
+from audio_features.phones import recognise_phones
+from experiments.common import data_folder, record, talking_heads
+from experiments.mouth_loco import measured, speaker_of, targets
+from experiments.mouth_videos_loso import cell, load_clips, reference_table, summary_table
+from prosody.fap.recorded import read_mouth_csv
+from prosody.measures import mouth_metrics
+from prosody.motion.face import lips
+from prosody.motion.face.lips import (
+    MIN_OPEN_MNS,
+    VISEMES,
+    Viseme,
+    fit_shapes,
+    inner_opening,
+    shape_faps,
+    shapes_from_phones,
+    viseme_weights,
+)
+
+FPS = 30.0
+#: The openings shipped before the fit (MNS, viseme 0-14): set by hand from phonetic descriptions, times 1.75
+#: (people's size through render and tracker, ``experiments/likeness.py``).
+HAND_SET_OPENINGS = tuple(1.75 * value for value in (0.0, 0.0, 45.0, 150.0, 150.0, 190.0, 130.0, 110.0, 160.0,
+                                                      150.0, 330.0, 260.0, 190.0, 280.0, 170.0))
+HAND_SET = tuple(replace(viseme, opening=opening) for viseme, opening in zip(VISEMES, HAND_SET_OPENINGS, strict=True))
+#: Held closed (silence, /p b m/), and free of the least opening (/f v/: the lower lip under the teeth).
+CLOSED_VISEMES, NEARLY_CLOSED = (0, 1), (2,)
+
+
+def opening_minimum() -> np.ndarray:
+    """The least opening of each viseme in the fit (MNS)."""
+    floor = np.full(len(VISEMES), MIN_OPEN_MNS)
+    floor[list(CLOSED_VISEMES + NEARLY_CLOSED)] = 0.0
+    return floor
+
+
+def prepared(clip: dict) -> dict:
+    """A clip (``mouth``, ``phones``) with its viseme weights, its target and its sound-to-picture lag."""
+    n = clip["mouth"].n_frames
+    clip["weights"] = viseme_weights(np.arange(n) / FPS, clip["phones"])
+    clip["target"] = targets(clip["mouth"])[0]
+    opening = inner_opening(shape_faps(shapes_from_phones(clip["phones"], n, fps=FPS, visemes=HAND_SET)))[:n]
+    flat = np.zeros(n)
+    clip["lag"] = int(round(mouth_metrics(opening, flat, clip["mouth"].lip_opening, flat, fps=FPS)["lag_s"] * FPS))
+    return clip
+
+
+def fitting_clips(videos: Sequence[dict] | None = None) -> list[dict]:
+    """The talking videos' clips (``videos``, as ``experiments.mouth_videos_loso.load_clips`` gives them; loaded
+    when not given) and the talking-heads clips, each :func:`prepared`, with ``set`` ("videos" or "heads")."""
+    clips = []
+    for clip in load_clips() if videos is None else videos:
+        clips.append(prepared({**clip, "phones": clip.get("phones") or recognise_phones(clip["audio"]),
+                               "set": "videos"}))
+    for wav in sorted(talking_heads().glob("*.wav")):
+        mouth_file = wav.with_name(wav.stem + ".mouth.csv")
+        if mouth_file.is_file():
+            clips.append(prepared({"name": wav.stem, "speaker": f"heads: {speaker_of(wav.stem)}", "sex": "?",
+                                   "set": "heads", "mouth": read_mouth_csv(mouth_file),
+                                   "phones": recognise_phones(load_audio(wav))}))
+    return clips
+
+
+def fit_openings(clips: Sequence[dict]) -> tuple[Viseme, ...]:
+    """The visemes with their openings fitted to ``clips`` (:func:`prepared`), as the module doc says."""
+    aligned = [np.roll(clip["target"], clip["lag"]) for clip in clips]  # recorded frame k - lag at frame k
+    openings = fit_shapes([clip["weights"] for clip in clips], aligned, closed=CLOSED_VISEMES, nonnegative=True,
+                          minimum=opening_minimum())
+    return tuple(replace(viseme, opening=float(opening)) for viseme, opening in zip(VISEMES, openings, strict=True))
+
+
+def held_out_visemes(clips: Sequence[dict]) -> dict[str, tuple[Viseme, ...]]:
+    """Per speaker of ``clips``, the openings fitted on every other speaker's clips."""
+    return {speaker: fit_openings([clip for clip in clips if clip["speaker"] != speaker])
+            for speaker in sorted({clip["speaker"] for clip in clips})}
+
+
+@contextlib.contextmanager
+def using_visemes(table: Sequence[Viseme]) -> Iterator[None]:
+    """Lips made inside (``prosody convert`` and the rest) take ``table`` for the shipped visemes."""
+    shipped = lips.VISEMES
+    lips.VISEMES = tuple(table)
+    try:
+        yield
+    finally:
+        lips.VISEMES = shipped
+
+
+def _mouth(clip: dict, table: Sequence[Viseme]) -> tuple[np.ndarray, np.ndarray]:
+    n = clip["mouth"].n_frames
+    faps = shape_faps(shapes_from_phones(clip["phones"], n, fps=FPS, visemes=table))
+    return inner_opening(faps)[:n], faps[16][:n]
+
+
+def _speaker_r(results: list) -> float:
+    values = [r["opening_r"] for r, _ in results if r["opening_r"] is not None]
+    return float(np.mean(values)) if values else float("nan")
+
+
+def main() -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        clips = fitting_clips()
+    videos = [clip for clip in clips if clip["set"] == "videos"]
+    names = sorted({clip["speaker"] for clip in videos})
+    heads = sorted({clip["speaker"] for clip in clips if clip["set"] == "heads"})
+    sexes = {clip["speaker"]: clip["sex"] for clip in videos}
+    print(f"{len(videos)} clips of {len(names)} video speakers, {len(clips) - len(videos)} talking-heads clips of "
+          f"{len(heads)} speakers; each speaker held out in turn\n")
+    held = held_out_visemes(clips)
+    rows: dict[str, dict[str, list]] = {key: defaultdict(list) for key in ("hand", "fitted")}
+    for clip in clips:
+        for key, table in (("hand", HAND_SET), ("fitted", held[clip["speaker"]])):
+            rows[key][clip["speaker"]].append(measured(*_mouth(clip, table), clip))
+    labels = {"hand": "hand-set openings (the default before)",
+              "fitted": "openings fitted on the other speakers (the shipped recipe)"}
+    video_rows = {key: {s: v for s, v in per.items() if s in names} for key, per in rows.items()}
+    print("The talking videos:\n")
+    summary_table("lips", labels, video_rows, sexes)
+    reference_table(video_rows, labels, videos)
+    print("\nThe talking-heads clips (each clip a row of the mean):\n")
+    print("| lips | opening r (control ± spread), closure F1, relative closure F1 |\n|---|---|")
+    for key, label in labels.items():
+        print(f"| {label} | {cell(rows[key], heads)} |")
+    hand = np.array([_speaker_r(rows["hand"][s]) for s in names])
+    fitted = np.array([_speaker_r(rows["fitted"][s]) for s in names])
+    gain = fitted - hand
+    error = gain.std(ddof=1) / np.sqrt(gain.size)
+    print(f"\nvideo speakers, opening r by speaker: hand-set median {np.median(hand):.3f}, fitted median "
+          f"{np.median(fitted):.3f}; fitted minus hand-set {gain.mean():+.3f} ± {error:.3f} "
+          f"(mean ± standard error), higher for {int((gain > 0).sum())} of {gain.size} speakers; "
+          f"{np.mean(fitted >= 0.3):.0%} of speakers at 0.3 or more (hand-set {np.mean(hand >= 0.3):.0%})")
+    spread = np.array([[held[s][k].opening for k in range(len(VISEMES))] for s in held])
+    every = fit_openings(clips)
+    print("\n| viseme | hand-set (MNS) | fitted on every clip (MNS) | held-out fits: range | shipped |")
+    print("|---|---|---|---|---|")
+    for k, viseme in enumerate(VISEMES):
+        print(f"| {viseme.number} {viseme.name} | {HAND_SET_OPENINGS[k]:.0f} | {every[k].opening:.0f} | "
+              f"{spread[:, k].min():.0f}-{spread[:, k].max():.0f} | {viseme.opening:.0f} |")
+    largest = max(abs(a.opening - b.opening) for a, b in zip(every, VISEMES, strict=True))
+    print(f"\nthe shipped openings {'are' if largest <= 0.5 else 'are NOT'} this fit (largest difference "
+          f"{largest:.2f} MNS)")
+
+
+if __name__ == "__main__":
+    sys.exit(record("viseme_fit", main, lambda: [data_folder("talking-videos", needs="the talking videos"),
+                                                  talking_heads()]))
