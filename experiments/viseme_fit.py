@@ -21,8 +21,9 @@ The recipe (:func:`fit_openings`):
 Held out: for each speaker, the openings fitted on every other speaker's clips (videos and talking heads) make
 that speaker's lips, beside the hand-set shapes (the default before, :data:`HAND_SET_OPENINGS`); the measures of
 ``experiments/mouth_videos_loso.py`` (opening r at the best lag within +-0.25 s, closure F1, relative closure F1,
-each beside its mismatched-audio control and chance spread), and the paired difference by speaker. Then the fit
-on every clip: the openings ``VISEMES`` ships, compared with it.
+each beside its mismatched-audio control and chance spread), and the paired difference by speaker; two variants
+beside them (no floor; silence free to open). Then the fit on every clip: the openings ``VISEMES`` ships,
+compared with it; and the dominance rates scaled, chosen on the talking-heads clips alone.
 
 Usage: python -m experiments.viseme_fit
 """
@@ -65,6 +66,8 @@ HAND_SET_OPENINGS = tuple(1.75 * value for value in (0.0, 0.0, 45.0, 150.0, 150.
 HAND_SET = tuple(replace(viseme, opening=opening) for viseme, opening in zip(VISEMES, HAND_SET_OPENINGS, strict=True))
 #: Held closed (silence, /p b m/), and free of the least opening (/f v/: the lower lip under the teeth).
 CLOSED_VISEMES, NEARLY_CLOSED = (0, 1), (2,)
+#: The dominance rates tried, as multiples of the shipped ones.
+RATE_SCALES = (0.6, 0.8, 1.0, 1.25, 1.6, 2.0, 3.0)
 
 
 def opening_minimum() -> np.ndarray:
@@ -101,18 +104,40 @@ def fitting_clips(videos: Sequence[dict] | None = None) -> list[dict]:
     return clips
 
 
-def fit_openings(clips: Sequence[dict]) -> tuple[Viseme, ...]:
-    """The visemes with their openings fitted to ``clips`` (:func:`prepared`), as the module doc says."""
+def fit_openings(clips: Sequence[dict], *, closed: Sequence[int] = CLOSED_VISEMES,
+                 minimum: np.ndarray | None = None) -> tuple[Viseme, ...]:
+    """The visemes with their openings fitted to ``clips`` (:func:`prepared`), as the module doc says (``closed``
+    and ``minimum``: other bounds, for the variants)."""
     aligned = [np.roll(clip["target"], clip["lag"]) for clip in clips]  # recorded frame k - lag at frame k
-    openings = fit_shapes([clip["weights"] for clip in clips], aligned, closed=CLOSED_VISEMES, nonnegative=True,
-                          minimum=opening_minimum())
+    openings = fit_shapes([clip["weights"] for clip in clips], aligned, closed=closed, nonnegative=True,
+                          minimum=opening_minimum() if minimum is None else minimum)
     return tuple(replace(viseme, opening=float(opening)) for viseme, opening in zip(VISEMES, openings, strict=True))
 
 
-def held_out_visemes(clips: Sequence[dict]) -> dict[str, tuple[Viseme, ...]]:
-    """Per speaker of ``clips``, the openings fitted on every other speaker's clips."""
-    return {speaker: fit_openings([clip for clip in clips if clip["speaker"] != speaker])
+def held_out_visemes(clips: Sequence[dict], **bounds) -> dict[str, tuple[Viseme, ...]]:
+    """Per speaker of ``clips``, the openings fitted on every other speaker's clips (``bounds``: as
+    :func:`fit_openings` takes them)."""
+    return {speaker: fit_openings([clip for clip in clips if clip["speaker"] != speaker], **bounds)
             for speaker in sorted({clip["speaker"] for clip in clips})}
+
+
+def coarticulation_rates(clips: Sequence[dict]) -> None:
+    """The dominance rates (every theta) scaled, the openings refitted each time, on the talking-heads clips held
+    out by speaker among themselves (the videos are not used to choose)."""
+    heads = [clip for clip in clips if clip["set"] == "heads"]
+    print("\nThe dominance rates scaled (talking-heads clips, openings refitted on the other heads speakers): "
+          "opening r, mean over clips")
+    for scale in RATE_SCALES:
+        table = tuple(replace(v, theta_before=v.theta_before * scale, theta_after=v.theta_after * scale)
+                      for v in VISEMES)
+        scaled = [{**clip, "weights": viseme_weights(np.arange(clip["mouth"].n_frames) / FPS, clip["phones"],
+                                                     visemes=table)} for clip in heads]
+        values = []
+        for speaker, openings in held_out_visemes(scaled).items():
+            fitted = tuple(replace(v, opening=o.opening) for v, o in zip(table, openings, strict=True))
+            values += [measured(*_mouth(clip, fitted), clip)[0]["opening_r"] for clip in scaled
+                       if clip["speaker"] == speaker]
+        print(f"  rates x {scale:g}: {np.mean(values):.3f}")
 
 
 @contextlib.contextmanager
@@ -147,13 +172,18 @@ def main() -> None:
     sexes = {clip["speaker"]: clip["sex"] for clip in videos}
     print(f"{len(videos)} clips of {len(names)} video speakers, {len(clips) - len(videos)} talking-heads clips of "
           f"{len(heads)} speakers; each speaker held out in turn\n")
-    held = held_out_visemes(clips)
-    rows: dict[str, dict[str, list]] = {key: defaultdict(list) for key in ("hand", "fitted")}
+    held = {"fitted": held_out_visemes(clips),
+            "open pauses": held_out_visemes(clips, closed=(1,), minimum=np.zeros(len(VISEMES))),
+            "no floor": held_out_visemes(clips, minimum=np.zeros(len(VISEMES)))}
+    rows: dict[str, dict[str, list]] = {key: defaultdict(list) for key in ("hand", *held)}
     for clip in clips:
-        for key, table in (("hand", HAND_SET), ("fitted", held[clip["speaker"]])):
-            rows[key][clip["speaker"]].append(measured(*_mouth(clip, table), clip))
+        rows["hand"][clip["speaker"]].append(measured(*_mouth(clip, HAND_SET), clip))
+        for key, tables in held.items():
+            rows[key][clip["speaker"]].append(measured(*_mouth(clip, tables[clip["speaker"]]), clip))
     labels = {"hand": "hand-set openings (the default before)",
-              "fitted": "openings fitted on the other speakers (the shipped recipe)"}
+              "fitted": "openings fitted on the other speakers (the shipped recipe)",
+              "no floor": "the same without the floor of MIN_OPEN_MNS (a variant)",
+              "open pauses": "the same, silence free to open too (a variant)"}
     video_rows = {key: {s: v for s, v in per.items() if s in names} for key, per in rows.items()}
     print("The talking videos:\n")
     summary_table("lips", labels, video_rows, sexes)
@@ -170,7 +200,7 @@ def main() -> None:
           f"{np.median(fitted):.3f}; fitted minus hand-set {gain.mean():+.3f} ± {error:.3f} "
           f"(mean ± standard error), higher for {int((gain > 0).sum())} of {gain.size} speakers; "
           f"{np.mean(fitted >= 0.3):.0%} of speakers at 0.3 or more (hand-set {np.mean(hand >= 0.3):.0%})")
-    spread = np.array([[held[s][k].opening for k in range(len(VISEMES))] for s in held])
+    spread = np.array([[table[k].opening for k in range(len(VISEMES))] for table in held["fitted"].values()])
     every = fit_openings(clips)
     print("\n| viseme | hand-set (MNS) | fitted on every clip (MNS) | held-out fits: range | shipped |")
     print("|---|---|---|---|---|")
@@ -180,6 +210,7 @@ def main() -> None:
     largest = max(abs(a.opening - b.opening) for a, b in zip(every, VISEMES, strict=True))
     print(f"\nthe shipped openings {'are' if largest <= 0.5 else 'are NOT'} this fit (largest difference "
           f"{largest:.2f} MNS)")
+    coarticulation_rates(clips)
 
 
 if __name__ == "__main__":
