@@ -49,10 +49,12 @@ from prosody.measures import mouth_metrics
 from prosody.motion.face import lips
 from prosody.motion.face.lips import (
     MIN_OPEN_MNS,
+    PHONE_ORDER,
     VISEMES,
     Viseme,
     fit_shapes,
     inner_opening,
+    phone_weights,
     shape_faps,
     shapes_from_phones,
     viseme_weights,
@@ -63,28 +65,37 @@ FPS = 30.0
 #: (people's size through render and tracker, ``experiments/likeness.py``).
 HAND_SET_OPENINGS = tuple(1.75 * value for value in (0.0, 0.0, 45.0, 150.0, 150.0, 190.0, 130.0, 110.0, 160.0,
                                                       150.0, 330.0, 260.0, 190.0, 280.0, 170.0))
-HAND_SET = tuple(replace(viseme, opening=opening) for viseme, opening in zip(VISEMES, HAND_SET_OPENINGS, strict=True))
+HAND_SET = tuple(replace(viseme, opening=opening, phone_openings=None)
+                 for viseme, opening in zip(VISEMES, HAND_SET_OPENINGS, strict=True))
 #: Held closed (silence, /p b m/), and free of the least opening (/f v/: the lower lip under the teeth).
-CLOSED_VISEMES, NEARLY_CLOSED = (0, 1), (2,)
+CLOSED_PHONES, NEARLY_CLOSED_PHONES = ("SIL", "P", "B", "M"), ("F", "V")
 #: The dominance rates tried, as multiples of the shipped ones.
 RATE_SCALES = (0.6, 0.8, 1.0, 1.25, 1.6, 2.0, 3.0)
 
 
-def opening_minimum() -> np.ndarray:
-    """The least opening of each viseme in the fit (MNS)."""
-    floor = np.full(len(VISEMES), MIN_OPEN_MNS)
-    floor[list(CLOSED_VISEMES + NEARLY_CLOSED)] = 0.0
-    return floor
+def _bounds(names: list[tuple[str, ...]], *, open_pauses: bool, floor: bool) -> tuple[list[int], np.ndarray]:
+    """For columns that each stand for ``names`` (a viseme's phones, or one phone): which are held closed, and
+    every column's least opening."""
+    closed_phones = set(CLOSED_PHONES) - ({"SIL"} if open_pauses else set())
+    closed = [k for k, phones in enumerate(names) if set(phones) <= closed_phones]
+    free = set(NEARLY_CLOSED_PHONES) | ({"SIL"} if open_pauses else set())
+    minimum = np.array([0.0 if not floor or set(phones) <= free | closed_phones else MIN_OPEN_MNS
+                        for phones in names])
+    return closed, minimum
 
 
-def prepared(clip: dict) -> dict:
-    """A clip (``mouth``, ``phones``) with its viseme weights, its target and its sound-to-picture lag."""
+def prepared(clip: dict, table: Sequence[Viseme] = VISEMES) -> dict:
+    """A clip (``mouth``, ``phones``) with its viseme and phone weights (by ``table``'s dominance), its target
+    and its sound-to-picture lag."""
     n = clip["mouth"].n_frames
-    clip["weights"] = viseme_weights(np.arange(n) / FPS, clip["phones"])
+    clip["weights"] = viseme_weights(np.arange(n) / FPS, clip["phones"], visemes=table)
+    clip["phone weights"] = phone_weights(np.arange(n) / FPS, clip["phones"], visemes=table)
     clip["target"] = targets(clip["mouth"])[0]
-    opening = inner_opening(shape_faps(shapes_from_phones(clip["phones"], n, fps=FPS, visemes=HAND_SET)))[:n]
-    flat = np.zeros(n)
-    clip["lag"] = int(round(mouth_metrics(opening, flat, clip["mouth"].lip_opening, flat, fps=FPS)["lag_s"] * FPS))
+    if "lag" not in clip:
+        opening = inner_opening(shape_faps(shapes_from_phones(clip["phones"], n, fps=FPS, visemes=HAND_SET)))[:n]
+        flat = np.zeros(n)
+        result = mouth_metrics(opening, flat, clip["mouth"].lip_opening, flat, fps=FPS)
+        clip["lag"] = int(round(result["lag_s"] * FPS))
     return clip
 
 
@@ -104,20 +115,31 @@ def fitting_clips(videos: Sequence[dict] | None = None) -> list[dict]:
     return clips
 
 
-def fit_openings(clips: Sequence[dict], *, closed: Sequence[int] = CLOSED_VISEMES,
-                 minimum: np.ndarray | None = None) -> tuple[Viseme, ...]:
-    """The visemes with their openings fitted to ``clips`` (:func:`prepared`), as the module doc says (``closed``
-    and ``minimum``: other bounds, for the variants)."""
+def fit_openings(clips: Sequence[dict], *, table: Sequence[Viseme] = VISEMES, open_pauses: bool = False,
+                 floor: bool = True) -> tuple[Viseme, ...]:
+    """``table`` with its openings fitted to ``clips`` (:func:`prepared` by that table), as the module doc says:
+    each viseme's own and each phone's own (``open_pauses``, ``floor``: the variants' bounds)."""
     aligned = [np.roll(clip["target"], clip["lag"]) for clip in clips]  # recorded frame k - lag at frame k
-    openings = fit_shapes([clip["weights"] for clip in clips], aligned, closed=closed, nonnegative=True,
-                          minimum=opening_minimum() if minimum is None else minimum)
-    return tuple(replace(viseme, opening=float(opening)) for viseme, opening in zip(VISEMES, openings, strict=True))
+    closed, minimum = _bounds([v.phones for v in table], open_pauses=open_pauses, floor=floor)
+    by_viseme = fit_shapes([clip["weights"] for clip in clips], aligned, closed=closed, nonnegative=True,
+                           minimum=minimum)
+    closed, minimum = _bounds([(phone,) for phone in PHONE_ORDER], open_pauses=open_pauses, floor=floor)
+    by_phone = dict(zip(PHONE_ORDER, fit_shapes([clip["phone weights"] for clip in clips], aligned, closed=closed,
+                                                nonnegative=True, minimum=minimum), strict=True))
+    return tuple(replace(viseme, opening=float(opening),
+                         phone_openings=tuple(float(by_phone[phone]) for phone in viseme.phones))
+                 for viseme, opening in zip(table, by_viseme, strict=True))
 
 
-def held_out_visemes(clips: Sequence[dict], **bounds) -> dict[str, tuple[Viseme, ...]]:
-    """Per speaker of ``clips``, the openings fitted on every other speaker's clips (``bounds``: as
+def one_opening_a_viseme(table: Sequence[Viseme]) -> tuple[Viseme, ...]:
+    """``table`` with every phone at its viseme's opening (the fit of one opening a viseme)."""
+    return tuple(replace(viseme, phone_openings=None) for viseme in table)
+
+
+def held_out_visemes(clips: Sequence[dict], **options) -> dict[str, tuple[Viseme, ...]]:
+    """Per speaker of ``clips``, the openings fitted on every other speaker's clips (``options``: as
     :func:`fit_openings` takes them)."""
-    return {speaker: fit_openings([clip for clip in clips if clip["speaker"] != speaker], **bounds)
+    return {speaker: fit_openings([clip for clip in clips if clip["speaker"] != speaker], **options)
             for speaker in sorted({clip["speaker"] for clip in clips})}
 
 
@@ -130,11 +152,9 @@ def coarticulation_rates(clips: Sequence[dict]) -> None:
     for scale in RATE_SCALES:
         table = tuple(replace(v, theta_before=v.theta_before * scale, theta_after=v.theta_after * scale)
                       for v in VISEMES)
-        scaled = [{**clip, "weights": viseme_weights(np.arange(clip["mouth"].n_frames) / FPS, clip["phones"],
-                                                     visemes=table)} for clip in heads]
+        scaled = [prepared(dict(clip), table) for clip in heads]
         values = []
-        for speaker, openings in held_out_visemes(scaled).items():
-            fitted = tuple(replace(v, opening=o.opening) for v, o in zip(table, openings, strict=True))
+        for speaker, fitted in held_out_visemes(scaled, table=table).items():
             values += [measured(*_mouth(clip, fitted), clip)[0]["opening_r"] for clip in scaled
                        if clip["speaker"] == speaker]
         print(f"  rates x {scale:g}: {np.mean(values):.3f}")
@@ -173,15 +193,17 @@ def main() -> None:
     print(f"{len(videos)} clips of {len(names)} video speakers, {len(clips) - len(videos)} talking-heads clips of "
           f"{len(heads)} speakers; each speaker held out in turn\n")
     held = {"fitted": held_out_visemes(clips),
-            "open pauses": held_out_visemes(clips, closed=(1,), minimum=np.zeros(len(VISEMES))),
-            "no floor": held_out_visemes(clips, minimum=np.zeros(len(VISEMES)))}
+            "open pauses": held_out_visemes(clips, open_pauses=True, floor=False),
+            "no floor": held_out_visemes(clips, floor=False)}
+    held["viseme"] = {speaker: one_opening_a_viseme(table) for speaker, table in held["fitted"].items()}
     rows: dict[str, dict[str, list]] = {key: defaultdict(list) for key in ("hand", *held)}
     for clip in clips:
         rows["hand"][clip["speaker"]].append(measured(*_mouth(clip, HAND_SET), clip))
         for key, tables in held.items():
             rows[key][clip["speaker"]].append(measured(*_mouth(clip, tables[clip["speaker"]]), clip))
     labels = {"hand": "hand-set openings (the default before)",
-              "fitted": "openings fitted on the other speakers (the shipped recipe)",
+              "viseme": "one opening a viseme, fitted on the other speakers",
+              "fitted": "an opening a phone, fitted on the other speakers (the shipped recipe)",
               "no floor": "the same without the floor of MIN_OPEN_MNS (a variant)",
               "open pauses": "the same, silence free to open too (a variant)"}
     video_rows = {key: {s: v for s, v in per.items() if s in names} for key, per in rows.items()}
@@ -192,22 +214,28 @@ def main() -> None:
     print("| lips | opening r (control ± spread), closure F1, relative closure F1 |\n|---|---|")
     for key, label in labels.items():
         print(f"| {label} | {cell(rows[key], heads)} |")
-    hand = np.array([_speaker_r(rows["hand"][s]) for s in names])
-    fitted = np.array([_speaker_r(rows["fitted"][s]) for s in names])
-    gain = fitted - hand
-    error = gain.std(ddof=1) / np.sqrt(gain.size)
-    print(f"\nvideo speakers, opening r by speaker: hand-set median {np.median(hand):.3f}, fitted median "
-          f"{np.median(fitted):.3f}; fitted minus hand-set {gain.mean():+.3f} ± {error:.3f} "
-          f"(mean ± standard error), higher for {int((gain > 0).sum())} of {gain.size} speakers; "
-          f"{np.mean(fitted >= 0.3):.0%} of speakers at 0.3 or more (hand-set {np.mean(hand >= 0.3):.0%})")
-    spread = np.array([[table[k].opening for k in range(len(VISEMES))] for table in held["fitted"].values()])
+    by_speaker = {key: np.array([_speaker_r(rows[key][s]) for s in names]) for key in ("hand", "viseme", "fitted")}
+    print("\nvideo speakers, opening r by speaker: " + ", ".join(
+        f"{labels[key].split(',')[0]} median {np.median(values):.3f} ({np.mean(values >= 0.3):.0%} at 0.3 or more)"
+        for key, values in by_speaker.items()))
+    for other in ("hand", "viseme"):
+        gain = by_speaker["fitted"] - by_speaker[other]
+        print(f"an opening a phone minus {labels[other].split(',')[0]}: {gain.mean():+.3f} ± "
+              f"{gain.std(ddof=1) / np.sqrt(gain.size):.3f} (mean ± standard error), higher for "
+              f"{int((gain > 0).sum())} of {gain.size} speakers")
     every = fit_openings(clips)
-    print("\n| viseme | hand-set (MNS) | fitted on every clip (MNS) | held-out fits: range | shipped |")
-    print("|---|---|---|---|---|")
-    for k, viseme in enumerate(VISEMES):
-        print(f"| {viseme.number} {viseme.name} | {HAND_SET_OPENINGS[k]:.0f} | {every[k].opening:.0f} | "
-              f"{spread[:, k].min():.0f}-{spread[:, k].max():.0f} | {viseme.opening:.0f} |")
-    largest = max(abs(a.opening - b.opening) for a, b in zip(every, VISEMES, strict=True))
+    spread = {p: [dict(zip(v.phones, v.phone_openings or (), strict=True)).get(p, np.nan)
+                  for table in held["fitted"].values() for v in table] for p in PHONE_ORDER}
+    print("\n| viseme | hand-set (MNS) | one opening a viseme, fitted on every clip | each phone, fitted on every clip "
+          "(held-out fits: range) |")
+    print("|---|---|---|---|")
+    for k, viseme in enumerate(every):
+        phones = ", ".join(f"{p} {o:.0f} ({np.nanmin(spread[p]):.0f}-{np.nanmax(spread[p]):.0f})"
+                           for p, o in zip(viseme.phones, viseme.phone_openings or (), strict=True))
+        print(f"| {viseme.number} {viseme.name} | {HAND_SET_OPENINGS[k]:.0f} | {viseme.opening:.0f} | {phones} |")
+    largest = max(abs(a.opening_of(phone) - b.opening_of(phone)) for a, b in zip(every, VISEMES, strict=True)
+                  for phone in a.phones)
+    largest = max(largest, *(abs(a.opening - b.opening) for a, b in zip(every, VISEMES, strict=True)))
     print(f"\nthe shipped openings {'are' if largest <= 0.5 else 'are NOT'} this fit (largest difference "
           f"{largest:.2f} MNS)")
     coarticulation_rates(clips)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -26,13 +27,16 @@ from prosody.motion.face.layer import lip_curves
 from prosody.motion.face.lips import (
     LIP_FAPS,
     MIN_OPEN_MNS,
+    PHONE_ORDER,
     VISEME_FAP,
+    VISEME_OF_PHONE,
     VISEMES,
     MouthShape,
     blend,
     dominance,
     fit_shapes,
     inner_opening,
+    phone_weights,
     said_visemes,
     shape_faps,
     shapes_from_phones,
@@ -92,6 +96,7 @@ def test_only_silence_and_bilabials_close_the_lips_and_cues_keep_the_rest_open()
     for viseme in VISEMES:
         if viseme.name not in closed | {"f_v"}:  # /f v/: the lower lip under the teeth, nearly closed
             assert viseme.opening >= MIN_OPEN_MNS > mouth_cues.CLOSED_MNS, viseme
+            assert min(viseme.opening_of(phone) for phone in viseme.phones) >= MIN_OPEN_MNS, viseme
 
 
 def test_fitting_the_shapes_recovers_known_openings_within_their_bounds():
@@ -109,12 +114,31 @@ def test_fitting_the_shapes_recovers_known_openings_within_their_bounds():
     assert np.abs(fitted - truth)[3:].max() < 60.0  # the others absorb what it cannot take
 
 
+def test_each_phone_opens_by_its_own_opening_and_blends_with_its_neighbours():
+    a = next(v for v in VISEMES if v.name == "a")
+    assert a.opening_of("AH") < a.opening_of("AA")  # a schwa opens less than an /aa/ of the same viseme
+    held = [Phone("AA", 0.0, 1.0), Phone("AH", 1.0, 2.0)]
+    opening = inner_opening(shape_faps(shapes_from_phones(held, 60, fps=30)))
+    # each held phone at its own opening, but for its neighbour's dominance (under a few thousandths of it here)
+    assert opening[5] == pytest.approx(a.opening_of("AA"), rel=2e-3)
+    assert opening[55] == pytest.approx(a.opening_of("AH"), rel=2e-3)
+    # the same phones with the viseme's one opening (a table without phone openings): both at it
+    table = tuple(replace(v, phone_openings=None) for v in VISEMES)
+    flat = inner_opening(shape_faps(shapes_from_phones(held, 60, fps=30, visemes=table)))
+    np.testing.assert_allclose(flat, a.opening)
+    # the phones' weights: each phone's share of the blend, rows summing to 1, that make the opening
+    weights = phone_weights(np.arange(60) / 30, held)
+    np.testing.assert_allclose(weights.sum(axis=1), 1.0)
+    openings = np.array([VISEME_OF_PHONE[p].opening_of(p) for p in PHONE_ORDER])
+    np.testing.assert_allclose(weights @ openings, opening)
+
+
 def test_the_opening_is_shared_by_jaw_and_lips_and_the_outer_lips_follow():
     faps = shape_faps(shapes_from_phones([Phone("AA", 0.0, 1.0)], 30, fps=30))
     assert set(faps) == set(LIP_FAPS) | {VISEME_FAP}
     a = next(v for v in VISEMES if v.name == "a")
-    np.testing.assert_allclose(inner_opening(faps), a.opening)
-    np.testing.assert_allclose(faps[3], 0.6 * a.opening)
+    np.testing.assert_allclose(inner_opening(faps), a.opening_of("AA"))
+    np.testing.assert_allclose(faps[3], 0.6 * a.opening_of("AA"))
     np.testing.assert_allclose(faps[51], faps[4])
     np.testing.assert_allclose(faps[52], faps[5])
     rounded = shape_faps(shapes_from_phones([Phone("UW", 0.0, 1.0)], 30, fps=30))

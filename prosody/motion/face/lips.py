@@ -76,6 +76,7 @@ class Viseme:
     phones : tuple of str
         ARPAbet phones shown by it.
     opening : float >= 0, in MNS
+        The viseme's opening (its phones' where ``phone_openings`` does not give their own).
     rounding : float
         Protrusion, 0 (none) to 1.
     spread : float
@@ -84,6 +85,9 @@ class Viseme:
         Dominance magnitude.
     theta_before_s, theta_after_s : float > 0, in 1/s
         Rate of decay of the dominance before and after the segment.
+    phone_openings : tuple of float >= 0, optional
+        Each of ``phones``' own opening, in MNS (Cohen and Massaro give each segment its own targets: a schwa
+        opens less than an /aa/ of the same viseme).
     """
 
     number: int
@@ -95,6 +99,13 @@ class Viseme:
     alpha: float
     theta_before: float
     theta_after: float
+    phone_openings: tuple[float, ...] | None = None
+
+    def opening_of(self, phone: str) -> float:
+        """The opening of one of its phones (ARPAbet, without stress), in MNS."""
+        if self.phone_openings is not None and phone in self.phones:
+            return self.phone_openings[self.phones.index(phone)]
+        return self.opening
 
 
 #: Exponent ``c`` of the dominance functions (1: exponential, as Cohen and Massaro's default).
@@ -102,37 +113,44 @@ DOMINANCE_EXPONENT = 1.0
 
 # Openings in MNS, fitted by least squares to the tracked mouths of the talking videos (30 speakers) and the
 # talking-heads clips (5 speakers) on the phones recognised without a transcript, each clip aligned by its own
-# sound-to-picture lag; silence and /p b m/ held closed, /th dh/, /n l/ and /u/ at the floor MIN_OPEN_MNS
-# (``experiments/viseme_fit.py``; held out by speaker they raise the mouth-opening r from 0.318 to 0.358 on the
-# videos and from 0.356 to 0.396 on the talking heads). The fit gives /e/ nearly /a/'s opening, /o/ less than
-# /e/, and /th dh/, /n l/ and /u/ (rounded) barely open, as these people's tracked lips are. The hand-set
-# openings they replace (MNS, times 1.75: /a/ 578, /e/ 455, /o/ 490, /i/ and /k g/ 332, /u/ 298, the other
-# consonants 192-280, /f v/ 79) gave a closer /e/ and a wider /o/ and /u/.
+# sound-to-picture lag; silence and /p b m/ held closed, every other phone but /f v/ at least MIN_OPEN_MNS
+# (``experiments/viseme_fit.py``): each phone's own opening (``phone_openings``, as Cohen and Massaro give each
+# segment its own targets), and the viseme's, fitted as one opening a viseme. Held out by speaker, the phones'
+# openings raise the mouth-opening r from 0.318 (the hand-set openings) to 0.378 on the videos and from 0.356 to
+# 0.432 on the talking heads; one opening a viseme gives 0.358 and 0.396. The fit opens a schwa (AH) half as far
+# as /aa ae ay/, /e/ nearly as far as /a/, /o/ less than /e/, and /th/, /n l/, /r/ and /uw w/ barely; /h/ as
+# wide as anything (908 MNS: the phone loop hears it where the mouth opens to breathe before speech). The
+# hand-set openings they replace (MNS, times 1.75: /a/ 578, /e/ 455, /o/ 490, /i/ and /k g/ 332, /u/ 298, the
+# other consonants 192-280, /f v/ 79) gave a closer /e/ and a wider /o/ and /u/.
 # Rounding and spread are set by hand from phonetic descriptions. Dominance: vowels 1 at 12/s (anticipation
 # 9/s), consonants 0.6 at 15/s, silence 0.8 at 10/s; labiodentals 6 at 40/s; bilabials 50 at 80/s, so that a
 # 30 ms /p/ between two open vowels closes the lips to a thirtieth of their opening (22 MNS between two /a/):
 # with 10 at 60/s it left a seventh. On the talking-heads clips that choice left the opening r as it was and lifted the
 # closure F1 from 0.27 to 0.31.
 VISEMES: tuple[Viseme, ...] = (
-    Viseme(0, "neutral", ("SIL",), 0.0, 0.00, 0.000, 0.8, 10.0, 10.0),
-    Viseme(1, "p_b_m", ("P", "B", "M"), 0.0, 0.02, -0.010, 50.0, 80.0, 80.0),
-    Viseme(2, "f_v", ("F", "V"), 134.0, 0.00, -0.010, 6.0, 40.0, 40.0),
-    Viseme(3, "th_dh", ("TH", "DH"), 150.0, -0.02, 0.010, 0.6, 15.0, 15.0),
-    Viseme(4, "t_d", ("T", "D"), 379.0, -0.02, 0.010, 0.6, 15.0, 15.0),
-    Viseme(5, "k_g", ("K", "G", "NG", "HH"), 425.0, -0.01, 0.010, 0.6, 15.0, 15.0),
-    Viseme(6, "ch_jh_sh", ("CH", "JH", "SH", "ZH"), 276.0, 0.15, -0.030, 0.6, 15.0, 15.0),
-    Viseme(7, "s_z", ("S", "Z"), 299.0, -0.02, 0.010, 0.6, 15.0, 15.0),
-    Viseme(8, "n_l", ("N", "L"), 150.0, -0.01, 0.010, 0.6, 15.0, 15.0),
-    Viseme(9, "r", ("R", "ER"), 246.0, 0.10, -0.020, 0.6, 15.0, 15.0),
-    Viseme(10, "a", ("AA", "AE", "AH", "AW", "AY"), 656.0, -0.02, 0.020, 1.0, 9.0, 12.0),
-    Viseme(11, "e", ("EH", "EY"), 618.0, -0.03, 0.030, 1.0, 9.0, 12.0),
-    Viseme(12, "i", ("IH", "IY", "Y"), 426.0, -0.04, 0.040, 1.0, 9.0, 12.0),
-    Viseme(13, "o", ("AO", "OW", "OY"), 390.0, 0.12, -0.030, 1.0, 9.0, 12.0),
-    Viseme(14, "u", ("UH", "UW", "W"), 150.0, 0.20, -0.050, 1.0, 9.0, 12.0),
+    Viseme(0, "neutral", ("SIL",), 0.0, 0.00, 0.000, 0.8, 10.0, 10.0, (0.0,)),
+    Viseme(1, "p_b_m", ("P", "B", "M"), 0.0, 0.02, -0.010, 50.0, 80.0, 80.0, (0.0, 0.0, 0.0)),
+    Viseme(2, "f_v", ("F", "V"), 134.0, 0.00, -0.010, 6.0, 40.0, 40.0, (116.0, 152.0)),
+    Viseme(3, "th_dh", ("TH", "DH"), 150.0, -0.02, 0.010, 0.6, 15.0, 15.0, (150.0, 251.0)),
+    Viseme(4, "t_d", ("T", "D"), 379.0, -0.02, 0.010, 0.6, 15.0, 15.0, (369.0, 353.0)),
+    Viseme(5, "k_g", ("K", "G", "NG", "HH"), 425.0, -0.01, 0.010, 0.6, 15.0, 15.0, (303.0, 185.0, 342.0, 908.0)),
+    Viseme(6, "ch_jh_sh", ("CH", "JH", "SH", "ZH"), 276.0, 0.15, -0.030, 0.6, 15.0, 15.0,
+           (150.0, 223.0, 367.0, 524.0)),
+    Viseme(7, "s_z", ("S", "Z"), 299.0, -0.02, 0.010, 0.6, 15.0, 15.0, (337.0, 284.0)),
+    Viseme(8, "n_l", ("N", "L"), 150.0, -0.01, 0.010, 0.6, 15.0, 15.0, (163.0, 150.0)),
+    Viseme(9, "r", ("R", "ER"), 246.0, 0.10, -0.020, 0.6, 15.0, 15.0, (150.0, 292.0)),
+    Viseme(10, "a", ("AA", "AE", "AH", "AW", "AY"), 656.0, -0.02, 0.020, 1.0, 9.0, 12.0,
+           (718.0, 785.0, 381.0, 567.0, 717.0)),
+    Viseme(11, "e", ("EH", "EY"), 618.0, -0.03, 0.030, 1.0, 9.0, 12.0, (583.0, 655.0)),
+    Viseme(12, "i", ("IH", "IY", "Y"), 426.0, -0.04, 0.040, 1.0, 9.0, 12.0, (418.0, 420.0, 446.0)),
+    Viseme(13, "o", ("AO", "OW", "OY"), 390.0, 0.12, -0.030, 1.0, 9.0, 12.0, (469.0, 351.0, 427.0)),
+    Viseme(14, "u", ("UH", "UW", "W"), 150.0, 0.20, -0.050, 1.0, 9.0, 12.0, (309.0, 150.0, 150.0)),
 )
 #: The least opening of a viseme that keeps the lips apart (MNS; about 3 mm): every viseme but silence, /p b m/
 #: and /f v/ (the lower lip under the teeth) opens at least this far, in the fit of the openings too.
 MIN_OPEN_MNS = 150.0
+#: Every phone of the visemes, in their order: the columns of :func:`phone_weights`.
+PHONE_ORDER: tuple[str, ...] = tuple(phone for viseme in VISEMES for phone in viseme.phones)
 #: ARPAbet phone (or SIL) -> its viseme.
 VISEME_OF_PHONE: dict[str, Viseme] = {phone: viseme for viseme in VISEMES for phone in viseme.phones}
 
@@ -221,19 +239,45 @@ def blend(times_s: np.ndarray, segments: Sequence[tuple[float, float]], targets:
     return out.reshape((times_s.size, *targets.shape[1:]))
 
 
+def _spoken(phones: Sequence, visemes: Sequence[Viseme]) -> list[tuple[Viseme, str]]:
+    """Each phone's viseme in ``visemes`` (by MPEG-4 number) and its label without stress."""
+    lookup = {phone: viseme for viseme in visemes for phone in viseme.phones}
+    spoken = []
+    for phone in phones:
+        label = "".join(ch for ch in phone.label.upper() if ch.isalpha())
+        spoken.append((lookup.get(viseme_of(label).phones[0], visemes[0]), label))
+    return spoken
+
+
+def _blended(times_s: np.ndarray, phones: Sequence, spoken: list[tuple[Viseme, str]], targets: np.ndarray):
+    chosen = [viseme for viseme, _ in spoken]
+    return blend(times_s, [(p.start_s, p.end_s) for p in phones], targets, alphas=[v.alpha for v in chosen],
+                 thetas_before=[v.theta_before for v in chosen], thetas_after=[v.theta_after for v in chosen])
+
+
 def viseme_weights(times_s: np.ndarray, phones: Sequence, *, visemes: Sequence[Viseme] | None = None) -> np.ndarray:
     """Each viseme's share of the blend at every time, shape (n, 15): rows sum to 1. The blended shape is
     these weights times the visemes' shapes (what :func:`fit_shapes` fits). ``visemes``: default
     :data:`VISEMES`."""
     visemes = VISEMES if visemes is None else visemes
     by_number = {viseme.number: i for i, viseme in enumerate(visemes)}
-    lookup = {phone: viseme for viseme in visemes for phone in viseme.phones}
-    chosen = [lookup.get(viseme_of(phone.label).phones[0], visemes[0]) for phone in phones]
-    one_hot = np.zeros((len(chosen), len(visemes)))
-    for i, viseme in enumerate(chosen):
+    spoken = _spoken(phones, visemes)
+    one_hot = np.zeros((len(spoken), len(visemes)))
+    for i, (viseme, _) in enumerate(spoken):
         one_hot[i, by_number[viseme.number]] = 1.0
-    return blend(times_s, [(p.start_s, p.end_s) for p in phones], one_hot, alphas=[v.alpha for v in chosen],
-                 thetas_before=[v.theta_before for v in chosen], thetas_after=[v.theta_after for v in chosen])
+    return _blended(times_s, phones, spoken, one_hot)
+
+
+def phone_weights(times_s: np.ndarray, phones: Sequence, *, visemes: Sequence[Viseme] | None = None) -> np.ndarray:
+    """Each phone's share of the blend at every time, shape (n, len(:data:`PHONE_ORDER`)): rows sum to 1,
+    by the dominance of each phone's viseme. The opening is these weights times the phones' own openings
+    (what :func:`fit_shapes` fits for :data:`VISEMES`' ``phone_openings``)."""
+    visemes = VISEMES if visemes is None else visemes
+    spoken = _spoken(phones, visemes)
+    one_hot = np.zeros((len(spoken), len(PHONE_ORDER)))
+    for i, (viseme, label) in enumerate(spoken):
+        one_hot[i, PHONE_ORDER.index(label if label in PHONE_ORDER else viseme.phones[0])] = 1.0
+    return _blended(times_s, phones, spoken, one_hot)
 
 
 @dataclass(frozen=True)
@@ -257,9 +301,9 @@ def shapes_from_phones(phones: Sequence, n_frames: int, *, fps: float,
         neutral = visemes[0]
         return MouthShape(np.full(n_frames, neutral.opening), np.full(n_frames, neutral.rounding),
                           np.full(n_frames, neutral.spread), np.zeros(n_frames, dtype=int))
-    weights = viseme_weights(np.arange(n_frames) / fps, phones, visemes=visemes)
-    table = np.array([[v.opening, v.rounding, v.spread] for v in visemes])
-    shape = weights @ table
+    spoken = _spoken(phones, visemes)
+    targets = np.array([[viseme.opening_of(label), viseme.rounding, viseme.spread] for viseme, label in spoken])
+    shape = _blended(np.arange(n_frames) / fps, phones, spoken, targets)
     return MouthShape(shape[:, 0], shape[:, 1], shape[:, 2], said_visemes(phones, n_frames, fps=fps))
 
 
