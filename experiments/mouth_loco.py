@@ -95,7 +95,7 @@ def fitted_visemes(clips: list[dict]):
     opening = fit_shapes(weights, [clip["targets"][0] for clip in clips], nonnegative=True)
     rounding = fit_shapes(weights, [clip["targets"][1] for clip in clips], closed=())
     spread = fit_shapes(weights, [clip["targets"][2] for clip in clips], closed=())
-    return tuple(replace(v, opening=float(o), rounding=float(r), spread=float(s))
+    return tuple(replace(v, opening=float(o), rounding=float(r), spread=float(s), phone_openings=None)
                  for v, o, r, s in zip(VISEMES, opening, rounding, spread, strict=True))
 
 

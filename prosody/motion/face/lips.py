@@ -14,11 +14,12 @@ three numbers, which are turned into low-level lip FAPs by one fixed geometry (:
 The shapes in :data:`VISEMES` were set from phonetic descriptions of the visemes (open vowels widest, /i/ and
 /e/ spread, /o/, /u/, /r/ and the postalveolars rounded, bilabials closed, the neutral face's mouth closed as
 MPEG-4 defines it); their openings are now fitted by least squares to the video-tracked mouths of 35 speakers
-(``experiments/viseme_fit.py``), silence and /p b m/ held closed and every other viseme but /f v/ held at least
+(``experiments/viseme_fit.py``), each phone its own (``Viseme.phone_openings``: a schwa opens less than an /aa/
+of the same viseme), silence and /p b m/ held closed and every other phone but /f v/ held at least
 :data:`MIN_OPEN_MNS` apart. Held out by speaker, the fitted openings follow people's mouths better than the
-hand-set ones did (see that experiment); rounding and spread stay as set by hand. Tracked openings are measured
-in outer-eye-corner widths; the conversion takes the mouth-nose separation as 0.22 of that width (adult
-proportions).
+hand-set ones did (see that experiment); rounding and spread stay as set by hand, one a viseme. Tracked openings
+are measured in outer-eye-corner widths; the conversion takes the mouth-nose separation as 0.22 of that width
+(adult proportions).
 
 Coarticulation (:func:`blend`): every phone segment ``i`` has a dominance over time
 
