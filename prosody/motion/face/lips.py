@@ -120,7 +120,7 @@ DOMINANCE_EXPONENT = 1.0
 # openings raise the mouth-opening r from 0.318 (the hand-set openings) to 0.378 on the videos and from 0.356 to
 # 0.432 on the talking heads; one opening a viseme gives 0.358 and 0.396. The fit opens a schwa (AH) half as far
 # as /aa ae ay/, /e/ nearly as far as /a/, /o/ less than /e/, and /th/, /n l/, /r/ and /uw w/ barely; /h/ as
-# wide as anything (908 MNS: the phone loop hears it where the mouth opens to breathe before speech). The
+# wide as anything (908 MNS: likely where the phone loop hears breath as the mouth opens before speech). The
 # hand-set openings they replace (MNS, times 1.75: /a/ 578, /e/ 455, /o/ 490, /i/ and /k g/ 332, /u/ 298, the
 # other consonants 192-280, /f v/ 79) gave a closer /e/ and a wider /o/ and /u/.
 # Rounding and spread are set by hand from phonetic descriptions. Dominance: vowels 1 at 12/s (anticipation
