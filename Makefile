@@ -71,6 +71,7 @@ evaluate: $(STAMP)
 	$(BIN)/python -m experiments.head_loop
 	$(BIN)/python -m experiments.photo_loop
 	$(BIN)/python -m experiments.likeness
+	$(BIN)/python -m experiments.mouth_ruler
 	$(BIN)/python -m experiments.mouth_videos_loso
 	$(BIN)/python -m experiments.cue_grid
 	$(BIN)/python -m experiments.mouth_learners_loso
