@@ -163,8 +163,8 @@ def print_stream_level(level: dict[str, dict]) -> None:
               f"({v['closing person']:.2f}) | {v['brow ours'] / max(v['brow person'], 1e-9):.2f} "
               f"| {v['mouth r']:.2f} ({v['control r']:+.2f}) |")
     stream_r = [v["mouth r"] for v in level.values()]
-    print(f"\nmouth r in the stream, first {SECONDS:g} s: median {np.median(stream_r):.2f} "
-          f"(control {np.mean([v['control r'] for v in level.values()]):+.2f})")
+    print(f"\nmouth r in the stream, first {SECONDS:g} s: median {np.median(stream_r):.2f}, "
+          f"mean {np.mean(stream_r):.3f} (control {np.mean([v['control r'] for v in level.values()]):+.2f})")
     for key, unit in (("mouth", "opening"), ("brow", "inner brow")):
         ratios = np.array([v[f"{key} ours"] / v[f"{key} person"] for v in level.values() if v[f"{key} person"] > 0])
         gains = held_out_gains(level, key)
@@ -219,8 +219,9 @@ def through_render(chosen: list[dict], level: dict[str, dict]) -> None:
     print(f"\nmouth spread ratio: {share([r['mouth spread'] for r in rows], *PASS['mouth spread'])}")
     print(f"closing, ours over the person's: {share(closing, *PASS['closing ratio'])}")
     print(f"brow spread ratio: {share([r['brow spread'] for r in rows], *PASS['brow spread'])}")
-    print(f"mouth r: median {np.median([r['mouth r'] for r in rows]):.2f} (control {np.mean(controls):+.2f} ± "
-          f"{np.std(controls):.2f}); {np.mean([r['mouth r'] >= PASS['mouth r'] for r in rows]):.0%} of speakers >= 0.3")
+    mouth_r = [r["mouth r"] for r in rows]
+    print(f"mouth r: median {np.median(mouth_r):.2f}, mean {np.mean(mouth_r):.3f} (control {np.mean(controls):+.2f} ± "
+          f"{np.std(controls):.2f}); {np.mean([r >= PASS['mouth r'] for r in mouth_r]):.0%} of speakers >= 0.3")
     if reliable:
         print(f"mouth r where the person's tracked opening is a reliable reference (its inner-lip and jawOpen "
               f"measures agree at r >= {RELIABLE_AGREEMENT} over these frames; {len(reliable)} of {len(rows)} "
