@@ -12,7 +12,7 @@ The recipe (:func:`fit_openings`):
   ``experiments/mouth_loco.py`` converts it;
 - each clip's target moved by its own sound-to-picture lag, the best lag within +-0.25 s of the hand-set
   shapes' opening against it (the mouth measure's lag): the clips' offsets differ by up to a quarter of a second,
-  and an unaligned fit blurs every shape towards the mean;
+  and a fit without it follows the held-out speakers less well (the variant "without the lags");
 - least squares of the targets on the weights (``fit_shapes``): silence and /p b m/ held at 0 (MPEG-4's neutral
   mouth is closed, and a bilabial closes it), every other viseme but /f v/ at least ``MIN_OPEN_MNS`` apart (the
   lips never shut on a /th/ or an /n/, and mouth cues keep those open), openings >= 0. Rounding and spread stay
@@ -21,9 +21,10 @@ The recipe (:func:`fit_openings`):
 Held out: for each speaker, the openings fitted on every other speaker's clips (videos and talking heads) make
 that speaker's lips, beside the hand-set shapes (the default before, :data:`HAND_SET_OPENINGS`); the measures of
 ``experiments/mouth_videos_loso.py`` (opening r at the best lag within +-0.25 s, closure F1, relative closure F1,
-each beside its mismatched-audio control and chance spread), and the paired difference by speaker; two variants
-beside them (no floor; silence free to open). Then the fit on every clip: the openings ``VISEMES`` ships,
-compared with it; and the dominance rates scaled, chosen on the talking-heads clips alone.
+each beside its mismatched-audio control and chance spread), and the paired difference by speaker; three
+variants beside them (no floor; silence free to open; without the lags). Then the fit on every clip: the
+openings ``VISEMES`` ships, compared with it; and the dominance rates scaled, chosen on the talking-heads clips
+alone.
 
 Usage: python -m experiments.viseme_fit
 """
@@ -194,7 +195,8 @@ def main() -> None:
           f"{len(heads)} speakers; each speaker held out in turn\n")
     held = {"fitted": held_out_visemes(clips),
             "open pauses": held_out_visemes(clips, open_pauses=True, floor=False),
-            "no floor": held_out_visemes(clips, floor=False)}
+            "no floor": held_out_visemes(clips, floor=False),
+            "no lags": held_out_visemes([{**clip, "lag": 0} for clip in clips])}
     held["viseme"] = {speaker: one_opening_a_viseme(table) for speaker, table in held["fitted"].items()}
     rows: dict[str, dict[str, list]] = {key: defaultdict(list) for key in ("hand", *held)}
     for clip in clips:
@@ -205,7 +207,8 @@ def main() -> None:
               "viseme": "one opening a viseme, fitted on the other speakers",
               "fitted": "an opening a phone, fitted on the other speakers (the shipped recipe)",
               "no floor": "the same without the floor of MIN_OPEN_MNS (a variant)",
-              "open pauses": "the same, silence free to open too (a variant)"}
+              "open pauses": "the same, silence free to open too (a variant)",
+              "no lags": "the same without the clips' lags (a variant)"}
     video_rows = {key: {s: v for s, v in per.items() if s in names} for key, per in rows.items()}
     print("The talking videos:\n")
     summary_table("lips", labels, video_rows, sexes)
