@@ -23,11 +23,10 @@ from collections import defaultdict
 
 import numpy as np
 
-from audio_features.phones import recognise_phones
 from experiments.common import data_folder, record
 from experiments.mouth_loco import FPS, measured, played_cues
 from experiments.mouth_videos_loso import load_clips, reference_table, summary_table
-from experiments.viseme_fit import fitting_clips, held_out_visemes
+from experiments.viseme_fit import held_out_openings
 from prosody.fap.mouth_cues import CUE_FPS, mouth_cues
 from prosody.fap.stream import FapStream
 from prosody.motion.face.lips import shape_faps, shapes_from_phones
@@ -37,9 +36,7 @@ GRIDS = {"frames": FPS, "grid": CUE_FPS}
 
 def main() -> None:
     clips = load_clips()
-    for clip in clips:
-        clip["phones"] = recognise_phones(clip["audio"])
-    visemes = held_out_visemes(fitting_clips(clips))  # the shipped openings' recipe, without the speaker
+    visemes = held_out_openings(clips)  # the shipped openings' recipe without the speaker; gives clips phones
     names = sorted({clip["speaker"] for clip in clips})
     sexes = {clip["speaker"]: clip["sex"] for clip in clips}
     print(f"{len(clips)} clips, {len(names)} speakers\n")

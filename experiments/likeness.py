@@ -115,13 +115,11 @@ def held_out_models(chosen: list[dict], folder: Path) -> dict[str, Path]:
 
 def stream_level(chosen: list[dict], lips: str = "visemes") -> dict[str, dict]:
     """Per speaker: spreads and closings of ours and the person's, in FAP units."""
-    from experiments.viseme_fit import fitting_clips, held_out_visemes, using_visemes
+    from experiments.viseme_fit import held_out_openings, using_visemes
     from prosody.jobs.pipeline import convert
 
     out = {}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        visemes = held_out_visemes(fitting_clips())  # the shipped openings' recipe, without the speaker
+    visemes = held_out_openings()  # the shipped openings' recipe, without the speaker
     with tempfile.TemporaryDirectory() as folder:
         models = held_out_models(chosen, Path(folder)) if lips in ("acoustic", "combined") else {}
         streams = {}

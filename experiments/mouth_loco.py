@@ -188,7 +188,7 @@ def labelled_phones(folder: Path) -> None:
 
 
 def main(folder: Path) -> None:
-    from experiments.viseme_fit import fitting_clips, held_out_visemes
+    from experiments.viseme_fit import held_out_openings
 
     clips = []
     for wav in sorted(folder.glob("*.wav")):
@@ -211,9 +211,7 @@ def main(folder: Path) -> None:
     speakers = sorted({clip["speaker"] for clip in clips})
     print(f"{len(clips)} clips, {len(speakers)} speakers: {', '.join(speakers)}\n")
     rows: dict[str, list] = {"visemes": [], "shipped": [], "acoustic": [], "loudness": [], "cues": []}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        openings = held_out_visemes(fitting_clips())  # the shipped openings' recipe, without the speaker
+    openings = held_out_openings()  # the shipped openings' recipe, without the speaker
     for speaker in speakers:
         held = [clip for clip in clips if clip["speaker"] == speaker]
         rest = [clip for clip in clips if clip["speaker"] != speaker]

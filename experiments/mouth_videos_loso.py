@@ -33,7 +33,6 @@ from pathlib import Path
 import numpy as np
 
 from audio_features import extract_features, load_audio
-from audio_features.phones import recognise_phones
 from experiments.common import TRACKED_VIDEOS, data_folder, record, tracked_videos
 from experiments.mouth_loco import measured
 from prosody.fap.recorded import read_mouth_csv
@@ -157,7 +156,7 @@ def reference_table(rows: dict[str, dict[str, list]], labels: dict[str, str], cl
 
 
 def main() -> None:
-    from experiments.viseme_fit import fitting_clips, held_out_visemes
+    from experiments.viseme_fit import held_out_openings
 
     clips = load_clips()
     heads = heads_training()
@@ -168,9 +167,7 @@ def main() -> None:
     rows: dict[str, dict[str, list]] = {key: defaultdict(list)
                                         for key in ("visemes", "shipped", "held", "combined", "closing", "loudness")}
     shipped = AcousticMouthModel.load(HEADS_MOUTH_MODEL_PATH)  # no speaker of these videos in its training
-    for clip in clips:
-        clip["phones"] = recognise_phones(clip["audio"])
-    visemes = held_out_visemes(fitting_clips(clips))  # the shipped openings' recipe, without the speaker
+    visemes = held_out_openings(clips)  # the shipped openings' recipe without the speaker; gives clips phones
     for speaker in names:
         held = [clip for clip in clips if clip["speaker"] == speaker]
         model = AcousticMouthModel().fit(heads + [c["training"] for c in clips if c["speaker"] != speaker])

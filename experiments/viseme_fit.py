@@ -137,6 +137,18 @@ def one_opening_a_viseme(table: Sequence[Viseme]) -> tuple[Viseme, ...]:
     return tuple(replace(viseme, phone_openings=None) for viseme in table)
 
 
+def held_out_openings(videos: Sequence[dict] | None = None) -> dict[str, tuple[Viseme, ...]]:
+    """Per speaker, the shipped openings' recipe on every other speaker's clips: the talking videos (``videos``,
+    as ``load_clips`` gives them, each given its recognised ``phones`` here where it has none; loaded when not
+    given) and the talking-heads clips."""
+    for clip in videos or ():
+        if "phones" not in clip:
+            clip["phones"] = recognise_phones(clip["audio"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return held_out_visemes(fitting_clips(videos))
+
+
 def held_out_visemes(clips: Sequence[dict], **options) -> dict[str, tuple[Viseme, ...]]:
     """Per speaker of ``clips``, the openings fitted on every other speaker's clips (``options``: as
     :func:`fit_openings` takes them)."""

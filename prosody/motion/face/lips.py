@@ -164,7 +164,12 @@ def viseme_of(phone: str) -> Viseme:
     >>> viseme_of("M").name, viseme_of("AY1").number, viseme_of("<noise>").name
     ('p_b_m', 10, 'neutral')
     """
-    return VISEME_OF_PHONE.get("".join(ch for ch in phone.upper() if ch.isalpha()), VISEMES[0])
+    return VISEME_OF_PHONE.get(_arpabet(phone), VISEMES[0])
+
+
+def _arpabet(label: str) -> str:
+    """A phone's label as the visemes list it: upper case, without stress digits."""
+    return "".join(ch for ch in label.upper() if ch.isalpha())
 
 
 def dominance(times_s: np.ndarray, *, start_s: float, end_s: float, alpha: float, theta_before: float,
@@ -245,7 +250,7 @@ def _spoken(phones: Sequence, visemes: Sequence[Viseme]) -> list[tuple[Viseme, s
     lookup = {phone: viseme for viseme in visemes for phone in viseme.phones}
     spoken = []
     for phone in phones:
-        label = "".join(ch for ch in phone.label.upper() if ch.isalpha())
+        label = _arpabet(phone.label)
         spoken.append((lookup.get(viseme_of(label).phones[0], visemes[0]), label))
     return spoken
 
