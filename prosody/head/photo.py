@@ -15,7 +15,8 @@ and a texture). Here the photo gives both:
    face); where they are apart in the photo, the lips' texture stretches over the gap. The teeth, the tongue
    and the mouth's dark inside are the head's own, shaded, sized to this mouth.
 3. **The rest of the person.** The person is told from the background by OpenCV's GrabCut, started from the
-   face (certain), a head-sized region round it and the neck and shoulders below it (likely). A grid over the
+   face (certain), a head-sized region round it and the neck and shoulders below it (likely), the majority of
+   a few such starts (:func:`person_mask`). A grid over the
    person carries the photo's hair, ears, neck and shoulders on a plausible depth (the face's own near its
    edge, a skull's front further out, a plane behind the neck lower down); it turns with the head above
    the chin and stays still at the shoulders, the neck bending between.
@@ -108,6 +109,11 @@ GRID_STEP = 1 / 110
 EDGE_GROW = 1 / 170
 #: The person's grid is left out this far inside the face's outline (the face always covers it there), cm.
 HIDDEN_UNDER_FACE_CM = 1.0
+#: The person mask's GrabCut starts, each with its likely-person regions (head and shoulders) grown by this
+#: factor and its own random start; the mask is their majority.
+MASK_VOTE_GROWTHS = (0.94, 0.97, 1.0, 1.03, 1.06)
+#: The longer side of the copy GrabCut works on, pixels.
+MASK_WORK_PX = 400
 
 # Head axes (cm): the skull whose front carries the hair round the face, and the plane behind the neck.
 _SKULL_CENTRE, _SKULL_RADII = np.array([0.0, 2.5, -3.0]), np.array([8.2, 11.0, 9.4])
@@ -287,44 +293,26 @@ def _cv2():
 
 def person_mask(image: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
     """bool (height, width): the person (face, hair, ears, neck, shoulders), by GrabCut started from the
-    face and the neck under it (certain) and the head and shoulder regions round them (likely)."""
+    face and the neck under it (certain) and the head and shoulder regions round them (likely).
+
+    GrabCut settles in one of several local optima, and on some photos a start moved by under a pixel picks
+    another (a fifth of the mask changed on a few talking-video frames). So it runs from the starts of
+    :data:`MASK_VOTE_GROWTHS` and a pixel is the person's where most of the runs say so."""
     cv2 = _cv2()
     height, width = image.shape[:2]
-    factor = min(1.0, 400.0 / max(height, width))  # GrabCut on a small copy: its cost grows with the pixels
+    factor = min(1.0, MASK_WORK_PX / max(height, width))  # GrabCut on a small copy: its cost grows with the pixels
     small = cv2.resize(image, (max(8, round(width * factor)), max(8, round(height * factor))),
                        interpolation=cv2.INTER_AREA)
     points = landmarks[:N_FACE_VERTICES, :2] * factor
-    face_w = float(np.ptp(points[:, 0]))
-    face_h = float(np.ptp(points[:, 1]))
-    centre = points.mean(axis=0)
-    chin_y = float(points[152, 1])
-    rows, columns = np.mgrid[0:small.shape[0], 0:small.shape[1]]
-    mask = np.full(small.shape[:2], cv2.GC_PR_BGD, np.uint8)
-    head = (((columns - centre[0]) / (0.85 * face_w)) ** 2 + ((rows - (centre[1] - 0.12 * face_h))
-                                                               / (0.92 * face_h)) ** 2) <= 1.0
-    below = rows > chin_y - 0.1 * face_h
-    half = 0.33 * face_w + np.maximum(rows - chin_y, 0) * 1.1
-    body = below & (np.abs(columns - centre[0]) <= half)
-    mask[head | body] = cv2.GC_PR_FGD
-    far = (np.abs(columns - centre[0]) > 1.6 * face_w) & (rows < chin_y)
-    mask[far] = cv2.GC_BGD
-    mask[: max(1, round(0.02 * small.shape[0]))] = np.where(head[: max(1, round(0.02 * small.shape[0]))],
-                                                            mask[: max(1, round(0.02 * small.shape[0]))],
-                                                            cv2.GC_BGD)
-    hull = cv2.convexHull(points.astype(np.float32)).astype(np.int32)
-    cv2.fillConvexPoly(mask, hull, int(cv2.GC_FGD))
-    # the neck and the chest right under the chin are the person too (their colours teach GrabCut the clothes')
-    neck = (rows > chin_y + 0.05 * face_h) & (rows < chin_y + 0.8 * face_h) & (np.abs(columns - centre[0])
-                                                                              < 0.22 * face_w)
-    mask[neck] = cv2.GC_FGD
-    bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
-    cv2.setRNGSeed(0)  # GrabCut's k-means starts from OpenCV's global generator: the same mask every time
-    try:
-        cv2.grabCut(cv2.cvtColor(small, cv2.COLOR_RGB2BGR), mask, None, bgd, fgd, 4, cv2.GC_INIT_WITH_MASK)
-    except cv2.error:  # a flat image: every likely pixel stays as started
-        pass
-    person = np.isin(mask, (cv2.GC_FGD, cv2.GC_PR_FGD)).astype(np.uint8)
+    from concurrent.futures import ThreadPoolExecutor
+
+    # OpenCV lets go of Python's lock in GrabCut, and its random generator is each thread's own
+    with ThreadPoolExecutor(max_workers=min(len(MASK_VOTE_GROWTHS), os.cpu_count() or 1)) as pool:
+        votes = sum(pool.map(lambda start: _grabcut(cv2, small, points, grow=start[1], seed=start[0]),
+                             enumerate(MASK_VOTE_GROWTHS)))
+    person = (2 * votes > len(MASK_VOTE_GROWTHS)).astype(np.uint8)
     # the largest piece joined to the face, holes closed
+    centre = points.mean(axis=0)
     count, labels = cv2.connectedComponents(person)
     if count > 2:
         centre_label = labels[int(np.clip(centre[1], 0, small.shape[0] - 1)),
@@ -335,6 +323,39 @@ def person_mask(image: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
     person = cv2.morphologyEx(person, cv2.MORPH_CLOSE, kernel)
     full = cv2.resize(person, (width, height), interpolation=cv2.INTER_LINEAR)
     return full > 0
+
+
+def _grabcut(cv2, small: np.ndarray, points: np.ndarray, *, grow: float, seed: int) -> np.ndarray:
+    """One GrabCut run's person (uint8 0/1) on ``small``, its likely-person regions grown by ``grow``."""
+    face_w = float(np.ptp(points[:, 0]))
+    face_h = float(np.ptp(points[:, 1]))
+    centre = points.mean(axis=0)
+    chin_y = float(points[152, 1])
+    rows, columns = np.mgrid[0:small.shape[0], 0:small.shape[1]]
+    mask = np.full(small.shape[:2], cv2.GC_PR_BGD, np.uint8)
+    head = (((columns - centre[0]) / (0.85 * grow * face_w)) ** 2
+            + ((rows - (centre[1] - 0.12 * face_h)) / (0.92 * grow * face_h)) ** 2) <= 1.0
+    below = rows > chin_y - 0.1 * face_h
+    half = grow * (0.33 * face_w + np.maximum(rows - chin_y, 0) * 1.1)
+    body = below & (np.abs(columns - centre[0]) <= half)
+    mask[head | body] = cv2.GC_PR_FGD
+    far = (np.abs(columns - centre[0]) > 1.6 * face_w) & (rows < chin_y)
+    mask[far] = cv2.GC_BGD
+    top = max(1, round(0.02 * small.shape[0]))
+    mask[:top] = np.where(head[:top], mask[:top], cv2.GC_BGD)
+    hull = cv2.convexHull(points.astype(np.float32)).astype(np.int32)
+    cv2.fillConvexPoly(mask, hull, int(cv2.GC_FGD))
+    # the neck and the chest right under the chin are the person too (their colours teach GrabCut the clothes')
+    neck = (rows > chin_y + 0.05 * face_h) & (rows < chin_y + 0.8 * face_h) & (np.abs(columns - centre[0])
+                                                                              < 0.22 * face_w)
+    mask[neck] = cv2.GC_FGD
+    bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+    cv2.setRNGSeed(seed)  # GrabCut's k-means starts from OpenCV's global generator: the same mask every time
+    try:
+        cv2.grabCut(cv2.cvtColor(small, cv2.COLOR_RGB2BGR), mask, None, bgd, fgd, 4, cv2.GC_INIT_WITH_MASK)
+    except cv2.error:  # a flat image: every likely pixel stays as started
+        pass
+    return np.isin(mask, (cv2.GC_FGD, cv2.GC_PR_FGD)).astype(np.uint8)
 
 
 def fill_background(image: np.ndarray, person: np.ndarray, *, margin_px: int) -> np.ndarray:
