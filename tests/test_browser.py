@@ -247,9 +247,10 @@ def test_the_input_sound_plays_and_the_face_moves_in_step_with_it(frame_server, 
 
 
 @pytest.mark.slow
-def test_page_draws_a_photo_head_as_the_cpu_renderer_does(browser, tmp_path):
+def test_page_draws_a_photo_head_as_the_cpu_renderer_does(browser, tmp_path, monkeypatch):
     """stream --listen --face PHOTO: the page's WebGL head is the photo head, as PhotoRenderer draws it."""
     pytest.importorskip("mediapipe", reason="the face landmarker (pip install 'visual-prosody[track]')")
+    from prosody.head import photo as photo_module
     from prosody.head.photo import PhotoRenderer, photo_head
     from prosody.head.render import HeadRenderer
     from prosody.live.converter import LiveConverter
@@ -286,3 +287,15 @@ def test_page_draws_a_photo_head_as_the_cpu_renderer_does(browser, tmp_path):
         assert difference.mean() < 1.5, (faps, difference.mean())
         assert np.percentile(difference, 99) < 12, (faps, np.percentile(difference, 99))
     assert np.abs(rest.astype(int) - moved.astype(int)).max(axis=2).mean() > 2.0  # and it moved
+    # the open mouth's drawn inside softened as the CPU softens it: where softening changes the CPU's frame, the
+    # page is nearer the soft frame than the sharp one is
+    soft = renderer.render(values(pose)).astype(int)
+    monkeypatch.setattr(photo_module, "INSIDE_SOFTNESS_PX", 0.0)
+    sharp = renderer.render(values(pose)).astype(int)
+    softened = np.abs(soft - sharp).max(axis=2) > 4
+    assert softened.sum() > 50, softened.sum()
+    page_error = np.abs(moved.astype(int) - soft).max(axis=2)[softened].mean()
+    sharp_error = np.abs(sharp - soft).max(axis=2)[softened].mean()
+    print(f"mouth inside: {softened.sum()} px softened, page {page_error:.1f} and sharp {sharp_error:.1f} grey levels "
+          "from the CPU's frame")
+    assert page_error < 0.5 * sharp_error, (page_error, sharp_error)

@@ -100,7 +100,10 @@
       const b = gl.createBuffer();
       gl.bindBuffer(gl.ARRAY_BUFFER, b); gl.bufferData(gl.ARRAY_BUFFER, data, usage || gl.STATIC_DRAW);
       const at = gl.getAttribLocation(this.program, name);
-      if (at >= 0) { gl.enableVertexAttribArray(at); gl.vertexAttribPointer(at, size, gl.FLOAT, false, 0, 0); }
+      if (at >= 0) {
+        gl.enableVertexAttribArray(at); gl.vertexAttribPointer(at, size, gl.FLOAT, false, 0, 0);
+        (this.bound = this.bound || []).push([at, b, size]);
+      }
       return b;
     }
 
@@ -154,6 +157,7 @@
   // face shaded anew as it turns, the light staying put), the mouth's inside is lit; the head turns about the
   // pivot by each vertex's share, and the motion is laid over the photo's framing as a camera photo.camera_px
   // away sees it (PhotoRenderer does the same on the CPU).
+  const INSIDE_ALPHA = "(254.0 / 255.0)";  // the drawn inside's mark in the off-screen frame (see SOFTEN_FRAGMENT)
   const PHOTO_VERTEX = `
     attribute vec3 position; attribute vec3 rest; attribute vec3 normal; attribute vec3 color;
     attribute float rotates; attribute vec2 uv; attribute float textured; attribute float behind;
@@ -197,7 +201,40 @@
       vec3 n = normalize(vNormal);
       if (n.z < 0.0) n = -n;
       float diffuse = strengths.z + strengths.x * max(dot(n, light0), 0.0) + strengths.y * max(dot(n, light1), 0.0);
-      gl_FragColor = vec4(min(vColor * diffuse, vec3(1.0)), 1.0);
+      gl_FragColor = vec4(min(vColor * diffuse, vec3(1.0)), ${INSIDE_ALPHA});  // marks the drawn inside
+    }`;
+  // The drawn mouth's inside made as soft as the photographed face round it, as PhotoRenderer does on the CPU:
+  // the frame is drawn off screen, the inside marked by an alpha of 254/255 (the face there is opaque), and
+  // within the box round the inside the frame is blurred by a Gaussian of the given sigma (canvas pixels),
+  // weighted by twice the blurred mark, at most 1.
+  const SOFTEN_VERTEX = `
+    attribute vec2 corner;
+    void main() { gl_Position = vec4(corner, 0.0, 1.0); }`;
+  const SOFTEN_FRAGMENT = `
+    precision mediump float;
+    uniform sampler2D frame; uniform vec2 size; uniform vec4 box; uniform float sigma;
+    float inside(vec4 c) { return abs(c.a - ${INSIDE_ALPHA}) < 0.5 / 255.0 ? 1.0 : 0.0; }
+    void main() {
+      vec2 px = gl_FragCoord.xy;
+      vec4 here = texture2D(frame, px / size);
+      float mark = inside(here);
+      if (sigma <= 0.0 || px.x < box.x || px.x > box.z || px.y < box.y || px.y > box.w) {
+        gl_FragColor = vec4(here.rgb, mix(here.a, 1.0, mark));
+        return;
+      }
+      float reach = ceil(3.0 * sigma);
+      vec3 sum = vec3(0.0); float marks = 0.0, total = 0.0;
+      for (int dy = -8; dy <= 8; dy++) {
+        for (int dx = -8; dx <= 8; dx++) {
+          vec2 d = vec2(float(dx), float(dy));
+          if (abs(d.x) > reach || abs(d.y) > reach) continue;
+          float w = exp(-dot(d, d) / (2.0 * sigma * sigma));
+          vec4 c = texture2D(frame, (px + d) / size);
+          sum += w * c.rgb; marks += w * inside(c); total += w;
+        }
+      }
+      float weight = clamp(2.0 * marks / total, 0.0, 1.0);
+      gl_FragColor = vec4(here.rgb + weight * (sum / total - here.rgb), mix(here.a, 1.0, mark));
     }`;
 
   class PhotoView extends HeadView {
@@ -228,6 +265,108 @@
       }
       gl.uniform1i(gl.getUniformLocation(program, "image"), 0);
       this.uniforms.photo = gl.getUniformLocation(program, "photo");
+      this.image = texture;
+      this.insideVertices = [];
+      model.textured.forEach((t, i) => { if (!t) this.insideVertices.push(i); });
+      this.softenProgram(gl);
+    }
+
+    softenProgram(gl) {
+      const program = gl.createProgram();
+      for (const [kind, source] of [[gl.VERTEX_SHADER, SOFTEN_VERTEX], [gl.FRAGMENT_SHADER, SOFTEN_FRAGMENT]]) {
+        const shader = gl.createShader(kind);
+        gl.shaderSource(shader, source); gl.compileShader(shader);
+        if (!gl.getShaderParameter(shader, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(shader));
+        gl.attachShader(program, shader);
+      }
+      gl.linkProgram(program);
+      if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
+      this.soften = { program, corner: gl.getAttribLocation(program, "corner"), corners: gl.createBuffer() };
+      gl.bindBuffer(gl.ARRAY_BUFFER, this.soften.corners);
+      gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([-1, -1, 3, -1, -1, 3]), gl.STATIC_DRAW);  // covers the canvas
+      const u = (name) => gl.getUniformLocation(program, name);
+      Object.assign(this.soften, { frame: u("frame"), size: u("size"), box: u("box"), sigma: u("sigma") });
+      gl.useProgram(this.program);
+    }
+
+    // The off-screen frame (a texture and a depth buffer) at the canvas's size, made anew when that changes.
+    target() {
+      const gl = this.gl, w = this.canvas.width, h = this.canvas.height;
+      if (this.offscreen && this.offscreen.w === w && this.offscreen.h === h) return this.offscreen;
+      if (this.offscreen) {
+        gl.deleteFramebuffer(this.offscreen.buffer); gl.deleteTexture(this.offscreen.texture);
+        gl.deleteRenderbuffer(this.offscreen.depth);
+      }
+      const texture = gl.createTexture(), depth = gl.createRenderbuffer(), buffer = gl.createFramebuffer();
+      gl.activeTexture(gl.TEXTURE1);
+      gl.bindTexture(gl.TEXTURE_2D, texture);
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA, w, h, 0, gl.RGBA, gl.UNSIGNED_BYTE, null);
+      for (const [name, value] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST],
+                                   [gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE], [gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE]]) {
+        gl.texParameteri(gl.TEXTURE_2D, name, value);
+      }
+      gl.activeTexture(gl.TEXTURE0);
+      gl.bindRenderbuffer(gl.RENDERBUFFER, depth);
+      gl.renderbufferStorage(gl.RENDERBUFFER, gl.DEPTH_COMPONENT16, w, h);
+      gl.bindFramebuffer(gl.FRAMEBUFFER, buffer);
+      gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, texture, 0);
+      gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.DEPTH_ATTACHMENT, gl.RENDERBUFFER, depth);
+      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+      this.offscreen = { w, h, texture, depth, buffer };
+      return this.offscreen;
+    }
+
+    // The box (canvas pixels from the bottom left: left, bottom, right, top) round the drawn inside, where it
+    // is this frame: the vertex shader's motion, turn and perspective for its few hundred vertices.
+    insideBox(faps, margin) {
+      const p = this.model.photo, pos = this.positions, rest = this.rest, pivot = this.model.pivot;
+      const angle = (n) => ((faps && faps[n]) || 0) * AU;
+      const m = rotation(angle(48), angle(49), angle(50)), rotates = this.model.rotates;
+      const seen = (x, y, z) => {
+        const k = p.camera_px / Math.max(p.camera_px - z, 0.001 * p.camera_px);
+        return [0.5 * p.width + (x - 0.5 * p.width) * k, -0.5 * p.height + (y + 0.5 * p.height) * k];
+      };
+      const zoom = this.canvas.width / p.width;
+      let [left, bottom, right, top] = [Infinity, Infinity, -Infinity, -Infinity];
+      for (const i of this.insideVertices) {
+        const v = [pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]], share = rotates[i];
+        const d = [v[0] - pivot[0], v[1] - pivot[1], v[2] - pivot[2]];
+        const t = [0, 1, 2].map((r) => m[r] * d[0] + m[3 + r] * d[1] + m[6 + r] * d[2] + pivot[r]);
+        const q = v.map((value, r) => value + share * (t[r] - value));
+        const [sx, sy] = seen(q[0], q[1], q[2]), [rx, ry] = seen(rest[3 * i], rest[3 * i + 1], rest[3 * i + 2]);
+        const x = (rest[3 * i] + sx - rx) * zoom, y = (p.height + rest[3 * i + 1] + sy - ry) * zoom;
+        left = Math.min(left, x); right = Math.max(right, x); bottom = Math.min(bottom, y); top = Math.max(top, y);
+      }
+      return [left - margin, bottom - margin, right + margin, top + margin];
+    }
+
+    draw(faps) {
+      const gl = this.gl, offscreen = this.target();
+      gl.useProgram(this.program);
+      for (const [at, buffer, size] of this.bound) {  // the softening pass used the attributes' slots
+        gl.bindBuffer(gl.ARRAY_BUFFER, buffer); gl.vertexAttribPointer(at, size, gl.FLOAT, false, 0, 0);
+      }
+      gl.bindTexture(gl.TEXTURE_2D, this.image);
+      gl.bindFramebuffer(gl.FRAMEBUFFER, offscreen.buffer);
+      super.draw(faps);
+      const started = performance.now();
+      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+      const s = this.soften, sigma = this.model.photo.inside_softness_px * this.canvas.width / this.model.photo.width;
+      gl.useProgram(s.program);
+      gl.bindBuffer(gl.ARRAY_BUFFER, s.corners);
+      gl.enableVertexAttribArray(s.corner); gl.vertexAttribPointer(s.corner, 2, gl.FLOAT, false, 0, 0);
+      gl.activeTexture(gl.TEXTURE1);
+      gl.bindTexture(gl.TEXTURE_2D, offscreen.texture);
+      gl.uniform1i(s.frame, 1);
+      gl.uniform2f(s.size, offscreen.w, offscreen.h);
+      gl.uniform4fv(s.box, this.insideBox(faps, Math.ceil(3 * sigma) + 2));
+      gl.uniform1f(s.sigma, Math.min(sigma, 8 / 3));
+      gl.disable(gl.DEPTH_TEST);
+      gl.clear(gl.COLOR_BUFFER_BIT);
+      gl.drawArrays(gl.TRIANGLES, 0, 3);
+      gl.enable(gl.DEPTH_TEST);
+      gl.activeTexture(gl.TEXTURE0);
+      this.drawMs += performance.now() - started;
     }
 
     project() {  // the photo's framing (see PHOTO_VERTEX); the background shows where nothing is drawn

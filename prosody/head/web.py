@@ -90,6 +90,7 @@ def photo_model_document(head) -> dict:
     :data:`PHOTO_BACKGROUND_PATH` (:func:`photo_images`)."""
     from .photo import (
         CAMERA_DISTANCE_CM,
+        INSIDE_SOFTNESS_PX,
         MOUTH_DEPTH_BIAS_CM,
         RELIGHT_AMBIENT,
         RELIGHT_DIRECTION,
@@ -129,7 +130,8 @@ def photo_model_document(head) -> dict:
         "pivot": np.round(renderer.pivot, 3).tolist(),
         "photo": {"width": head.width, "height": head.height, "texture": PHOTO_TEXTURE_PATH,
                   "background": PHOTO_BACKGROUND_PATH, "camera_px": head.scale * CAMERA_DISTANCE_CM,
-                  "depth_px": head.scale * 60.0, "mouth_bias_px": head.scale * MOUTH_DEPTH_BIAS_CM},
+                  "depth_px": head.scale * 60.0, "mouth_bias_px": head.scale * MOUTH_DEPTH_BIAS_CM,
+                  "inside_softness_px": INSIDE_SOFTNESS_PX},
         "background": list(view.BACKGROUND),
         "lights": {"directions": view.light_directions().tolist(), "key": view.KEY, "fill": view.FILL,
                    "ambient": view.AMBIENT, "specular": view.SPECULAR, "shininess": 2 ** view.SHININESS_DOUBLINGS},
