@@ -50,6 +50,20 @@
     return new Float32Array([m[0][0], m[1][0], m[2][0], m[0][1], m[1][1], m[2][1], m[0][2], m[1][2], m[2][2]]);
   }
 
+  // A linked program of two shader sources; a compile or link error is thrown with WebGL's log.
+  function compile(gl, vertex, fragment) {
+    const program = gl.createProgram();
+    for (const [kind, source] of [[gl.VERTEX_SHADER, vertex], [gl.FRAGMENT_SHADER, fragment]]) {
+      const shader = gl.createShader(kind);
+      gl.shaderSource(shader, source); gl.compileShader(shader);
+      if (!gl.getShaderParameter(shader, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(shader));
+      gl.attachShader(program, shader);
+    }
+    gl.linkProgram(program);
+    if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
+    return program;
+  }
+
   class HeadView {
     constructor(canvas, model, shaders) {
       // no multisampling: where WebGL runs in software (SwiftShader) it costs four times the pixels
@@ -64,16 +78,7 @@
       for (const [fap, field] of Object.entries(model.fields)) {
         this.fields[fap] = { vertices: Int32Array.from(field.vertices), offsets: Float32Array.from(field.offsets) };
       }
-      const program = gl.createProgram();
-      const sources = shaders ? [shaders.vertex, shaders.fragment] : [VERTEX, FRAGMENT];
-      for (const [kind, source] of [[gl.VERTEX_SHADER, sources[0]], [gl.FRAGMENT_SHADER, sources[1]]]) {
-        const shader = gl.createShader(kind);
-        gl.shaderSource(shader, source); gl.compileShader(shader);
-        if (!gl.getShaderParameter(shader, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(shader));
-        gl.attachShader(program, shader);
-      }
-      gl.linkProgram(program);
-      if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
+      const program = shaders ? compile(gl, shaders.vertex, shaders.fragment) : compile(gl, VERTEX, FRAGMENT);
       this.program = program;
       gl.useProgram(program);
       const buffer = (name, data, size, usage) => this.attribute(name, data, size, usage);
@@ -272,15 +277,7 @@
     }
 
     softenProgram(gl) {
-      const program = gl.createProgram();
-      for (const [kind, source] of [[gl.VERTEX_SHADER, SOFTEN_VERTEX], [gl.FRAGMENT_SHADER, SOFTEN_FRAGMENT]]) {
-        const shader = gl.createShader(kind);
-        gl.shaderSource(shader, source); gl.compileShader(shader);
-        if (!gl.getShaderParameter(shader, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(shader));
-        gl.attachShader(program, shader);
-      }
-      gl.linkProgram(program);
-      if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
+      const program = compile(gl, SOFTEN_VERTEX, SOFTEN_FRAGMENT);
       this.soften = { program, corner: gl.getAttribLocation(program, "corner"), corners: gl.createBuffer() };
       gl.bindBuffer(gl.ARRAY_BUFFER, this.soften.corners);
       gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([-1, -1, 3, -1, -1, 3]), gl.STATIC_DRAW);  // covers the canvas
