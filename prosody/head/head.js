@@ -210,29 +210,29 @@
     }`;
   // The drawn mouth's inside made as soft as the photographed face round it, as PhotoRenderer does on the CPU:
   // the frame is drawn off screen, the inside marked by an alpha of 254/255 (the face there is opaque), and
-  // within the box round the inside the frame is blurred by a Gaussian of the given sigma (canvas pixels),
-  // weighted by twice the blurred mark, at most 1.
+  // the frame is copied to the canvas, and within the box round the inside (a scissor: no other pixel pays for
+  // it) blurred by a Gaussian of the given sigma (canvas pixels), weighted by twice the blurred mark, at most 1.
   const SOFTEN_VERTEX = `
     attribute vec2 corner;
     void main() { gl_Position = vec4(corner, 0.0, 1.0); }`;
-  const SOFTEN_FRAGMENT = `
+  // reach: the blur's reach in canvas pixels (3 sigma, whole), fixed in the source so that no pixel loops further
+  const softenFragment = (reach) => `
     precision mediump float;
-    uniform sampler2D frame; uniform vec2 size; uniform vec4 box; uniform float sigma;
+    uniform sampler2D frame; uniform vec2 size; uniform float sigma;  // sigma 0: a plain copy
+    const int REACH = ${reach};
     float inside(vec4 c) { return abs(c.a - ${INSIDE_ALPHA}) < 0.5 / 255.0 ? 1.0 : 0.0; }
     void main() {
       vec2 px = gl_FragCoord.xy;
       vec4 here = texture2D(frame, px / size);
       float mark = inside(here);
-      if (sigma <= 0.0 || px.x < box.x || px.x > box.z || px.y < box.y || px.y > box.w) {
+      if (sigma <= 0.0) {
         gl_FragColor = vec4(here.rgb, mix(here.a, 1.0, mark));
         return;
       }
-      float reach = ceil(3.0 * sigma);
       vec3 sum = vec3(0.0); float marks = 0.0, total = 0.0;
-      for (int dy = -8; dy <= 8; dy++) {
-        for (int dx = -8; dx <= 8; dx++) {
+      for (int dy = -REACH; dy <= REACH; dy++) {
+        for (int dx = -REACH; dx <= REACH; dx++) {
           vec2 d = vec2(float(dx), float(dy));
-          if (abs(d.x) > reach || abs(d.y) > reach) continue;
           float w = exp(-dot(d, d) / (2.0 * sigma * sigma));
           vec4 c = texture2D(frame, (px + d) / size);
           sum += w * c.rgb; marks += w * inside(c); total += w;
@@ -271,19 +271,26 @@
       gl.uniform1i(gl.getUniformLocation(program, "image"), 0);
       this.uniforms.photo = gl.getUniformLocation(program, "photo");
       this.image = texture;
-      this.insideVertices = [];
-      model.textured.forEach((t, i) => { if (!t) this.insideVertices.push(i); });
-      this.softenProgram(gl);
+      const inside = new Set(), t = this.triangles, textured = model.textured;  // the drawn triangles' vertices
+      for (let i = 0; i < t.length; i += 3) {
+        const corners = [t[i], t[i + 1], t[i + 2]];
+        if (!corners.some((v) => textured[v])) corners.forEach((v) => inside.add(v));
+      }
+      this.insideVertices = [...inside];
     }
 
-    softenProgram(gl) {
-      const program = compile(gl, SOFTEN_VERTEX, SOFTEN_FRAGMENT);
-      this.soften = { program, corner: gl.getAttribLocation(program, "corner"), corners: gl.createBuffer() };
-      gl.bindBuffer(gl.ARRAY_BUFFER, this.soften.corners);
+    // The softening program for a Gaussian of sigma (canvas pixels), and its full-canvas triangle.
+    softenProgram(gl, sigma) {
+      if (this.soften) gl.deleteProgram(this.soften.program);
+      else this.corners = gl.createBuffer();
+      const reach = Math.max(1, Math.min(8, Math.ceil(3 * sigma)));
+      const program = compile(gl, SOFTEN_VERTEX, softenFragment(reach));
+      gl.bindBuffer(gl.ARRAY_BUFFER, this.corners);
       gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([-1, -1, 3, -1, -1, 3]), gl.STATIC_DRAW);  // covers the canvas
       const u = (name) => gl.getUniformLocation(program, name);
-      Object.assign(this.soften, { frame: u("frame"), size: u("size"), box: u("box"), sigma: u("sigma") });
-      gl.useProgram(this.program);
+      const corner = gl.getAttribLocation(program, "corner");
+      this.soften = { program, reach, sigma: Math.min(sigma, reach / 3), corner,
+        uniforms: { frame: u("frame"), size: u("size"), sigma: u("sigma") } };
     }
 
     // The off-screen frame (a texture and a depth buffer) at the canvas's size, made anew when that changes.
@@ -310,6 +317,7 @@
       gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.DEPTH_ATTACHMENT, gl.RENDERBUFFER, depth);
       gl.bindFramebuffer(gl.FRAMEBUFFER, null);
       this.offscreen = { w, h, texture, depth, buffer };
+      this.softenProgram(gl, this.model.photo.inside_softness_px * w / this.model.photo.width);
       return this.offscreen;
     }
 
@@ -348,19 +356,26 @@
       super.draw(faps);
       const started = performance.now();
       gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-      const s = this.soften, sigma = this.model.photo.inside_softness_px * this.canvas.width / this.model.photo.width;
+      const s = this.soften;
       gl.useProgram(s.program);
-      gl.bindBuffer(gl.ARRAY_BUFFER, s.corners);
+      gl.bindBuffer(gl.ARRAY_BUFFER, this.corners);
       gl.enableVertexAttribArray(s.corner); gl.vertexAttribPointer(s.corner, 2, gl.FLOAT, false, 0, 0);
       gl.activeTexture(gl.TEXTURE1);
       gl.bindTexture(gl.TEXTURE_2D, offscreen.texture);
-      gl.uniform1i(s.frame, 1);
-      gl.uniform2f(s.size, offscreen.w, offscreen.h);
-      gl.uniform4fv(s.box, this.insideBox(faps, Math.ceil(3 * sigma) + 2));
-      gl.uniform1f(s.sigma, Math.min(sigma, 8 / 3));
+      gl.uniform1i(s.uniforms.frame, 1);
+      gl.uniform2f(s.uniforms.size, offscreen.w, offscreen.h);
       gl.disable(gl.DEPTH_TEST);
       gl.clear(gl.COLOR_BUFFER_BIT);
+      gl.uniform1f(s.uniforms.sigma, 0);
       gl.drawArrays(gl.TRIANGLES, 0, 3);
+      const [left, bottom, right, top] = this.insideBox(faps, s.reach + 2).map(Math.round);
+      if (right > left && top > bottom) {
+        gl.enable(gl.SCISSOR_TEST);
+        gl.scissor(left, bottom, right - left, top - bottom);
+        gl.uniform1f(s.uniforms.sigma, s.sigma);
+        gl.drawArrays(gl.TRIANGLES, 0, 3);
+        gl.disable(gl.SCISSOR_TEST);
+      }
       gl.enable(gl.DEPTH_TEST);
       gl.activeTexture(gl.TEXTURE0);
       this.drawMs += performance.now() - started;
