@@ -308,9 +308,9 @@ def person_mask(image: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
 
     # OpenCV lets go of Python's lock in GrabCut, and its random generator is each thread's own
     with ThreadPoolExecutor(max_workers=min(len(MASK_VOTE_GROWTHS), os.cpu_count() or 1)) as pool:
-        votes = sum(pool.map(lambda start: _grabcut(cv2, small, points, grow=start[1], seed=start[0]),
+        runs = list(pool.map(lambda start: _grabcut(cv2, small, points, grow=start[1], seed=start[0]),
                              enumerate(MASK_VOTE_GROWTHS)))
-    person = (2 * votes > len(MASK_VOTE_GROWTHS)).astype(np.uint8)
+    person = (2 * np.sum(runs, axis=0) > len(runs)).astype(np.uint8)
     # the largest piece joined to the face, holes closed
     centre = points.mean(axis=0)
     count, labels = cv2.connectedComponents(person)
