@@ -162,7 +162,7 @@
   // face shaded anew as it turns, the light staying put), the mouth's inside is lit; the head turns about the
   // pivot by each vertex's share, and the motion is laid over the photo's framing as a camera photo.camera_px
   // away sees it (PhotoRenderer does the same on the CPU).
-  const INSIDE_ALPHA = "(254.0 / 255.0)";  // the drawn inside's mark in the off-screen frame (see SOFTEN_FRAGMENT)
+  const INSIDE_ALPHA = "(254.0 / 255.0)";  // the drawn inside's mark in the off-screen frame (see softenFragment)
   const PHOTO_VERTEX = `
     attribute vec3 position; attribute vec3 rest; attribute vec3 normal; attribute vec3 color;
     attribute float rotates; attribute vec2 uv; attribute float textured; attribute float behind;
@@ -209,9 +209,9 @@
       gl_FragColor = vec4(min(vColor * diffuse, vec3(1.0)), ${INSIDE_ALPHA});  // marks the drawn inside
     }`;
   // The drawn mouth's inside made as soft as the photographed face round it, as PhotoRenderer does on the CPU:
-  // the frame is drawn off screen, the inside marked by an alpha of 254/255 (the face there is opaque), and
-  // the frame is copied to the canvas, and within the box round the inside (a scissor: no other pixel pays for
-  // it) blurred by a Gaussian of the given sigma (canvas pixels), weighted by twice the blurred mark, at most 1.
+  // the frame is drawn off screen with the inside marked by an alpha of 254/255 (the face there is opaque); it is
+  // copied to the canvas and, within the box round the inside (a scissor: no other pixel pays for it), blurred
+  // by a Gaussian of the given sigma (canvas pixels), weighted by twice the blurred mark, at most 1.
   const SOFTEN_VERTEX = `
     attribute vec2 corner;
     void main() { gl_Position = vec4(corner, 0.0, 1.0); }`;
