@@ -65,6 +65,7 @@ evaluate: $(STAMP)
 	$(BIN)/python -m experiments.live_loco
 	$(BIN)/python -m experiments.brows_heads
 	$(BIN)/python -m experiments.mouth_loco
+	$(BIN)/python -m experiments.phone_loop_weight
 	$(BIN)/python -m experiments.viseme_fit
 	$(BIN)/python -m experiments.live_mouth_loso
 	$(BIN)/python -m experiments.live_mouth_videos_loso
