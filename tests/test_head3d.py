@@ -465,3 +465,18 @@ def test_the_teeth_are_shaded_as_in_a_mouth_darker_at_the_corners_and_the_gums()
         assert share[middle & gum] == pytest.approx(TEETH_GUM_SHADE)
         corners = np.abs(x) == np.abs(x).max()
         np.testing.assert_allclose(share[corners & ~gum], TEETH_CORNER_SHADE, rtol=1e-6)
+
+
+def test_a_light_gain_above_one_brightens_towards_white_without_clipping() -> None:
+    """The photo head's relighting (prosody.head.raster.lit): below a gain of 1 a value darkens in proportion;
+    above it, a value moves towards white by its gain's share of the room left, so bright skin keeps its detail."""
+    from prosody.head.raster import lit
+
+    assert lit(0.5, 0.8) == pytest.approx(0.4)
+    assert lit(0.7, 1.0) == pytest.approx(0.7)
+    assert lit(0.9, 1.4) == pytest.approx(0.9 + 0.1 * (1 - math.exp(-3.6)))  # 0.997, where 0.9 x 1.4 clips
+    assert lit(0.02, 1.4) == pytest.approx(0.028, rel=0.01)  # dark values gain as they would linearly
+    values = np.linspace(0.0, 1.0, 101)
+    out = np.array([lit(v, 1.4) for v in values])
+    assert np.all(np.diff(out) >= 0) and np.all(np.diff(out[:90]) > 0)  # rising (to 1.0 in floats at the top)
+    assert out.max() <= 1.0 and np.all(out >= values)

@@ -195,12 +195,20 @@
     precision mediump float;
     uniform sampler2D image;
     uniform vec3 light0; uniform vec3 light1; uniform vec4 strengths; uniform float shininess;
-    varying vec3 vNormal; varying vec3 vColor; varying vec2 vUV; varying float vTextured; varying float vGain;
+    varying vec3 vNormal; varying vec3 vColor; varying vec2 vUV; varying float vGain;
+    varying float vTextured;
+    // a light gain as PhotoRenderer's rasteriser applies it (prosody/head/raster.py, lit): above 1 each value
+    // moves towards white by a share of the room it has left, so nothing clips
+    vec3 lit(vec3 value, float gain) {
+      if (gain <= 1.0) return value * gain;
+      vec3 room = max(1.0 - value, vec3(1e-4));
+      return min(value + room * (1.0 - exp(-(gain - 1.0) * value / room)), vec3(1.0));
+    }
     void main() {
       // the photo's alpha is the person's coverage: round the outline the background behind the canvas shows
       if (vTextured > 0.5) {
         vec4 t = texture2D(image, vUV);
-        gl_FragColor = vec4(min(t.rgb * vGain, vec3(1.0)) * t.a, t.a);
+        gl_FragColor = vec4(lit(t.rgb, vGain) * t.a, t.a);
         return;
       }
       vec3 n = normalize(vNormal);
