@@ -350,7 +350,7 @@ def _grabcut(cv2, small: np.ndarray, points: np.ndarray, *, grow: float, seed: i
                                                                               < 0.22 * face_w)
     mask[neck] = cv2.GC_FGD
     bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
-    cv2.setRNGSeed(seed)  # GrabCut's k-means starts from OpenCV's global generator: the same mask every time
+    cv2.setRNGSeed(seed)  # GrabCut's k-means starts from OpenCV's generator (this thread's): the same mask each time
     try:
         cv2.grabCut(cv2.cvtColor(small, cv2.COLOR_RGB2BGR), mask, None, bgd, fgd, 4, cv2.GC_INIT_WITH_MASK)
     except cv2.error:  # a flat image: every likely pixel stays as started
