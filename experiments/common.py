@@ -64,6 +64,20 @@ def shipped_settings() -> dict:
 RESULTS = REPO / "results"
 
 
+@contextlib.contextmanager
+def phone_loop_settings(**settings):
+    """The phone loop (``audio_features.phones``) with ``settings`` over its shipped ones, put back after."""
+    from audio_features import phones
+
+    saved = dict(phones.PHONE_LOOP_SETTINGS)
+    phones.PHONE_LOOP_SETTINGS.update(settings)
+    try:
+        yield
+    finally:
+        phones.PHONE_LOOP_SETTINGS.clear()
+        phones.PHONE_LOOP_SETTINGS.update(saved)
+
+
 def data_digest(paths: Iterable[Path]) -> str:
     """SHA-256 over every file under ``paths`` (relative name and content, in sorted order): which data a
     result was measured on, whatever its folders are called on another machine."""

@@ -27,7 +27,7 @@ from collections import defaultdict
 import numpy as np
 
 from audio_features import phones
-from experiments.common import data_folder, record, talking_heads
+from experiments.common import data_folder, phone_loop_settings, record, talking_heads
 from experiments.mouth_loco import measured
 from experiments.mouth_videos_loso import cell, load_clips
 from experiments.viseme_fit import _mouth, _speaker_r, fitting_clips, held_out_visemes
@@ -43,14 +43,9 @@ BEFORE = 2.0
 def scored(videos: list[dict], **settings: float) -> dict[str, list]:
     """Per speaker, the measures of each clip's lips (phones recognised with ``settings``, openings fitted on
     the other speakers)."""
-    shipped = dict(phones.PHONE_LOOP_SETTINGS)
-    phones.PHONE_LOOP_SETTINGS.update(settings)
-    try:
-        fresh = [{key: value for key, value in clip.items() if key not in ("phones", "lag")} for clip in videos]
-        clips = fitting_clips(fresh)
-    finally:
-        phones.PHONE_LOOP_SETTINGS.clear()
-        phones.PHONE_LOOP_SETTINGS.update(shipped)
+    with phone_loop_settings(**settings):
+        clips = fitting_clips([{key: value for key, value in clip.items() if key not in ("phones", "lag")}
+                               for clip in videos])
     held = held_out_visemes(clips)
     rows: dict[str, list] = defaultdict(list)
     for clip in clips:

@@ -30,7 +30,7 @@ import numpy as np
 
 import audio_features.phones as phones
 from audio_features import extract_features, load_audio
-from experiments.common import data_folder, record
+from experiments.common import data_folder, phone_loop_settings, record
 from experiments.mouth_videos_loso import FPS, load_clips, measured, summary_table
 from prosody.fap.recorded import read_mouth_csv
 from prosody.motion.face.lips import inner_opening, shape_faps, shapes_from_phones
@@ -44,14 +44,9 @@ FIXED_WARPS = (1.1, 1.2, 1.3)
 @contextlib.contextmanager
 def warped(alpha: float | None):
     """The phone loop with its front end's frequency axis divided by ``alpha`` (None: as shipped)."""
-    saved = dict(phones.PHONE_LOOP_SETTINGS)
-    if alpha is not None:
-        phones.PHONE_LOOP_SETTINGS.update(warp_type="inverse_linear", warp_params=f"{alpha:.3f}")
-    try:
+    with phone_loop_settings(**({} if alpha is None else {"warp_type": "inverse_linear",
+                                                         "warp_params": f"{alpha:.3f}"})):
         yield
-    finally:
-        phones.PHONE_LOOP_SETTINGS.clear()
-        phones.PHONE_LOOP_SETTINGS.update(saved)
 
 
 def pitch_warp(audio) -> float:
