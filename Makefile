@@ -56,6 +56,7 @@ bench: $(STAMP)
 	$(BIN)/python -m benchmarks.deps_bench
 
 evaluate: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[evaluate]'
 	$(BIN)/python -m experiments.head_loco
 	$(BIN)/python -m experiments.head_loso
 	$(BIN)/python -m experiments.pad_fit
@@ -71,6 +72,7 @@ evaluate: $(STAMP)
 	$(BIN)/python -m experiments.live_mouth_videos_loso
 	$(BIN)/python -m experiments.head_loop
 	$(BIN)/python -m experiments.photo_loop
+	$(BIN)/python -m experiments.expression_reading
 	$(BIN)/python -m experiments.likeness
 	$(BIN)/python -m experiments.mouth_ruler
 	$(BIN)/python -m experiments.mouth_videos_loso

@@ -336,7 +336,9 @@ def test_the_mouth_at_rest_is_straight_and_joy_and_sadness_bend_it_their_ways():
     joy = {fap: value for fap, value in EXPRESSIONS["joy"].items() if fap in (4, 5, 6, 7, 12, 13)}
     assert bend(joy) == pytest.approx(240 * mns)  # the corners rise by FAP 12/13, the middle stays
     sad = {fap: value for fap, value in EXPRESSIONS["sadness"].items() if fap in (4, 5, 6, 7, 12, 13)}
-    assert bend(sad) == pytest.approx(-80 * mns)
+    # the corners fall by FAP 12/13; the middle moves by half of the upper lip's fall (4) and the lower's rise (5)
+    middle = (-sad.get(4, 0.0) + sad.get(5, 0.0)) / 2
+    assert sad[12] < 0 and bend(sad) == pytest.approx((sad[12] - middle) * mns)
 
 
 def test_a_csv_export_is_refused_with_what_preview_reads(tmp_path: Path, capsys) -> None:

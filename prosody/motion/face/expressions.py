@@ -2,11 +2,14 @@
 the lips (Wu et al.'s superposition; Jia et al.'s Eq. 14).
 
 The targets in :data:`EXPRESSIONS` (intensity 1) are ours: set from the MPEG-4 standard's description of its
-six expressions (FAP 2's table: joy, sadness, anger, fear, disgust, surprise) and the facial action units
-that carry them, with magnitudes of a clearly visible but not extreme display (a surprised brow rises about
-7 mm: 200 ENS; a smile lifts the lip corners about 4 mm: 240 MNS, and draws them back about 5 mm: 100 MW).
-Wu et al. (2006) matched its targets to JAFFE photographs without publishing them; these are not fitted to any
-recording.
+six expressions (FAP 2's table: joy, sadness, anger, fear, disgust, surprise) and the facial action units of
+Ekman and Friesen's prototypes that carry them, at the size of a clear, posed display rather than a faint one:
+a surprised brow rises about 6 mm (200 ENS) over a jaw dropped about 10 mm (600 MNS); an angry brow falls about
+8 mm at its inner end (260 ENS) and is drawn in; a sad mouth's corners fall about 4 mm (240 MNS), as far as a
+smile lifts them; disgust raises the upper lip about 4 mm. Wu et al. (2006) matched its targets to JAFFE
+photographs without publishing them; these are not fitted to any recording. They were set looking at four heads
+and checked on 23 others by an emotion classifier trained on people's photographs (``experiments/
+expression_reading.py``, in docs/evaluation.md).
 
 Over time (:func:`expression_curves`), each segment (start, end, expression, intensity) has the dominance of
 :func:`prosody.motion.face.lips.dominance` (1 inside it, decaying at :data:`ONSET_THETA` per second outside), and a
@@ -38,21 +41,25 @@ EXPRESSIONS: dict[str, dict[int, float]] = {
     # AU6 + AU12: cheeks raised, lip corners up and back, lower eyelids pushed up, brows relaxed
     "joy": {12: 240, 13: 240, 59: 240, 60: 240, 6: 100, 7: 100, 53: 100, 54: 100, 41: 100, 42: 100, 21: 100,
             22: 100, 3: 40},
-    # AU1 + AU4 + AU15 (+ AU17): inner brows up, lids drooping, corners down, chin raised
-    "sadness": {31: 90, 32: 90, 33: 20, 34: 20, 35: -40, 36: -40, 19: 150, 20: 150, 12: -80, 13: -80, 59: -80,
-                60: -80, 18: 60},
-    # AU4 + AU5 + AU7 + AU24: brows down and together, eyes staring, lids tense, lips pressed
-    "anger": {31: -120, 32: -120, 33: -60, 34: -60, 37: 60, 38: 60, 19: -60, 20: -60, 21: 80, 22: 80, 4: 30, 5: 30,
-              12: -30, 13: -30, 59: -30, 60: -30},
-    # AU1 + AU2 + AU4 + AU5 + AU20 + AU26: brows up and together, eyes wide, lips stretched, jaw dropped
-    "fear": {31: 150, 32: 150, 33: 90, 34: 90, 35: 40, 36: 40, 37: 40, 38: 40, 19: -120, 20: -120, 6: 80, 7: 80,
-             53: 80, 54: 80, 3: 80},
-    # AU9 + AU10 (+ AU4): nose wrinkled, upper lip raised, cheeks up, brows lowered
-    "disgust": {4: -80, 8: -60, 9: -60, 51: -80, 55: -60, 56: -60, 41: 60, 42: 60, 63: 40, 31: -40, 32: -40,
-                33: -40, 34: -40, 21: 60, 22: 60, 12: -40, 13: -40, 59: -40, 60: -40},
+    # AU1 + AU4 + AU15 + AU17: inner brows up and drawn together, lids drooping, corners down, chin raised
+    "sadness": {31: 120, 32: 120, 33: 20, 34: 20, 35: -60, 36: -60, 37: 50, 38: 50, 19: 150, 20: 150,
+                12: -240, 13: -240, 59: -240, 60: -240, 18: 120, 5: 40, 52: 40},
+    # AU4 + AU5 + AU7 + AU23/24: brows down and together, eyes staring, lower lids tense, lips pressed and narrowed
+    "anger": {31: -260, 32: -260, 33: -160, 34: -160, 35: -80, 36: -80, 37: 110, 38: 110, 19: -120, 20: -120,
+              21: 150, 22: 150, 4: 60, 5: 60, 51: 40, 52: 40, 6: -40, 7: -40, 53: -40, 54: -40,
+              12: -60, 13: -60, 59: -60, 60: -60},
+    # AU1 + AU2 + AU4 + AU5 + AU20 + AU26: brows up and together, eyes wide, lips stretched sideways and down,
+    # jaw dropped
+    "fear": {31: 170, 32: 170, 33: 100, 34: 100, 35: 40, 36: 40, 37: 70, 38: 70, 19: -240, 20: -240,
+             6: 140, 7: 140, 53: 140, 54: 140, 12: -60, 13: -60, 59: -60, 60: -60, 3: 200, 4: -60, 5: -80,
+             51: -60, 52: -80},
+    # AU9 + AU10 (+ AU4, AU15): nose wrinkled, upper lip raised, cheeks up, lower lids up, brows lowered
+    "disgust": {4: -240, 8: -220, 9: -220, 51: -240, 55: -220, 56: -220, 41: 120, 42: 120, 63: 100, 61: 40,
+                62: 40, 31: -100, 32: -100, 33: -80, 34: -80, 37: 40, 38: 40, 21: 120, 22: 120,
+                12: -80, 13: -80, 59: -80, 60: -80},
     # AU1 + AU2 + AU5 + AU26: brows high, upper lids wide open, jaw dropped
-    "surprise": {31: 200, 32: 200, 33: 200, 34: 200, 35: 150, 36: 150, 19: -150, 20: -150, 3: 250, 4: -40, 5: -60,
-                 51: -40, 52: -60},
+    "surprise": {31: 200, 32: 200, 33: 200, 34: 200, 35: 150, 36: 150, 19: -220, 20: -220, 3: 600, 4: -60, 5: -100,
+                 51: -60, 52: -100},
 }
 #: Decay rate of an expression's dominance outside its segment, 1/s.
 ONSET_THETA = 8.0
