@@ -293,7 +293,7 @@ def expression_table(held: list[dict], tuned: list[dict]) -> None:
         own = [label == READS_AS[name] for label, _, _ in seen]
         outright = [label == READS_AS[name] and top for label, top, _ in seen]
         others = [label for label, _, _ in seen if label != READS_AS[name]]
-        instead = max(set(others), key=others.count) if others else "-"
+        instead = max(CLASSES, key=others.count) if others else "-"  # ties: the first in the classifier's order
         looked = [reads_as(readings, name)[0] == READS_AS[name] for readings in tuned]
         hits += own
         print(f"| {name} | {sum(own)} of {len(own)} ({100 * np.mean(own):.0f} %) | {sum(outright)} of {len(own)} "
