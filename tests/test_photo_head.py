@@ -355,3 +355,40 @@ def test_the_person_mask_does_not_flip_when_the_face_moves_by_a_pixel(shared_dat
     for shift in ((0.5, 0.5), (-0.7, 0.3), (0.3, -0.8), (1.0, 0.0)):
         moved = person_mask(frame, landmarks + np.array([*shift, 0.0]))
         assert np.mean(moved != mask) < 0.02 * mask.mean(), shift
+
+
+def test_each_expression_moves_the_action_units_a_face_model_reads_in_people(head) -> None:
+    """Ekman and Friesen's prototypes, read back by MediaPipe's blendshapes (a model of people's faces, not of
+    ours) on a photo head at intensity 1: the brow lowerer (AU4) rises most in anger, the lip stretcher (AU20) in
+    fear, the jaw drop (AU26) in surprise, each by at least 0.1 of its scale; the lip corner puller (AU12) rises in
+    joy, more than in the expressions whose lips stay closed; sadness raises the inner brow (AU1), not the outer
+    (AU2). Disgust's units (AU9, AU10) barely register on any head and are left out."""
+    from prosody.head.landmarks import landmarker
+    from prosody.motion.face.expressions import EXPRESSIONS
+
+    units = {"AU1": ("browInnerUp",), "AU2": ("browOuterUpLeft", "browOuterUpRight"),
+             "AU4": ("browDownLeft", "browDownRight"), "AU12": ("mouthSmileLeft", "mouthSmileRight"),
+             "AU20": ("mouthStretchLeft", "mouthStretchRight"), "AU26": ("jawOpen",)}
+    renderer = PhotoRenderer(head)
+    detector, mediapipe = landmarker(video=False, max_faces=1, blendshapes=True)
+    try:
+        def read(values: np.ndarray) -> dict[str, float]:
+            frame = np.ascontiguousarray(renderer.render(values))
+            found = detector.detect(mediapipe.Image(image_format=mediapipe.ImageFormat.SRGB, data=frame))
+            scores = {shape.category_name: shape.score for shape in found.face_blendshapes[0]}
+            return {unit: float(np.mean([scores[name] for name in names])) for unit, names in units.items()}
+
+        rest = read(np.zeros(68))
+        rises = {}
+        for name, targets in EXPRESSIONS.items():
+            shown = read(_values(**{f"f{fap}": value for fap, value in targets.items()}))
+            rises[name] = {unit: shown[unit] - rest[unit] for unit in units}
+    finally:
+        detector.close()
+    for name, unit in (("anger", "AU4"), ("fear", "AU20"), ("surprise", "AU26")):
+        assert rises[name][unit] >= 0.1, (name, unit, rises[name])
+        assert all(rises[name][unit] > rises[other][unit] for other in rises if other != name), (name, unit, rises)
+    # the model reads any widened mouth as a little smile (fear's stretched lips, surprise's open jaw)
+    assert rises["joy"]["AU12"] >= 0.2
+    assert all(rises["joy"]["AU12"] > rises[other]["AU12"] + 0.1 for other in ("sadness", "anger", "disgust"))
+    assert rises["sadness"]["AU1"] >= 0.1 and rises["sadness"]["AU2"] < 0.05, rises["sadness"]
