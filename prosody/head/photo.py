@@ -78,8 +78,10 @@ MAX_TURN_DEG = 30.0
 LIPS_APART = 0.08
 #: The share of the landmarker's depth kept in the fitted face (the rest is the canonical face's).
 DEPTH_TRUST = 0.0
-#: The person's grid follows the face's skin within the face and fades out this far outside it (cm).
-SKIN_FOLLOW_CM = 1.5
+#: The person's grid follows the face's skin within the face and fades out this far outside it (cm): the skin
+#: under the chin goes down with the jaw over about 3 cm of the neck, not the collar. A steeper fade (1.5 cm)
+#: bent the grid's cells under an opening jaw, and the photo's chin line showed as a saw-tooth.
+SKIN_FOLLOW_CM = 3.0
 #: The motion is seen as by a camera this far from the face (a video call's distance), laid over the photo's
 #: framing: the tracker reads turns rendered without perspective at 0.55-0.7 of their size, with it 0.7-1.2.
 CAMERA_DISTANCE_CM = 60.0
