@@ -73,6 +73,7 @@ evaluate: $(STAMP)
 	$(BIN)/python -m experiments.head_loop
 	$(BIN)/python -m experiments.photo_loop
 	$(BIN)/python -m experiments.expression_reading
+	$(BIN)/python -m experiments.chin_line
 	$(BIN)/python -m experiments.likeness
 	$(BIN)/python -m experiments.mouth_ruler
 	$(BIN)/python -m experiments.mouth_videos_loso

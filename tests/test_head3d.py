@@ -480,3 +480,18 @@ def test_a_light_gain_above_one_brightens_towards_white_without_clipping() -> No
     out = np.array([lit(v, 1.4) for v in values])
     assert np.all(np.diff(out) >= 0) and np.all(np.diff(out[:90]) > 0)  # rising (to 1.0 in floats at the top)
     assert out.max() <= 1.0 and np.all(out >= values)
+
+
+def test_jaggedness_sees_a_saw_tooth_along_an_edge_and_not_the_edge_itself() -> None:
+    from prosody.evaluation.head_loop import jaggedness
+
+    rows, columns = np.mgrid[0:80, 0:200]
+    straight = np.where(rows < 40, 200.0, 50.0)
+    tooth = 40 + 3 * (np.abs((columns % 8) - 4) - 2)  # an edge 40 +- 6 px, 8 px in pitch
+    jagged = np.where(rows < tooth, 200.0, 50.0)
+    along = np.column_stack([np.linspace(20, 180, 9), np.full(9, 40.0)])
+    image = lambda grey: np.repeat(grey[..., None], 3, axis=2)  # noqa: E731
+    assert jaggedness(image(straight), along) == pytest.approx(0.0, abs=1e-9)
+    assert jaggedness(image(jagged), along) > 10.0
+    # nor does a uniform image
+    assert jaggedness(image(np.full((80, 200), 90.0)), along) == pytest.approx(0.0, abs=1e-9)

@@ -394,40 +394,18 @@ def test_each_expression_moves_the_action_units_a_face_model_reads_in_people(hea
     assert rises["sadness"]["AU1"] >= 0.1 and rises["sadness"]["AU2"] < 0.05, rises["sadness"]
 
 
-def _along_the_chin(frame: np.ndarray, points: np.ndarray) -> float:
-    """How jagged ``frame`` is along the curve ``points`` (x, y pixels): the mean absolute high-pass (the grey
-    level less its Gaussian smoothing over 4 px along the curve) on 17 curves parallel to it, 8 px either side."""
-    from scipy.ndimage import gaussian_filter1d, map_coordinates
-
-    grey = frame.astype(float) @ np.array([0.299, 0.587, 0.114])
-    lengths = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(points, axis=0).T))])
-    at = np.arange(0.0, lengths[-1], 1.0)
-    x, y = np.interp(at, lengths, points[:, 0]), np.interp(at, lengths, points[:, 1])
-    dx, dy = np.gradient(x), np.gradient(y)
-    norm = np.hypot(dx, dy) + 1e-9
-    rows = [map_coordinates(grey, [y - d * dx / norm, x + d * dy / norm], order=1, mode="nearest")
-            for d in range(-8, 9)]
-    return float(np.mean([np.abs(row - gaussian_filter1d(row, 4)).mean() for row in rows]))
-
-
 def test_an_opening_jaw_keeps_the_chin_line_smooth(head) -> None:
     """The jaw at 600 MNS (a wide-open mouth), alone and with a roll of 7 degrees, adds under 0.4 grey levels of
     jaggedness along the chin's outline (its lower half, below the mouth's corners), against the same measure at
     rest. Where the person's grid beneath stopped following the jaw within 1.5 cm, its cells bent and the chin
     line showed as a saw-tooth: 1.0 grey levels here, 0.2-0.3 on photos of people."""
-    from prosody.head.mesh import face_outline
+    from prosody.evaluation.head_loop import chin_arc, jaggedness
 
-    loop = list(face_outline())
-    rest_y = head.rig.mesh.vertices[:, 1]
-    order = [k for k in range(len(loop)) if rest_y[loop[k]] < rest_y[61]]
-    start = next(k for k in range(len(order)) if (order[k] - order[k - 1]) % len(loop) != 1)
-    arc = [loop[k] for k in order[start:] + order[:start]]  # the lower half of the loop, in its order
-    renderer = PhotoRenderer(head)
+    arc, renderer = chin_arc(head), PhotoRenderer(head)
 
-    def jaggedness(values: np.ndarray) -> float:
-        points = renderer._frame(values)[0][:, :2] / renderer.supersample
-        return _along_the_chin(renderer.render(values), points[arc])
+    def along_the_chin(values: np.ndarray) -> float:
+        return jaggedness(renderer.render(values), renderer.pixels(values)[arc])
 
-    rest = jaggedness(np.zeros(68))
-    assert jaggedness(_values(f3=600)) - rest < 0.4
-    assert jaggedness(_values(f3=600, f50=_degrees(7))) - rest < 0.4
+    rest = along_the_chin(np.zeros(68))
+    assert along_the_chin(_values(f3=600)) - rest < 0.4
+    assert along_the_chin(_values(f3=600, f50=_degrees(7))) - rest < 0.4

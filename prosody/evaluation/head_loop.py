@@ -8,6 +8,9 @@ the tracked brow heights with the raises, and the share of frames where the face
 
 Pass marks (issue 37): |r| >= 0.9 per head axis with a spread ratio in 0.75-1.33, r >= 0.9 for the lips,
 r >= 0.8 for the brows, the face found in >= 98 % of frames.
+
+What the loop cannot see, a drawn frame can show: :func:`jaggedness` measures how jagged a frame is along a curve,
+such as the chin's outline (:func:`chin_arc`) of a photo head whose jaw opens.
 """
 
 from __future__ import annotations
@@ -28,6 +31,10 @@ from ..motion.face.lips import MNS_PER_EYE_WIDTH, inner_opening
 PERIODS_S = {"pitch": 4.1, "yaw": 5.3, "roll": 3.3, "jaw": 1.7, "brows": 2.3}
 AMPLITUDES = {"pitch": 10.0, "yaw": 15.0, "roll": 8.0, "jaw": 500.0, "brows": 250.0}
 PASS_HEAD_R, PASS_SPREAD, PASS_LIPS_R, PASS_BROWS_R, PASS_FOUND = 0.9, (0.75, 1.33), 0.9, 0.8, 0.98
+#: :func:`jaggedness`: the smoothing along the curve, and how far either side of it the parallel curves go (px).
+JAGGED_SMOOTHING_PX, JAGGED_REACH_PX = 4.0, 8
+#: A landmark at a mouth corner: :func:`chin_arc` is the outline below it.
+MOUTH_CORNER = 61
 
 
 def known_motion(duration_s: float, *, fps: float = 30.0, amplitudes: dict[str, float] | None = None) -> FapStream:
@@ -130,3 +137,34 @@ def measure(stream: FapStream, stem: str | Path) -> LoopResult:
     return LoopResult(head_r, head_spread, lips_r, brows_r, float(found.mean()), n, max(crosstalk),
                       lips_gain=slope(opening, mouth["lip_opening"] / MNS_PER_EYE_WIDTH * 1024.0),
                       brows_gain=slope(stream.curve(31), inner_brow * ENS_PER_EYE_WIDTH))
+
+
+def chin_arc(head) -> list[int]:
+    """The lower half of a head's face outline (the landmark numbers below the mouth's corners at rest), in the
+    outline's order from one side of the jaw round the chin to the other."""
+    from ..head.mesh import face_outline
+
+    loop = list(face_outline())
+    rest_y = head.rig.mesh.vertices[:, 1]
+    lower = [k for k in range(len(loop)) if rest_y[loop[k]] < rest_y[MOUTH_CORNER]]
+    start = next(k for k in range(len(lower)) if (lower[k] - lower[k - 1]) % len(loop) != 1)
+    return [loop[k] for k in lower[start:] + lower[:start]]
+
+
+def jaggedness(frame: np.ndarray, points: np.ndarray) -> float:
+    """How jagged ``frame`` (RGB) is along the curve through ``points`` (x, y pixels): the mean absolute grey level
+    that a Gaussian smoothing over :data:`JAGGED_SMOOTHING_PX` along the curve takes off, on the curves parallel to
+    it up to :data:`JAGGED_REACH_PX` either side. A saw-tooth along an edge raises it; the edge itself, crossing
+    the curves, does not."""
+    from scipy.ndimage import gaussian_filter1d, map_coordinates
+
+    grey = np.asarray(frame, float) @ np.array([0.299, 0.587, 0.114])
+    points = np.asarray(points, float)
+    lengths = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(points, axis=0).T))])
+    at = np.arange(0.0, lengths[-1], 1.0)
+    x, y = np.interp(at, lengths, points[:, 0]), np.interp(at, lengths, points[:, 1])
+    dx, dy = np.gradient(x), np.gradient(y)
+    norm = np.hypot(dx, dy) + 1e-9
+    rows = [map_coordinates(grey, [y - d * dx / norm, x + d * dy / norm], order=1, mode="nearest")
+            for d in range(-JAGGED_REACH_PX, JAGGED_REACH_PX + 1)]
+    return float(np.mean([np.abs(row - gaussian_filter1d(row, JAGGED_SMOOTHING_PX)).mean() for row in rows]))

@@ -853,6 +853,11 @@ class PhotoRenderer:
                                   self._far + (self._behind - points[:, 2]) * s])
         return screen, normals, colors
 
+    def pixels(self, values: np.ndarray) -> np.ndarray:
+        """Where every drawn vertex (the head's, then the person layer's) is in the frame of one frame's FAP
+        values (68): x, y in pixels from the top-left corner."""
+        return self._frame(np.asarray(values, float))[0][:, :2] / self.supersample
+
     def _changed_window(self, screen: np.ndarray) -> tuple[int, int, int, int]:
         """The pixel rows and columns (top, bottom, left, right) outside which the frame is the rest frame: the
         box round the triangles that any FAP can move or relight, where they are and where they were."""
