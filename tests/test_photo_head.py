@@ -203,6 +203,19 @@ def test_lips_apart_and_several_faces_are_said_in_notes(render_photo) -> None:
     pair = np.concatenate([render_photo[60:420], small], axis=1)
     notes = photo_head(pair).notes
     assert any(note.startswith("2 faces in the photo: the largest is used") for note in notes), notes
+    shut = HeadRenderer(480, 480).render(_values(f19=1500, f20=1500, f21=300, f22=300))
+    assert any("eyes are closed" in note for note in photo_head(shut).notes)
+    assert not any("eyes" in note for note in photo_head(render_photo).notes)
+
+
+def test_how_open_the_eyes_are_is_read_from_the_landmarks(render_photo) -> None:
+    from prosody.head.landmarks import faces_in_image
+    from prosody.head.photo import EYES_CLOSED, eye_opening
+
+    shut = HeadRenderer(480, 480).render(_values(f19=1500, f20=1500, f21=300, f22=300))
+    wide = HeadRenderer(480, 480).render(_values(f19=-300, f20=-300))
+    rest, closed, opened = (eye_opening(faces_in_image(frame)[0]) for frame in (render_photo, shut, wide))
+    assert closed < EYES_CLOSED < rest < opened
 
 
 def test_large_photos_are_scaled_down_and_exif_turned(tmp_path: Path, render_photo) -> None:

@@ -76,6 +76,9 @@ MIN_FACE_PIXELS = 80
 MAX_TURN_DEG = 30.0
 #: Lips apart by more than this fraction of the mouth's width: said in a note (a closed mouth animates best).
 LIPS_APART = 0.08
+#: Eyes open less than this fraction of their width (the lids' gap over the corners' distance, both eyes' mean;
+#: open eyes measure about 0.3, a blink under 0.1): said in a note.
+EYES_CLOSED = 0.12
 #: The share of the landmarker's depth kept in the fitted face (the rest is the canonical face's).
 DEPTH_TRUST = 0.0
 #: The person's grid follows the face's skin within the face and fades out this far outside it (cm): the skin
@@ -149,7 +152,7 @@ class PhotoHead:
     coverage : float32 (height, width), how much of each pixel the person's layer covers: 1 over the person
         and a few pixels round it (:data:`EDGE_GROW`), fading to 0 beyond; where it is below 1 the filled
         background shows through, so the grid's cells round the outline carry no background with them.
-    notes : things worth telling the user (several faces, lips apart, scaled down).
+    notes : things worth telling the user (several faces, lips apart, eyes closed, scaled down).
     """
 
     name: str
@@ -403,6 +406,16 @@ def fill_background(image: np.ndarray, person: np.ndarray, *, margin_px: int) ->
 # building the photo head
 
 
+def eye_opening(landmarks: np.ndarray) -> float:
+    """How open a face's eyes are in its landmarks (478, 2+): the gap between the lids over the distance between
+    the eye's corners, the two eyes' mean (open eyes about 0.3, closed under 0.1)."""
+    def one(upper: int, lower: int, outer: int, inner: int) -> float:
+        width = float(np.linalg.norm(landmarks[outer, :2] - landmarks[inner, :2]))
+        return float(np.linalg.norm(landmarks[upper, :2] - landmarks[lower, :2])) / max(width, 1e-9)
+
+    return (one(159, 145, 33, 133) + one(386, 374, 263, 362)) / 2
+
+
 def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None = None) -> PhotoHead:
     """The head of the person in ``photo`` (a JPEG or PNG path, or an RGB uint8 array).
 
@@ -410,7 +423,7 @@ def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None =
     ------
     PhotoError
         No face, a face too small or turned too far, an unreadable or too large image, or the track extra
-        missing; several faces and lips apart are said in :attr:`PhotoHead.notes`.
+        missing; several faces, lips apart and eyes closed are said in :attr:`PhotoHead.notes`.
     """
     from ..errors import TrackingError
 
@@ -445,6 +458,9 @@ def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None =
     width_lips = float(np.linalg.norm(landmarks[61, :2] - landmarks[291, :2]))
     if gap > LIPS_APART * width_lips:
         notes.append("the lips are apart in the photo: they close at rest, and a closed-mouth photo animates best")
+    if eye_opening(landmarks) < EYES_CLOSED:
+        notes.append("the eyes are closed or nearly so in the photo: they cannot open wider than it shows them, and "
+                     "a photo with open eyes animates best")
 
     from .mesh import build_head
 
