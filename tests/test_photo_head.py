@@ -252,6 +252,7 @@ def test_preview_face_photo_makes_a_video_of_the_photos_size(tmp_path: Path, ren
     assert not (tmp_path / "y.gif").exists()
 
 
+@pytest.mark.slow  # builds a head of its own photo: 1.6-1.9 s of processor time on an idle machine
 @pytest.mark.parametrize("pitch", [9, -9])
 def test_a_head_cut_by_the_photos_top_stays_a_head_when_it_nods(render_photo, pitch) -> None:
     """A photo whose top edge cuts the hair: the person's grid goes on past the edge with the edge's own
@@ -267,6 +268,7 @@ def test_a_head_cut_by_the_photos_top_stays_a_head_when_it_nods(render_photo, pi
     assert background_now.sum() <= 0.05 * top.sum()
 
 
+@pytest.mark.slow  # builds a head of its own photo: 1.6-1.9 s of processor time on an idle machine
 def test_a_beard_does_not_grey_the_teeth(render_photo, head) -> None:
     """The teeth and the mouth's inside are drawn in the photo's light, read from the face's brighter skin: a
     dark beard over the lower face (the same light) leaves it nearly as it was, where the face's median
@@ -282,6 +284,7 @@ def test_a_beard_does_not_grey_the_teeth(render_photo, head) -> None:
     assert dark >= 0.9 * plain
 
 
+@pytest.mark.slow  # builds a head of its own photo: 1.6-1.9 s of processor time on an idle machine
 def test_a_turned_head_carries_no_strip_of_background_with_it(render_photo) -> None:
     """The canonical head photographed before a green and magenta checkerboard, turned 15 degrees and nodded 9:
     the background's colours seen where the still background has something else are the background carried
