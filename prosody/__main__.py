@@ -26,20 +26,35 @@ def main() -> int:
 
     Once the command has finished, Ctrl-C is ignored: the work is done and said, and an interrupt during the
     interpreter's own shutdown would otherwise end the process by SIGINT instead of the command's exit code."""
+    heard: list[int] = []
     try:
-        from .cli.app import main as command
+        import signal
+
+        def interrupt(signum, frame) -> None:
+            heard.append(signum)
+            raise KeyboardInterrupt
+
+        # while the modules load, an interrupt is also remembered: a compiled module that Ctrl-C stopped may
+        # report it as an ImportError of its own that does not name the interrupt (NumPy: "PyCapsule_Import
+        # could not import module datetime")
+        try:
+            previous = signal.signal(signal.SIGINT, interrupt)
+        except ValueError:  # not the main thread: no handler of its own
+            previous = None
+        try:
+            from .cli.app import main as command
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
     except KeyboardInterrupt:
         return _interrupted()
     except ImportError as error:
-        # a compiled module whose loading Ctrl-C stopped may report it as an ImportError
-        if "KeyboardInterrupt" not in f"{error!r} {error.__context__!r} {error.__cause__!r}":
+        if not heard and "KeyboardInterrupt" not in f"{error!r} {error.__context__!r} {error.__cause__!r}":
             raise
         return _interrupted()
     try:
         code = command()
     finally:
-        import signal
-
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     return code
 

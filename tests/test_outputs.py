@@ -183,3 +183,31 @@ def test_ctrl_c_at_any_moment_of_the_start_says_interrupted(tmp_path) -> None:
         assert "Traceback" not in err and process.returncode in (0, 130), (k, process.returncode, err)
         if process.returncode == 130:
             assert err.strip().endswith("interrupted"), err
+
+
+def test_ctrl_c_that_a_compiled_module_reports_as_an_import_error_says_interrupted() -> None:
+    """NumPy stopped by Ctrl-C while it loads raises an ImportError of its own ("PyCapsule_Import could not import
+    module datetime") that does not name the interrupt: the command still ends with "interrupted" and 130. Here
+    the command's import sends the interrupt to its own process and turns it into such an error."""
+    import subprocess
+    import sys
+
+    from conftest import REPO
+
+    program = """
+import os, signal, sys, time
+class Stopped:
+    def find_spec(self, name, path=None, target=None):
+        if name == "prosody.cli.app":
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(5)
+            except KeyboardInterrupt:
+                pass
+            raise ImportError('PyCapsule_Import could not import module "datetime"')
+sys.meta_path.insert(0, Stopped())
+from prosody.__main__ import main
+sys.exit(main())
+"""
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert (done.returncode, done.stderr.strip()) == (130, "prosody: interrupted"), done.stderr
