@@ -29,7 +29,6 @@ most probable class other than neutral is each one.
 from __future__ import annotations
 
 import argparse
-import csv
 import hashlib
 import subprocess
 import sys
@@ -142,15 +141,16 @@ def unit_reader() -> tuple[Callable[[np.ndarray], dict[str, float] | None], Call
 
 def speakers(videos: Path) -> list[tuple[str, str, Path]]:
     """(speaker, sex, clip) of each speaker's first clip in ``videos_speakers.csv``."""
+    from experiments.mouth_videos_loso import speakers as who_speaks
+
     seen: dict[str, tuple[str, str, Path]] = {}
-    with open(REPO / "experiments" / "videos_speakers.csv", newline="") as handle:
-        for row in csv.DictReader(handle):
-            if row["speaker"] in seen or any(row["clip"].startswith(x) or row["speaker"] == x for x in LEFT_OUT):
-                continue
-            clip = next((videos / f"{row['clip']}{ext}" for ext in (".mp4", ".mpg")
-                         if (videos / f"{row['clip']}{ext}").exists()), None)
-            if clip is not None:
-                seen[row["speaker"]] = (row["speaker"], row["sex"], clip)
+    for row in who_speaks().values():
+        if row["speaker"] in seen or any(row["clip"].startswith(x) or row["speaker"] == x for x in LEFT_OUT):
+            continue
+        clip = next((videos / f"{row['clip']}{ext}" for ext in (".mp4", ".mpg")
+                     if (videos / f"{row['clip']}{ext}").exists()), None)
+        if clip is not None:
+            seen[row["speaker"]] = (row["speaker"], row["sex"], clip)
     return list(seen.values())
 
 
