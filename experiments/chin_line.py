@@ -16,7 +16,6 @@ The fade was chosen looking at the frames of seed 0; the default seed (1) draws 
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import tempfile
 from pathlib import Path
@@ -24,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from experiments.common import data_folder, record
-from experiments.expression_reading import speakers
+from experiments.expression_reading import fap_values, speakers
 from experiments.photo_loop import grab_frame
 
 #: The fade before, in cm.
@@ -33,15 +32,17 @@ BEFORE_CM = 1.5
 
 def conditions() -> dict[str, dict[int, float]]:
     """Name -> FAP values (jaw in MNS, turns in FAP units)."""
-    from prosody.fap.table import RADIANS_PER_AU
+    from prosody.fap.units import AU_PER_DEGREE
 
-    def degrees(value: float) -> float:
-        return math.radians(value) / RADIANS_PER_AU
+    nod, up, turn, roll = 9 * AU_PER_DEGREE, -9 * AU_PER_DEGREE, 14 * AU_PER_DEGREE, 7 * AU_PER_DEGREE
+    return {"jaw 600 MNS": {3: 600}, "and a nod of 9 degrees": {3: 600, 48: nod},
+            "and 9 degrees up": {3: 600, 48: up}, "and a turn of 14 degrees": {3: 600, 49: turn},
+            "and a roll of 7 degrees": {3: 600, 50: roll},
+            "an 'ah': jaw 750, nod 4, turn 5": {3: 750, 48: 4 * AU_PER_DEGREE, 49: 5 * AU_PER_DEGREE}}
 
-    return {"jaw 600 MNS": {3: 600}, "and a nod of 9 degrees": {3: 600, 48: degrees(9)},
-            "and 9 degrees up": {3: 600, 48: degrees(-9)}, "and a turn of 14 degrees": {3: 600, 49: degrees(14)},
-            "and a roll of 7 degrees": {3: 600, 50: degrees(7)},
-            "an 'ah': jaw 750, nod 4, turn 5": {3: 750, 48: degrees(4), 49: degrees(5)}}
+
+def standard_error(values: np.ndarray) -> float:
+    return float(values.std() / np.sqrt(len(values)))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -54,6 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     from prosody.fap.table import N_FAPS
     from prosody.head import photo
 
+    frames = {name: fap_values(faps) for name, faps in conditions().items()}
     shipped = photo.SKIN_FOLLOW_CM
     extra: dict[float, dict[str, list[float]]] = {fade: {} for fade in (BEFORE_CM, shipped)}
     skipped = []
@@ -75,10 +77,7 @@ def main(argv: list[str] | None = None) -> int:
                     photo.SKIN_FOLLOW_CM = shipped
                 rest = np.zeros(N_FAPS)
                 at_rest = jaggedness(renderer.render(rest), renderer.pixels(rest)[arc])
-                for name, faps in conditions().items():
-                    values = np.zeros(N_FAPS)
-                    for fap, value in faps.items():
-                        values[fap - 1] = value
+                for name, values in frames.items():
                     seen = jaggedness(renderer.render(values), renderer.pixels(values)[arc])
                     extra[fade].setdefault(name, []).append(seen - at_rest)
     photos = len(next(iter(extra[shipped].values())))
@@ -89,12 +88,12 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\n| condition | fade {BEFORE_CM:g} cm (before) | fade {shipped:g} cm (shipped) | paired difference "
           "| photos smoother |")
     print("|---|---|---|---|---|")
-    for name in conditions():
+    for name in frames:
         before, now = np.array(extra[BEFORE_CM][name]), np.array(extra[shipped][name])
         difference = now - before
-        spread = lambda values: values.std() / np.sqrt(len(values))  # noqa: E731
-        print(f"| {name} | {before.mean():+.2f} ± {spread(before):.2f} | {now.mean():+.2f} ± {spread(now):.2f} "
-              f"| {difference.mean():+.2f} ± {spread(difference):.2f} | {int((difference < 0).sum())} of "
+        print(f"| {name} | {before.mean():+.2f} ± {standard_error(before):.2f} | {now.mean():+.2f} ± "
+              f"{standard_error(now):.2f} | {difference.mean():+.2f} ± {standard_error(difference):.2f} "
+              f"| {int((difference < 0).sum())} of "
               f"{len(difference)} |")
     return 0
 

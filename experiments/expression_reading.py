@@ -154,14 +154,21 @@ def speakers(videos: Path) -> list[tuple[str, str, Path]]:
     return list(seen.values())
 
 
-def expression_values(name: str) -> np.ndarray:
+def fap_values(targets: dict[int, float]) -> np.ndarray:
+    """One frame's FAP values (68) from ``{fap: value}``; the other FAPs at rest."""
     from prosody.fap.table import N_FAPS
-    from prosody.motion.face.expressions import EXPRESSIONS
 
     values = np.zeros(N_FAPS)
-    for fap, value in EXPRESSIONS[name].items():
+    for fap, value in targets.items():
         values[fap - 1] = value
     return values
+
+
+def expression_values(name: str) -> np.ndarray:
+    """The frame of expression ``name`` at intensity 1."""
+    from prosody.motion.face.expressions import EXPRESSIONS
+
+    return fap_values(EXPRESSIONS[name])
 
 
 def read_head(render: Callable[[np.ndarray], np.ndarray], emotions, units) -> dict[str, tuple] | None:
@@ -234,13 +241,15 @@ def main(argv: list[str] | None = None) -> int:
     from prosody.head.render import HeadRenderer
     from prosody.motion.face.expressions import EXPRESSIONS
 
-    heads = [head for head in speakers(videos) if not args.looked_at or head[0] in TUNING]
+    heads = speakers(videos)
     results: list[tuple[str, str, bool, dict]] = []
     skipped = []
     with tempfile.TemporaryDirectory() as folder:
         renders: list[tuple[str, str, Callable]] = [("no photo", "-", HeadRenderer(512, 512).render)]
         emotions, (units, close_units) = emotion_reader(), unit_reader()
         for index, (speaker, sex, clip) in enumerate(heads):
+            if args.looked_at and speaker not in TUNING:
+                continue  # the same frames as in the whole run: each speaker's draw follows its place in the list
             photo = Path(folder) / f"{speaker}.png"
             grab_frame(clip, args.seed * 1000 + index, photo)
             try:
