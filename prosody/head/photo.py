@@ -14,9 +14,8 @@ and a texture). Here the photo gives both:
    seen at rest: a still stream shows the photo as it was. The lips are closed at rest (MPEG-4's neutral
    face); where they are apart in the photo, the lips' texture stretches over the gap. The teeth, the tongue
    and the mouth's dark inside are the head's own, shaded, sized to this mouth.
-3. **The rest of the person.** The person is told from the background by OpenCV's GrabCut, started from the
-   face (certain), a head-sized region round it and the neck and shoulders below it (likely), the majority of
-   a few such starts (:func:`person_mask`). A grid over the
+3. **The rest of the person.** The person is told from the background by MediaPipe's selfie segmentation
+   model, its edge placed on the photo's colours by OpenCV's GrabCut (:func:`.person.person_mask`). A grid over the
    person carries the photo's hair, ears, neck and shoulders on a plausible depth (the face's own near its
    edge, a skull's front further out, a plane behind the neck lower down); it turns with the head above
    the chin and stays still at the shoulders, the neck bending between.
@@ -43,7 +42,7 @@ import numpy as np
 from ..errors import PhotoError
 from ..fap.table import HEAD_FAPS, N_FAPS, RADIANS_PER_AU
 from . import posing
-from .landmarks import INSTALL_HINT, faces_in_image
+from .landmarks import faces_in_image
 from .mesh import (
     EYE_LEFT,
     EYE_RIGHT,
@@ -62,6 +61,7 @@ from .mesh import (
     face_outline,
     smoothstep,
 )
+from .person import fill_background, person_coverage, person_mask
 from .raster import Canvas, rasterise_textured
 from .render import SUPERSAMPLE, SUPERSAMPLED_PIXELS
 from .rig import HeadRig, build_rig, rotation
@@ -114,11 +114,6 @@ GRID_STEP = 1 / 110
 EDGE_GROW = 1 / 170
 #: The person's grid is left out this far inside the face's outline (the face always covers it there), cm.
 HIDDEN_UNDER_FACE_CM = 1.0
-#: The person mask's GrabCut starts, each with its likely-person regions (head and shoulders) grown by this
-#: factor and its own random start; the mask is their majority.
-MASK_VOTE_GROWTHS = (0.94, 0.97, 1.0, 1.03, 1.06)
-#: The longer side of the copy GrabCut works on, pixels.
-MASK_WORK_PX = 400
 
 # Head axes (cm): the skull whose front carries the hair round the face, and the plane behind the neck.
 _SKULL_CENTRE, _SKULL_RADII = np.array([0.0, 2.5, -3.0]), np.array([8.2, 11.0, 9.4])
@@ -284,128 +279,6 @@ def fit_face(landmarks: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.n
     return face, scale, turn, offset
 
 
-# ---------------------------------------------------------------------------------------------------------
-# the person and the background
-
-
-def _cv2():
-    try:
-        import cv2
-    except ImportError:
-        raise PhotoError(f"a photo head needs OpenCV, which comes with MediaPipe: {INSTALL_HINT}") from None
-    return cv2
-
-
-def person_mask(image: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
-    """bool (height, width): the person (face, hair, ears, neck, shoulders), by GrabCut started from the
-    face and the neck under it (certain) and the head and shoulder regions round them (likely).
-
-    GrabCut settles in one of several local optima, and on some photos a start moved by under a pixel picks
-    another (a fifth of the mask changed on a few talking-video frames). So it runs from the starts of
-    :data:`MASK_VOTE_GROWTHS` and a pixel is the person's where most of the runs say so."""
-    cv2 = _cv2()
-    height, width = image.shape[:2]
-    factor = min(1.0, MASK_WORK_PX / max(height, width))  # GrabCut on a small copy: its cost grows with the pixels
-    small = cv2.resize(image, (max(8, round(width * factor)), max(8, round(height * factor))),
-                       interpolation=cv2.INTER_AREA)
-    points = landmarks[:N_FACE_VERTICES, :2] * factor
-    from concurrent.futures import ThreadPoolExecutor
-
-    # OpenCV lets go of Python's lock in GrabCut, and its random generator is each thread's own
-    with ThreadPoolExecutor(max_workers=min(len(MASK_VOTE_GROWTHS), os.cpu_count() or 1)) as pool:
-        runs = list(pool.map(lambda start: _grabcut(cv2, small, points, grow=start[1], seed=start[0]),
-                             enumerate(MASK_VOTE_GROWTHS)))
-    person = (2 * np.sum(runs, axis=0) > len(runs)).astype(np.uint8)
-    # the largest piece joined to the face, holes closed
-    centre = points.mean(axis=0)
-    count, labels = cv2.connectedComponents(person)
-    if count > 2:
-        centre_label = labels[int(np.clip(centre[1], 0, small.shape[0] - 1)),
-                              int(np.clip(centre[0], 0, small.shape[1] - 1))]
-        if centre_label:
-            person = (labels == centre_label).astype(np.uint8)
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
-    person = cv2.morphologyEx(person, cv2.MORPH_CLOSE, kernel)
-    full = cv2.resize(person, (width, height), interpolation=cv2.INTER_LINEAR)
-    return full > 0
-
-
-def _grabcut(cv2, small: np.ndarray, points: np.ndarray, *, grow: float, seed: int) -> np.ndarray:
-    """One GrabCut run's person (uint8 0/1) on ``small``, its likely-person regions grown by ``grow``."""
-    face_w = float(np.ptp(points[:, 0]))
-    face_h = float(np.ptp(points[:, 1]))
-    centre = points.mean(axis=0)
-    chin_y = float(points[152, 1])
-    rows, columns = np.mgrid[0:small.shape[0], 0:small.shape[1]]
-    mask = np.full(small.shape[:2], cv2.GC_PR_BGD, np.uint8)
-    head = (((columns - centre[0]) / (0.85 * grow * face_w)) ** 2
-            + ((rows - (centre[1] - 0.12 * face_h)) / (0.92 * grow * face_h)) ** 2) <= 1.0
-    below = rows > chin_y - 0.1 * face_h
-    half = grow * (0.33 * face_w + np.maximum(rows - chin_y, 0) * 1.1)
-    body = below & (np.abs(columns - centre[0]) <= half)
-    mask[head | body] = cv2.GC_PR_FGD
-    far = (np.abs(columns - centre[0]) > 1.6 * face_w) & (rows < chin_y)
-    mask[far] = cv2.GC_BGD
-    top = max(1, round(0.02 * small.shape[0]))
-    mask[:top] = np.where(head[:top], mask[:top], cv2.GC_BGD)
-    hull = cv2.convexHull(points.astype(np.float32)).astype(np.int32)
-    cv2.fillConvexPoly(mask, hull, int(cv2.GC_FGD))
-    # the neck and the chest right under the chin are the person too (their colours teach GrabCut the clothes')
-    neck = (rows > chin_y + 0.05 * face_h) & (rows < chin_y + 0.8 * face_h) & (np.abs(columns - centre[0])
-                                                                              < 0.22 * face_w)
-    mask[neck] = cv2.GC_FGD
-    bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
-    cv2.setRNGSeed(seed)  # GrabCut's k-means starts from OpenCV's generator (this thread's): the same mask each time
-    try:
-        cv2.grabCut(cv2.cvtColor(small, cv2.COLOR_RGB2BGR), mask, None, bgd, fgd, 4, cv2.GC_INIT_WITH_MASK)
-    except cv2.error:  # a flat image: every likely pixel stays as started
-        pass
-    return np.isin(mask, (cv2.GC_FGD, cv2.GC_PR_FGD)).astype(np.uint8)
-
-
-def fill_background(image: np.ndarray, person: np.ndarray, *, margin_px: int) -> np.ndarray:
-    """The photo with the person (grown by ``margin_px``) filled in from the background round it: normalised
-    convolution (a Gaussian average of the background pixels alone), at the finest of a few widths where
-    enough background is near, so the fill is the surrounding background blurred, without streaks."""
-    from scipy.ndimage import binary_dilation, gaussian_filter, zoom
-
-    height, width = image.shape[:2]
-    grown = binary_dilation(person, iterations=max(1, margin_px))
-    factor = min(1.0, 256.0 / max(height, width))  # the fill is smooth: worked out on a small copy
-    small_size = (max(8, round(height * factor)), max(8, round(width * factor)))
-    small = np.stack([zoom(image[..., k].astype(np.float64), (small_size[0] / height, small_size[1] / width),
-                           order=1) for k in range(3)], axis=-1)
-    known = zoom(1.0 - grown.astype(np.float64), (small_size[0] / height, small_size[1] / width), order=1)
-    known = (known > 0.99).astype(np.float64)
-    # coarsest first, each finer width laid over it where it has background enough (blended, no edges)
-    filled = np.broadcast_to(image.reshape(-1, 3).mean(axis=0), small.shape).astype(np.float64)
-    side = max(small_size)
-
-    def blurred(plane: np.ndarray, sigma: float) -> np.ndarray:
-        # a wide blur is smooth: worked out on a copy as many times smaller as it is wider than 4 pixels
-        step = max(1, int(sigma // 4))
-        if step == 1:
-            return gaussian_filter(plane, sigma, mode="nearest")
-        shrunk = zoom(plane, 1 / step, order=1, grid_mode=True, mode="nearest")
-        out = gaussian_filter(shrunk, sigma / step, mode="nearest")
-        return zoom(out, np.divide(plane.shape, out.shape), order=1, grid_mode=True, mode="nearest")
-
-    for sigma in (1.0 * side, 0.3 * side, 0.12 * side, 0.05 * side, 0.02 * side):
-        weight = blurred(known, sigma)
-        values = np.stack([blurred(small[..., k] * known, sigma) for k in range(3)], -1)
-        alpha = np.clip((weight - 0.05) / 0.25, 0.0, 1.0)[..., None]
-        filled = alpha * values / np.maximum(weight, 1e-9)[..., None] + (1 - alpha) * filled
-    full = np.stack([zoom(filled[..., k], (height / small_size[0], width / small_size[1]), order=1)
-                     for k in range(3)], axis=-1)[:height, :width]
-    out = image.copy()
-    out[grown] = np.clip(full[grown] + 0.5, 0, 255).astype(np.uint8)
-    return out
-
-
-# ---------------------------------------------------------------------------------------------------------
-# building the photo head
-
-
 def eye_opening(landmarks: np.ndarray) -> float:
     """How open a face's eyes are in its landmarks (478, 2+): the gap between the lids over the distance between
     the eye's corners, the two eyes' mean (open eyes about 0.3, closed under 0.1)."""
@@ -480,26 +353,6 @@ def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None =
     background = fill_background(image, person, margin_px=edge)
     return PhotoHead(label, image, rig, scale, turn, offset, uv, *layer, background, person,
                      person_coverage(person, edge), tuple(notes))
-
-
-def person_coverage(person: np.ndarray, edge_px: int) -> np.ndarray:
-    """How much the person's layer covers each pixel: 1 over the person grown by ``edge_px`` (where the
-    background is filled), fading to 0 over about a third of that beyond it.
-
-    Parameters
-    ----------
-    person : bool (height, width)
-    edge_px : int
-
-    Returns
-    -------
-    float32 (height, width), 0..1
-    """
-    from scipy.ndimage import binary_dilation, gaussian_filter
-
-    grown = binary_dilation(person, iterations=max(1, edge_px))
-    soft = gaussian_filter(grown.astype(np.float32), max(0.5, edge_px / 3))
-    return np.maximum(soft, person).astype(np.float32)
 
 
 def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, scale: float, turn: np.ndarray,
