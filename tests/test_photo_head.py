@@ -116,6 +116,28 @@ def test_a_frame_drawn_round_what_moved_is_the_whole_frame(head) -> None:
     assert (bottom - top + 1) * (right - left + 1) < 0.9 * renderer.width * renderer.height
 
 
+def test_one_sample_a_pixel_draws_the_photo_as_four_do(head) -> None:
+    """A pixel inside a triangle reads the photo at its centre with one sample or with four (their barycentric
+    weights are averaged first): drawn with one (and four round the mouth's inside), the frames of speech differ
+    from those drawn with four only along edges (this drawn head's sharp outline against its plain backdrop:
+    0.3 % of the pixels by more than 16 levels; on six people's photos at most 0.014 %). A frame a pixel off
+    differs from itself by 1.7 levels on average, 1.4 % of its pixels by more than 16."""
+    from prosody.head import photo
+    from prosody.head.raster import Canvas
+
+    one = PhotoRenderer(head)
+    four = PhotoRenderer(head)
+    four.supersample = 2
+    four._canvas = Canvas(four.width, four.height, 2)
+    four._rest_frame = None
+    four._rest_frame = four.render(np.zeros(68), whole=True)
+    assert one.supersample == photo.PHOTO_SUPERSAMPLE == 1
+    for values in (np.zeros(68), _values(f3=600, f49=_degrees(10)), _values(f3=300, f31=200, f48=_degrees(-8))):
+        difference = np.abs(one.render(values).astype(int) - four.render(values).astype(int)).max(axis=2)
+        assert difference.mean() < 0.3 and np.mean(difference > 16) < 0.005, (difference.mean(),
+                                                                              np.mean(difference > 16))
+
+
 def test_the_persons_grid_is_left_out_deep_under_the_face(head) -> None:
     """The face covers the grid there in every pose; near the face's edge, round the eyes and off the face the
     grid stays."""

@@ -63,7 +63,7 @@ from .mesh import (
 )
 from .person import fill_background, person_coverage, person_mask
 from .raster import Canvas, rasterise_textured
-from .render import SUPERSAMPLE, SUPERSAMPLED_PIXELS
+from .render import SUPERSAMPLE
 from .rig import HeadRig, build_rig, rotation
 
 #: Photos larger than this are refused before they are decoded (bounded memory).
@@ -97,7 +97,7 @@ EXPOSURE_PERCENTILE = 90
 MOUTH_DEPTH_BIAS_CM = 3.0
 #: The mouth's inside is drawn, the face photographed: where the inside shows, the frame is blurred by this much
 #: (a Gaussian's sigma, in the photo's pixels), so that its edges are about as soft as a photo's own (a video
-#: frame's edges spread over 2-3 pixels; the drawn ones, supersampled, over one). Looked at on four people, 0.9
+#: frame's edges spread over 2-3 pixels; the drawn ones over one at most). Looked at on four people, 0.9
 #: blends the inside into the lips; 1.5 smears the teeth.
 INSIDE_SOFTNESS_PX = 0.9
 #: The light that stays put while the head turns (towards the light, camera axes) and its ambient share.
@@ -114,6 +114,14 @@ GRID_STEP = 1 / 110
 EDGE_GROW = 1 / 170
 #: The person's grid is left out this far inside the face's outline (the face always covers it there), cm.
 HIDDEN_UNDER_FACE_CM = 1.0
+#: Samples per pixel along each axis. One: a pixel inside a triangle reads the photo at its centre, as four
+#: samples averaged do (their barycentric weights are averaged first); only pixels that straddle an edge differ,
+#: and the photo head's edges are the photo's own, continuous across its triangles, or softened (the mouth's
+#: inside, the outline's coverage). Four samples took 1.7-1.9 times as long for 0.1 of a grey level on average
+#: (on six people's heads speaking: 0.02-0.08 % of the pixels differed by more than 16 levels, along the edges).
+PHOTO_SUPERSAMPLE = 1
+#: Samples per pixel along each axis round the mouth's inside, which is drawn (teeth a pixel or two high).
+INSIDE_SUPERSAMPLE = 2
 
 # Head axes (cm): the skull whose front carries the hair round the face, and the plane behind the neck.
 _SKULL_CENTRE, _SKULL_RADII = np.array([0.0, 2.5, -3.0]), np.array([8.2, 11.0, 9.4])
@@ -487,8 +495,9 @@ class PhotoRenderer:
         self.width = head.width if width is None else int(width) + int(width) % 2
         self.zoom = self.width / head.width
         self.height = max(2, round(head.height * self.zoom / 2) * 2)
-        self.supersample = SUPERSAMPLE if self.width * self.height <= SUPERSAMPLED_PIXELS else 1
+        self.supersample = PHOTO_SUPERSAMPLE
         self._canvas = Canvas(self.width, self.height, self.supersample)
+        self._inside_canvas = Canvas(self.width, self.height, INSIDE_SUPERSAMPLE)
         mesh = head.rig.mesh
         drawn = np.isin(mesh.part, _TEXTURED_PARTS + _SHADED_PARTS)
         rig_triangles = mesh.triangles[drawn[mesh.triangles].all(axis=1)]
@@ -659,26 +668,38 @@ class PhotoRenderer:
         frame = rasterise_textured(screen, self.triangles, normals, colors, self.uv, self.textured, self.texture,
                                    self.background, factor=self.supersample, canvas=self._canvas, window=window,
                                    base=self._rest_frame)
-        return self._softened_inside(frame, screen, window)
+        mouth = self._inside_window(screen, window)
+        if mouth is None:
+            return frame
+        # the mouth's inside (drawn: thin teeth against the dark) with four samples a pixel; with one, a row of
+        # teeth a pixel high showed as dashes
+        fine = screen.copy()
+        fine[:, :2] *= INSIDE_SUPERSAMPLE / self.supersample
+        frame = rasterise_textured(fine, self.triangles, normals, colors, self.uv, self.textured, self.texture,
+                                   self.background, factor=INSIDE_SUPERSAMPLE, canvas=self._inside_canvas,
+                                   window=mouth, base=frame)
+        return self._softened_inside(frame, mouth)
 
-    def _softened_inside(self, frame: np.ndarray, screen: np.ndarray,
-                         window: tuple[int, int, int, int] | None) -> np.ndarray:
+    def _inside_window(self, screen: np.ndarray,
+                       window: tuple[int, int, int, int] | None) -> tuple[int, int, int, int] | None:
+        """The pixel box (top, bottom, left, right) round the mouth's inside within ``window``, or None."""
+        inside_xy = screen[self._inside_vertices, :2] / self.supersample
+        top, bottom, left, right = window if window is not None else (0, self.height - 1, 0, self.width - 1)
+        top, bottom = max(top, int(inside_xy[:, 1].min()) - 1, 0), min(bottom, int(inside_xy[:, 1].max()) + 1,
+                                                                       self.height - 1)
+        left, right = max(left, int(inside_xy[:, 0].min()) - 1, 0), min(right, int(inside_xy[:, 0].max()) + 1,
+                                                                       self.width - 1)
+        return None if top > bottom or left > right else (top, bottom, left, right)
+
+    def _softened_inside(self, frame: np.ndarray, mouth: tuple[int, int, int, int]) -> np.ndarray:
         """The mouth's inside (drawn, not photographed) as soft as the photo: where it shows and a little round it,
         the frame blurred by :data:`INSIDE_SOFTNESS_PX`, so that its edges against the lips and the teeth's
         edges are no sharper than the photo's own."""
         from scipy.ndimage import gaussian_filter
 
-        f = self.supersample
-        top, bottom, left, right = window if window is not None else (0, self.height - 1, 0, self.width - 1)
-        # only where the inside can show: the box round its vertices (a few hundred, against a window's samples)
-        inside_xy = screen[self._inside_vertices, :2] / f
-        top, bottom = max(top, int(inside_xy[:, 1].min()) - 1, 0), min(bottom, int(inside_xy[:, 1].max()) + 1,
-                                                                       self.height - 1)
-        left, right = max(left, int(inside_xy[:, 0].min()) - 1, 0), min(right, int(inside_xy[:, 0].max()) + 1,
-                                                                       self.width - 1)
-        if top > bottom or left > right:
-            return frame
-        nearest = self._canvas.nearest[top * f:(bottom + 1) * f, left * f:(right + 1) * f]
+        f = INSIDE_SUPERSAMPLE
+        top, bottom, left, right = mouth
+        nearest = self._inside_canvas.nearest[top * f:(bottom + 1) * f, left * f:(right + 1) * f]
         inside = (nearest >= 0) & ~self.textured[np.maximum(nearest, 0)]
         if not inside.any():
             return frame

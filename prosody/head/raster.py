@@ -34,8 +34,9 @@ def _cover(screen, triangles, nearest, weights, depth, row0, column0):  # pragma
     """Fill the buffers (a window of the samples whose corner is sample row0, column0; the screen's
     coordinates are the whole image's, so a window's samples are those of the whole, bit for bit)."""
     height, width = depth.shape
-    # horizontal bands, one per task: each draws every triangle clipped to its rows (no two write one pixel)
-    n_bands = 16
+    # horizontal bands, one per task: each draws every triangle clipped to its rows (no two write one pixel);
+    # each band looks at every triangle, so a small window (the mouth's) has few bands
+    n_bands = max(1, min(16, height // 16))
     for band in prange(n_bands):
         band_top = band * height // n_bands
         band_bottom = (band + 1) * height // n_bands - 1
