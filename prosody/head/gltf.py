@@ -200,7 +200,7 @@ def glb_document(stream: FapStream, *, rig: HeadRig | None = None, photo: PhotoH
                       "NORMAL": buffer.add(normals[selected].astype(np.float32), "VEC3", target=_ARRAY_BUFFER),
                       "COLOR_0": buffer.add(colors[selected].astype(np.float32), "VEC3", target=_ARRAY_BUFFER)}
         if photo is not None and material == 0:
-            uv = photo.uv[selected] / np.array([photo.width, photo.height])
+            uv = photo.uv[selected] / np.array(photo.texture_size)
             attributes["TEXCOORD_0"] = buffer.add(uv.astype(np.float32), "VEC2", target=_ARRAY_BUFFER)
         out = {"attributes": attributes, "material": material, "mode": 4,
                "indices": buffer.add(index[triangles].reshape(-1).astype(np.uint32), "SCALAR",
@@ -242,7 +242,7 @@ def glb_document(stream: FapStream, *, rig: HeadRig | None = None, photo: PhotoH
         scene_nodes = [0, 3, 4]
         # the person's texture carries its coverage as alpha: round the outline the backdrop shows (MASK)
         coverage = np.round(255 * np.clip(photo.coverage, 0, 1)).astype(np.uint8)
-        images = [_image_bytes(photo.image), _image_bytes(photo.background),
+        images = [_image_bytes(photo.texture), _image_bytes(photo.background),
                   _image_bytes(np.dstack([photo.image, coverage]))]
 
     animation = _animation(stream, values, targets, buffer)

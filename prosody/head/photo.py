@@ -11,7 +11,9 @@ and a texture). Here the photo gives both:
    and the face units (IRISD0, ES0, ENS0, MNS0, MW0) are this person's and every FAP moves the face by its
    own proportions.
 2. **The texture.** Each vertex of the face and of the eyeballs takes the colour of the photo where it is
-   seen at rest: a still stream shows the photo as it was. The lips are closed at rest (MPEG-4's neutral
+   seen at rest: a still stream shows the photo as it was. Each eyeball has a picture of its own, the photo in
+   the lids' opening and the iris's and the white's colours where the lids hide it (:func:`eye_pictures`), so a
+   raised lid or a turned eye uncovers the eye, not the lid's skin. The lips are closed at rest (MPEG-4's neutral
    face); where they are apart in the photo, the lips' texture stretches over the gap. The teeth, the tongue
    and the mouth's dark inside are the head's own, shaded, sized to this mouth.
 3. **The rest of the person.** The person is told from the background by MediaPipe's selfie segmentation
@@ -120,6 +122,13 @@ HIDDEN_UNDER_FACE_CM = 1.0
 #: inside, the outline's coverage). Four samples took 1.7-1.9 times as long for 0.1 of a grey level on average
 #: (on six people's heads speaking: 0.02-0.08 % of the pixels differed by more than 16 levels, along the edges).
 PHOTO_SUPERSAMPLE = 1
+#: The upper lids' lash line lies partly inside the landmarks' lid line: the lid is fitted this share of the
+#: eye's opening lower (at most 1.5 pixels), so the lashes go up with a raised lid instead of staying on the eye.
+LASH_SHARE = 0.15
+LASH_MAX_PX = 1.5
+#: Outside the lids' opening an eyeball's picture blends from the photo's pixels into the white's and the iris's
+#: colours over about this many pixels.
+EYE_SEAM_PX = 1.0
 #: Samples per pixel along each axis round the mouth's inside, which is drawn (teeth a pixel or two high).
 INSIDE_SUPERSAMPLE = 2
 
@@ -144,7 +153,8 @@ class PhotoHead:
     scale : photo pixels per cm of the head.
     rotation : (3, 3), head axes to photo axes (x right, y up, z towards the camera; pixels).
     offset : (3,), where the head's origin is in photo axes.
-    uv : float (n, 2), each rig vertex's place in the photo at rest (pixels, y down).
+    uv : float (n, 2), each rig vertex's place in :attr:`texture` (pixels, y down): the photo where it is seen at
+        rest; the eyeballs' in their own pictures below the photo.
     layer_vertices : float (k, 3), the person layer's grid at rest, in head axes.
     layer_uv : float (k, 2), its place in the photo.
     layer_weight : float (k,), how much of the head's turn each grid vertex follows (1 above the chin,
@@ -156,6 +166,9 @@ class PhotoHead:
         and a few pixels round it (:data:`EDGE_GROW`), fading to 0 beyond; where it is below 1 the filled
         background shows through, so the grid's cells round the outline carry no background with them.
     notes : things worth telling the user (several faces, lips apart, eyes closed, scaled down).
+    eye_texture : uint8 (height + rows, width, 3), what the head's triangles show: the photo and, below it,
+        each eyeball as it would look with the lids open (:func:`eye_pictures`); None: the photo alone
+        (:attr:`texture` is either).
     """
 
     name: str
@@ -173,6 +186,12 @@ class PhotoHead:
     person: np.ndarray
     coverage: np.ndarray
     notes: tuple[str, ...] = ()
+    eye_texture: np.ndarray | None = None
+
+    @property
+    def texture(self) -> np.ndarray:
+        """uint8 (rows, columns, 3): the image :attr:`uv` places the head's vertices in."""
+        return self.image if self.eye_texture is None else self.eye_texture
 
     @property
     def width(self) -> int:
@@ -181,6 +200,18 @@ class PhotoHead:
     @property
     def height(self) -> int:
         return int(self.image.shape[0])
+
+    @property
+    def texture_size(self) -> tuple[int, int]:
+        """The texture's (width, height) in pixels: what :attr:`uv` is normalised by in a texture of 0..1."""
+        return int(self.texture.shape[1]), int(self.texture.shape[0])
+
+    def texture_with_coverage(self) -> np.ndarray:
+        """uint8 (texture height, width, 4): :attr:`texture` with :attr:`coverage` as its alpha over the photo
+        (opaque below it, where the eyeballs' pictures are)."""
+        alpha = np.full(self.texture.shape[:2], 255, np.uint8)
+        alpha[:self.height, :self.width] = np.round(255 * np.clip(self.coverage, 0, 1)).astype(np.uint8)
+        return np.dstack([self.texture, alpha])
 
     def to_photo(self, vertices: np.ndarray) -> np.ndarray:
         """Head-axes points (n, 3), cm -> photo axes (x right, y up, z towards the camera), pixels."""
@@ -297,6 +328,98 @@ def eye_opening(landmarks: np.ndarray) -> float:
     return (one(159, 145, 33, 133) + one(386, 374, 263, 362)) / 2
 
 
+def lashes_to_lids(landmarks: np.ndarray) -> np.ndarray:
+    """The landmarks with each upper lid's line (its corners apart) lowered by :data:`LASH_SHARE` of the eye's
+    opening there (at most :data:`LASH_MAX_PX`): the landmarker puts the line inside the lashes' lower edge,
+    and what lies above the line is the lid's, which carries it up when the lid is raised."""
+    out = np.array(landmarks, float, copy=True)
+    for upper, lower in (LIDS_LEFT, LIDS_RIGHT):
+        for top, bottom in zip(upper[1:-1], lower[1:-1], strict=True):
+            gap = max(0.0, float(landmarks[bottom, 1] - landmarks[top, 1]))
+            out[top, 1] += min(LASH_SHARE * gap, LASH_MAX_PX)
+    return out
+
+
+def eye_pictures(image: np.ndarray, landmarks: np.ndarray, uv: np.ndarray,
+                 part: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The head's texture (the photo and, below it, a picture of each eyeball) and its vertices' places in it.
+
+    In the photo, the part of an eyeball the lids hide is the lids' skin: an eyeball textured by the photo alone
+    showed skin where a raised lid uncovered it (the eyes of fear and surprise did not widen) and where a turned
+    eye uncovered its corner. Each eyeball gets its own picture (:func:`eye_picture`), the photo's own pixels
+    where the lids' opening shows it.
+
+    Parameters
+    ----------
+    image : uint8 (height, width, 3)
+    landmarks : float (478, 2+), the face's landmarks in the photo (pixels), the upper lids' lines as fitted
+        (:func:`lashes_to_lids`).
+    uv : float (n, 2), each vertex's place in the photo.
+    part : int (n,), each vertex's part of the head (:data:`~.mesh.EYE_LEFT`, ...).
+
+    Returns
+    -------
+    texture : uint8 (height + rows, width, 3)
+    uv : float (n, 2), the eyeballs' vertices moved to their pictures.
+    """
+    height, width = image.shape[:2]
+    uv = uv.copy()
+    pictures = []
+    column = 0
+    for eye_part, lids, iris in ((EYE_LEFT, LIDS_LEFT, 473), (EYE_RIGHT, LIDS_RIGHT, 468)):
+        vertices = np.flatnonzero(part == eye_part)
+        low = np.maximum(np.floor(uv[vertices].min(axis=0)).astype(int) - 2, 0)
+        high = np.minimum(np.ceil(uv[vertices].max(axis=0)).astype(int) + 3, [width, height])
+        picture = eye_picture(image, landmarks, (low[0], low[1], high[0], high[1]), lids, iris)
+        pictures.append((column, picture))
+        uv[vertices] += np.array([column, height]) - low
+        column += picture.shape[1] + 1
+    texture = np.zeros((height + max(p.shape[0] for _, p in pictures), max(width, column), 3), np.uint8)
+    texture[:height, :width] = image
+    for left, picture in pictures:
+        texture[height:height + picture.shape[0], left:left + picture.shape[1]] = picture
+    return texture, uv
+
+
+def eye_picture(image: np.ndarray, landmarks: np.ndarray, box: tuple[int, int, int, int],
+                lids: tuple[tuple[int, ...], tuple[int, ...]], iris: int) -> np.ndarray:
+    """uint8: the eyeball in ``box`` (left, top, right, bottom; pixels) as it would look with the lids open.
+
+    Inside the lids' opening, the photo; outside it, the iris's colour within the iris's circle (MediaPipe's
+    iris landmarks: ``iris`` its centre, the next four its edge) and the white's beyond, each the median of
+    what the photo shows of it (the white: its brightest quarter, not the lashes' shadow or the corners' skin),
+    blending into the photo's own pixels over :data:`EYE_SEAM_PX` from the opening."""
+    from scipy.ndimage import binary_erosion, distance_transform_edt, gaussian_filter
+
+    left, top, right, bottom = box
+    crop = image[top:bottom, left:right].astype(np.float64)
+    rows, columns = np.mgrid[top:bottom, left:right] + 0.5
+    upper, lower = lids
+    opening = _inside_polygon(np.column_stack([columns.ravel(), rows.ravel()]),
+                              landmarks[list(upper) + list(lower[::-1][1:-1]), :2]).reshape(crop.shape[:2])
+    radius = float(np.mean(np.linalg.norm(landmarks[iris + 1:iris + 5, :2] - landmarks[iris, :2], axis=1)))
+    in_iris = np.hypot(columns - landmarks[iris, 0], rows - landmarks[iris, 1]) <= radius
+    clear = binary_erosion(opening, iterations=1)  # away from the lashes
+    iris_seen, white_seen = crop[clear & in_iris], crop[clear & ~in_iris]
+    iris_colour = np.median(iris_seen, axis=0) if len(iris_seen) >= 4 else np.full(3, 70.0)
+    white_colour = np.full(3, 200.0)
+    if len(white_seen) >= 4:
+        brightness = white_seen.sum(axis=1)
+        white_colour = np.median(white_seen[brightness >= np.percentile(brightness, 75)], axis=0)
+    flat = np.where(in_iris[..., None], iris_colour, white_colour)
+    if not opening.any():
+        return np.clip(np.rint(flat), 0, 255).astype(np.uint8)
+    # near the opening the photo's own pixels (away from the lashes), spread outwards (a normalised blur),
+    # fading into the flat colours
+    source = clear if clear.any() else opening
+    weight = gaussian_filter(source.astype(float), EYE_SEAM_PX)
+    spread = np.stack([gaussian_filter(crop[..., k] * source, EYE_SEAM_PX) for k in range(3)], axis=-1)
+    spread /= np.maximum(weight, 1e-9)[..., None]
+    near = np.exp(-distance_transform_edt(~opening) / EYE_SEAM_PX)[..., None]
+    outside = near * spread + (1 - near) * flat
+    return np.clip(np.rint(np.where(opening[..., None], crop, outside)), 0, 255).astype(np.uint8)
+
+
 def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None = None) -> PhotoHead:
     """The head of the person in ``photo`` (a JPEG or PNG path, or an RGB uint8 array).
 
@@ -330,7 +453,8 @@ def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None =
     if face_w < MIN_FACE_PIXELS:
         raise PhotoError(f"{label}: the face is {face_w:.0f} pixels wide, too small to animate (at least "
                          f"{MIN_FACE_PIXELS}): a closer or larger photo")
-    face, scale, turn, offset = fit_face(landmarks)
+    fitted = lashes_to_lids(landmarks)
+    face, scale, turn, offset = fit_face(fitted)
     pitch, yaw, _ = (math.degrees(a) for a in _angles(turn))
     if abs(yaw) > MAX_TURN_DEG or abs(pitch) > MAX_TURN_DEG:
         raise PhotoError(f"{label}: the face is turned {abs(yaw):.0f} degrees sideways and {abs(pitch):.0f} up "
@@ -354,13 +478,14 @@ def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None =
 
     uv = project(mesh.vertices.astype(float))
     uv[:N_FACE_VERTICES] = project(mesh.layout[:N_FACE_VERTICES].astype(float))  # the lips as photographed
+    texture, uv = eye_pictures(image, fitted, uv, mesh.part)
 
     person = person_mask(image, landmarks)
     layer = _person_layer(image.shape[:2], person, face, scale, turn, offset, landmarks)
     edge = max(2, round(EDGE_GROW * max(image.shape[:2])))
     background = fill_background(image, person, margin_px=edge)
     return PhotoHead(label, image, rig, scale, turn, offset, uv, *layer, background, person,
-                     person_coverage(person, edge), tuple(notes))
+                     person_coverage(person, edge), tuple(notes), texture)
 
 
 def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, scale: float, turn: np.ndarray,
@@ -515,7 +640,9 @@ class PhotoRenderer:
         # photo over the head's own skin's
         self.colors[:n_rig][np.isin(mesh.part, _SHADED_PARTS)] *= photo_exposure(head)
         # the photo with its coverage: round the person's outline the grid's cells show what is behind them
-        self.texture = np.dstack([head.image.astype(np.float32) / 255.0, head.coverage]).astype(np.float32)
+        rgba = head.texture_with_coverage().astype(np.float32) / 255.0
+        rgba[:head.height, :head.width, 3] = head.coverage  # the coverage as computed, not rounded to a level
+        self.texture = rgba
         background = Image.fromarray(head.background)
         if (self.width, self.height) != (head.width, head.height):
             background = background.resize((self.width, self.height), Image.Resampling.LANCZOS)

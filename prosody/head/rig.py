@@ -212,6 +212,9 @@ class _RigBuilder:
         lower = np.zeros(n)
         lower[:N_FACE_VERTICES] = np.where(lips.in_lips, ~lips.upper, face_jaw)
         on_face = face.astype(float)
+        # the mouth's dark inside follows the inner lips' corners (stretched or raised), so a wide mouth never
+        # opens onto what is behind the head at its corners
+        cavity = (mesh.part == MOUTH_INSIDE).astype(float)
 
         def point(name: str) -> np.ndarray:
             return layout[mesh.feature_points[name]]
@@ -242,13 +245,16 @@ class _RigBuilder:
             put(b_mid, depth * lower * bottom[2])
             put(b_l, depth * lower * bottom[3])
             put(b_r, depth * lower * bottom[1])
-            put(c_l, depth * on_face * np.maximum(upper * top[4], lower * bottom[4]))
-            put(c_r, depth * on_face * np.maximum(upper * top[0], lower * bottom[0]))
+            follows = depth * on_face + (cavity if depth is inner else 0.0)
+            put(c_l, depth * on_face * np.maximum(upper * top[4], lower * bottom[4])
+                + follows * (1 - on_face) * np.maximum(top[4], bottom[4]))
+            put(c_r, depth * on_face * np.maximum(upper * top[0], lower * bottom[0])
+                + follows * (1 - on_face) * np.maximum(top[0], bottom[0]))
             # horizontal: the corners stretch the lip evenly from the middle
             past = _falloff(np.maximum(np.abs(x) - corner_x, 0.0), 1.6)
             spread = np.clip(np.abs(x) / corner_x, 0, 1) * np.where(np.abs(x) > corner_x, past, 1.0)
-            put(stretch_l, depth * on_face * spread * (x > 0))
-            put(stretch_r, depth * on_face * spread * (x < 0))
+            put(stretch_l, follows * spread * (x > 0))
+            put(stretch_r, follows * spread * (x < 0))
         put(16, lower * on_face * _falloff(np.linalg.norm(layout - point("2.3"), axis=1), 2.2))
         put(17, upper * on_face * _falloff(np.linalg.norm(layout - point("2.2"), axis=1), 2.2))
 

@@ -110,7 +110,7 @@ def photo_model_document(head) -> dict:
         if moved.size:
             fields[str(fap)] = {"vertices": moved.tolist(),
                                 "offsets": np.round(field[moved], 6).reshape(-1).tolist()}
-    uv = renderer.uv / np.array([head.width, head.height])
+    uv = renderer.uv / np.array(head.texture_size)
     textured = np.isin(np.arange(len(rest)), np.unique(renderer.triangles[renderer.textured]))
     rest_normals, relit = renderer.relit
     return {
@@ -141,13 +141,14 @@ def photo_model_document(head) -> dict:
 
 def photo_images(head) -> dict[str, tuple[bytes, str]]:
     """The photo and its filled background by the paths :func:`photo_model_document` names, each with its
-    content type: the photo as PNG whose alpha is the person's coverage (round the outline the page's
-    background shows through, as on the CPU), the background as JPEG."""
+    content type: the head's texture (the photo, the eyeballs' pictures below it) as PNG whose alpha is the
+    person's coverage (round the outline the page's background shows through, as on the CPU), the background
+    as JPEG."""
     import io
 
     from PIL import Image
 
-    texture = np.dstack([head.image, np.round(255 * np.clip(head.coverage, 0, 1)).astype(np.uint8)])
+    texture = head.texture_with_coverage()
     out = {}
     for path, image, kind in ((PHOTO_TEXTURE_PATH, texture, "PNG"), (PHOTO_BACKGROUND_PATH, head.background, "JPEG")):
         buffer = io.BytesIO()
