@@ -129,6 +129,9 @@ LASH_MAX_PX = 1.5
 #: Outside the lids' opening an eyeball's picture blends from the photo's pixels into the white's and the iris's
 #: colours over about this many pixels.
 EYE_SEAM_PX = 1.0
+#: An eye's white is drawn at most this much redder than blue (levels): where a photo shows too little of it,
+#: its brightest pixels are the lids' skin's colour.
+WHITE_WARMTH = 12.0
 #: Samples per pixel along each axis round the mouth's inside, which is drawn (teeth a pixel or two high).
 INSIDE_SUPERSAMPLE = 2
 
@@ -387,7 +390,8 @@ def eye_picture(image: np.ndarray, landmarks: np.ndarray, box: tuple[int, int, i
 
     Inside the lids' opening, the photo; outside it, the iris's colour within the iris's circle (MediaPipe's
     iris landmarks: ``iris`` its centre, the next four its edge) and the white's beyond, each the median of
-    what the photo shows of it (the white: its brightest quarter, not the lashes' shadow or the corners' skin),
+    what the photo shows of it (the white: its brightest, greyest quarter, at most :data:`WHITE_WARMTH` redder
+    than blue, not the lashes' shadow or the corners' skin),
     blending into the photo's own pixels over :data:`EYE_SEAM_PX` from the opening."""
     from scipy.ndimage import binary_erosion, distance_transform_edt, gaussian_filter
 
@@ -404,8 +408,12 @@ def eye_picture(image: np.ndarray, landmarks: np.ndarray, box: tuple[int, int, i
     iris_colour = np.median(iris_seen, axis=0) if len(iris_seen) >= 4 else np.full(3, 70.0)
     white_colour = np.full(3, 200.0)
     if len(white_seen) >= 4:
-        brightness = white_seen.sum(axis=1)
-        white_colour = np.median(white_seen[brightness >= np.percentile(brightness, 75)], axis=0)
+        # the white is bright and about grey; the lids' skin and the inner corner, seen beside it, are warm
+        score = white_seen.sum(axis=1) - 6.0 * (white_seen[:, 0] - white_seen[:, 2])
+        white_colour = np.median(white_seen[score >= np.percentile(score, 75)], axis=0)
+        warmth = white_colour[0] - white_colour[2]
+        if warmth > WHITE_WARMTH:  # too little of it seen: its brightest pixels, made nearly grey
+            white_colour = white_colour.mean() + (white_colour - white_colour.mean()) * WHITE_WARMTH / warmth
     flat = np.where(in_iris[..., None], iris_colour, white_colour)
     if not opening.any():
         return np.clip(np.rint(flat), 0, 255).astype(np.uint8)
