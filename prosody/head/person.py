@@ -207,3 +207,10 @@ def person_coverage(person: np.ndarray, edge_px: int) -> np.ndarray:
     grown = binary_dilation(person, iterations=max(1, edge_px))
     soft = gaussian_filter(grown.astype(np.float32), max(0.5, edge_px / 3))
     return np.maximum(soft, person).astype(np.float32)
+
+
+def inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """bool (n,): which of the points (n, 2) lie inside the polygon (m, 2)."""
+    from matplotlib.path import Path as Polygon
+
+    return Polygon(polygon).contains_points(points)

@@ -12,7 +12,7 @@ and a texture). Here the photo gives both:
    own proportions.
 2. **The texture.** Each vertex of the face and of the eyeballs takes the colour of the photo where it is
    seen at rest: a still stream shows the photo as it was. Each eyeball has a picture of its own, the photo in
-   the lids' opening and the iris's and the white's colours where the lids hide it (:func:`eye_pictures`), so a
+   the lids' opening and the iris's and the white's colours where the lids hide it (:mod:`.eyes`), so a
    raised lid or a turned eye uncovers the eye, not the lid's skin. The lips are closed at rest (MPEG-4's neutral
    face); where they are apart in the photo, the lips' texture stretches over the gap. The teeth, the tongue
    and the mouth's dark inside are the head's own, shaded, sized to this mouth.
@@ -44,6 +44,7 @@ import numpy as np
 from ..errors import PhotoError
 from ..fap.table import HEAD_FAPS, N_FAPS, RADIANS_PER_AU
 from . import posing
+from .eyes import eye_pictures, lashes_to_lids
 from .landmarks import faces_in_image
 from .mesh import (
     EYE_LEFT,
@@ -63,7 +64,7 @@ from .mesh import (
     face_outline,
     smoothstep,
 )
-from .person import fill_background, person_coverage, person_mask
+from .person import fill_background, inside_polygon, person_coverage, person_mask
 from .raster import Canvas, rasterise_textured
 from .render import SUPERSAMPLE
 from .rig import HeadRig, build_rig, rotation
@@ -122,16 +123,6 @@ HIDDEN_UNDER_FACE_CM = 1.0
 #: inside, the outline's coverage). Four samples took 1.7-1.9 times as long for 0.1 of a grey level on average
 #: (on six people's heads speaking: 0.02-0.08 % of the pixels differed by more than 16 levels, along the edges).
 PHOTO_SUPERSAMPLE = 1
-#: The upper lids' lash line lies partly inside the landmarks' lid line: the lid is fitted this share of the
-#: eye's opening lower (at most 1.5 pixels), so the lashes go up with a raised lid instead of staying on the eye.
-LASH_SHARE = 0.15
-LASH_MAX_PX = 1.5
-#: Outside the lids' opening an eyeball's picture blends from the photo's pixels into the white's and the iris's
-#: colours over about this many pixels.
-EYE_SEAM_PX = 1.0
-#: An eye's white is drawn at most this much redder than blue (levels): where a photo shows too little of it,
-#: its brightest pixels are the lids' skin's colour.
-WHITE_WARMTH = 12.0
 #: Samples per pixel along each axis round the mouth's inside, which is drawn (teeth a pixel or two high).
 INSIDE_SUPERSAMPLE = 2
 
@@ -331,103 +322,6 @@ def eye_opening(landmarks: np.ndarray) -> float:
     return (one(159, 145, 33, 133) + one(386, 374, 263, 362)) / 2
 
 
-def lashes_to_lids(landmarks: np.ndarray) -> np.ndarray:
-    """The landmarks with each upper lid's line (its corners apart) lowered by :data:`LASH_SHARE` of the eye's
-    opening there (at most :data:`LASH_MAX_PX`): the landmarker puts the line inside the lashes' lower edge,
-    and what lies above the line is the lid's, which carries it up when the lid is raised."""
-    out = np.array(landmarks, float, copy=True)
-    for upper, lower in (LIDS_LEFT, LIDS_RIGHT):
-        for top, bottom in zip(upper[1:-1], lower[1:-1], strict=True):
-            gap = max(0.0, float(landmarks[bottom, 1] - landmarks[top, 1]))
-            out[top, 1] += min(LASH_SHARE * gap, LASH_MAX_PX)
-    return out
-
-
-def eye_pictures(image: np.ndarray, landmarks: np.ndarray, uv: np.ndarray,
-                 part: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The head's texture (the photo and, below it, a picture of each eyeball) and its vertices' places in it.
-
-    In the photo, the part of an eyeball the lids hide is the lids' skin: an eyeball textured by the photo alone
-    showed skin where a raised lid uncovered it (the eyes of fear and surprise did not widen) and where a turned
-    eye uncovered its corner. Each eyeball gets its own picture (:func:`eye_picture`), the photo's own pixels
-    where the lids' opening shows it.
-
-    Parameters
-    ----------
-    image : uint8 (height, width, 3)
-    landmarks : float (478, 2+), the face's landmarks in the photo (pixels), the upper lids' lines as fitted
-        (:func:`lashes_to_lids`).
-    uv : float (n, 2), each vertex's place in the photo.
-    part : int (n,), each vertex's part of the head (:data:`~.mesh.EYE_LEFT`, ...).
-
-    Returns
-    -------
-    texture : uint8 (height + rows, width, 3)
-    uv : float (n, 2), the eyeballs' vertices moved to their pictures.
-    """
-    height, width = image.shape[:2]
-    uv = uv.copy()
-    pictures = []
-    column = 0
-    for eye_part, lids, iris in ((EYE_LEFT, LIDS_LEFT, 473), (EYE_RIGHT, LIDS_RIGHT, 468)):
-        vertices = np.flatnonzero(part == eye_part)
-        low = np.maximum(np.floor(uv[vertices].min(axis=0)).astype(int) - 2, 0)
-        high = np.minimum(np.ceil(uv[vertices].max(axis=0)).astype(int) + 3, [width, height])
-        picture = eye_picture(image, landmarks, (low[0], low[1], high[0], high[1]), lids, iris)
-        pictures.append((column, picture))
-        uv[vertices] += np.array([column, height]) - low
-        column += picture.shape[1] + 1
-    texture = np.zeros((height + max(p.shape[0] for _, p in pictures), max(width, column), 3), np.uint8)
-    texture[:height, :width] = image
-    for left, picture in pictures:
-        texture[height:height + picture.shape[0], left:left + picture.shape[1]] = picture
-    return texture, uv
-
-
-def eye_picture(image: np.ndarray, landmarks: np.ndarray, box: tuple[int, int, int, int],
-                lids: tuple[tuple[int, ...], tuple[int, ...]], iris: int) -> np.ndarray:
-    """uint8: the eyeball in ``box`` (left, top, right, bottom; pixels) as it would look with the lids open.
-
-    Inside the lids' opening, the photo; outside it, the iris's colour within the iris's circle (MediaPipe's
-    iris landmarks: ``iris`` its centre, the next four its edge) and the white's beyond, each the median of
-    what the photo shows of it (the white: its brightest, greyest quarter, at most :data:`WHITE_WARMTH` redder
-    than blue, not the lashes' shadow or the corners' skin),
-    blending into the photo's own pixels over :data:`EYE_SEAM_PX` from the opening."""
-    from scipy.ndimage import binary_erosion, distance_transform_edt, gaussian_filter
-
-    left, top, right, bottom = box
-    crop = image[top:bottom, left:right].astype(np.float64)
-    rows, columns = np.mgrid[top:bottom, left:right] + 0.5
-    upper, lower = lids
-    opening = _inside_polygon(np.column_stack([columns.ravel(), rows.ravel()]),
-                              landmarks[list(upper) + list(lower[::-1][1:-1]), :2]).reshape(crop.shape[:2])
-    radius = float(np.mean(np.linalg.norm(landmarks[iris + 1:iris + 5, :2] - landmarks[iris, :2], axis=1)))
-    in_iris = np.hypot(columns - landmarks[iris, 0], rows - landmarks[iris, 1]) <= radius
-    clear = binary_erosion(opening, iterations=1)  # away from the lashes
-    iris_seen, white_seen = crop[clear & in_iris], crop[clear & ~in_iris]
-    iris_colour = np.median(iris_seen, axis=0) if len(iris_seen) >= 4 else np.full(3, 70.0)
-    white_colour = np.full(3, 200.0)
-    if len(white_seen) >= 4:
-        # the white is bright and about grey; the lids' skin and the inner corner, seen beside it, are warm
-        score = white_seen.sum(axis=1) - 6.0 * (white_seen[:, 0] - white_seen[:, 2])
-        white_colour = np.median(white_seen[score >= np.percentile(score, 75)], axis=0)
-        warmth = white_colour[0] - white_colour[2]
-        if warmth > WHITE_WARMTH:  # too little of it seen: its brightest pixels, made nearly grey
-            white_colour = white_colour.mean() + (white_colour - white_colour.mean()) * WHITE_WARMTH / warmth
-    flat = np.where(in_iris[..., None], iris_colour, white_colour)
-    if not opening.any():
-        return np.clip(np.rint(flat), 0, 255).astype(np.uint8)
-    # near the opening the photo's own pixels (away from the lashes), spread outwards (a normalised blur),
-    # fading into the flat colours
-    source = clear if clear.any() else opening
-    weight = gaussian_filter(source.astype(float), EYE_SEAM_PX)
-    spread = np.stack([gaussian_filter(crop[..., k] * source, EYE_SEAM_PX) for k in range(3)], axis=-1)
-    spread /= np.maximum(weight, 1e-9)[..., None]
-    near = np.exp(-distance_transform_edt(~opening) / EYE_SEAM_PX)[..., None]
-    outside = near * spread + (1 - near) * flat
-    return np.clip(np.rint(np.where(opening[..., None], crop, outside)), 0, 255).astype(np.uint8)
-
-
 def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None = None) -> PhotoHead:
     """The head of the person in ``photo`` (a JPEG or PNG path, or an RGB uint8 array).
 
@@ -522,7 +416,7 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
     outline = list(face_outline())
     edge = face[outline]
     tree = cKDTree(edge[:, :2])
-    inside = _inside_polygon(uv, landmarks[outline, :2])
+    inside = inside_polygon(uv, landmarks[outline, :2])
     surface = LinearNDInterpolator(face[:, :2], face[:, 2])
     vertices = np.zeros((len(uv), 3))
     photo_z = np.full(len(uv), offset[2])
@@ -561,14 +455,14 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
     centres = np.column_stack([np.repeat((columns[:-1] + columns[1:])[None, :] / 2, n_rows - 1, axis=0).ravel(),
                                np.repeat((rows[:-1] + rows[1:])[:, None] / 2, n_columns - 1, axis=1).ravel()])
     mouth = LIP_OUTER_UPPER + LIP_OUTER_LOWER[::-1][1:-1]
-    cells &= ~_inside_polygon(centres, landmarks[list(mouth), :2]).reshape(cells.shape)
+    cells &= ~inside_polygon(centres, landmarks[list(mouth), :2]).reshape(cells.shape)
     # none deep under the face either (more than HIDDEN_UNDER_FACE_CM inside its outline, away from the eyes):
     # the face covers them in every pose (drawing them cost 5-7 % of a frame, and beside the nose's wings at 15
     # degrees of yaw a patch of them came through the face)
     margin = max(1, math.ceil(scale * HIDDEN_UNDER_FACE_CM / step))
-    under = binary_erosion(_inside_polygon(centres, landmarks[outline, :2]).reshape(cells.shape), iterations=margin)
+    under = binary_erosion(inside_polygon(centres, landmarks[outline, :2]).reshape(cells.shape), iterations=margin)
     for upper, lower in (LIDS_LEFT, LIDS_RIGHT):
-        eye = _inside_polygon(centres, landmarks[list(upper + lower[::-1][1:-1]), :2]).reshape(cells.shape)
+        eye = inside_polygon(centres, landmarks[list(upper + lower[::-1][1:-1]), :2]).reshape(cells.shape)
         under &= ~binary_dilation(eye, iterations=margin)
     cells &= ~under
     index = np.arange(n_rows * n_columns).reshape(n_rows, n_columns)
@@ -579,12 +473,6 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
     renumbered = np.full(len(uv), -1)
     renumbered[used] = np.arange(used.size)
     return vertices[used], uv[used], weight[used], renumbered[layer_triangles]
-
-
-def _inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    from matplotlib.path import Path as Polygon
-
-    return Polygon(polygon).contains_points(points)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -669,7 +557,7 @@ class PhotoRenderer:
 
         rest_face = mesh.vertices[:N_FACE_VERTICES].astype(float)
         distance, nearest = cKDTree(rest_face[:, :2]).query(head.layer_vertices[:, :2], k=4)
-        inside = _inside_polygon(head.layer_uv, head.uv[list(face_outline())])
+        inside = inside_polygon(head.layer_uv, head.uv[list(face_outline())])
         reach = np.where(inside, 1.0, 0.5 * (1 + np.cos(np.pi * np.clip(distance[:, 0] / SKIN_FOLLOW_CM, 0, 1))))
         weights = 1.0 / (distance + 0.05)
         weights *= (reach / weights.sum(axis=1))[:, None]
