@@ -245,16 +245,16 @@ class _RigBuilder:
             put(b_mid, depth * lower * bottom[2])
             put(b_l, depth * lower * bottom[3])
             put(b_r, depth * lower * bottom[1])
-            follows = depth * on_face + (cavity if depth is inner else 0.0)
+            inside = cavity if depth is inner else 0.0  # the inner corners carry the mouth's inside
             put(c_l, depth * on_face * np.maximum(upper * top[4], lower * bottom[4])
-                + follows * (1 - on_face) * np.maximum(top[4], bottom[4]))
+                + inside * np.maximum(top[4], bottom[4]))
             put(c_r, depth * on_face * np.maximum(upper * top[0], lower * bottom[0])
-                + follows * (1 - on_face) * np.maximum(top[0], bottom[0]))
+                + inside * np.maximum(top[0], bottom[0]))
             # horizontal: the corners stretch the lip evenly from the middle
             past = _falloff(np.maximum(np.abs(x) - corner_x, 0.0), 1.6)
             spread = np.clip(np.abs(x) / corner_x, 0, 1) * np.where(np.abs(x) > corner_x, past, 1.0)
-            put(stretch_l, follows * spread * (x > 0))
-            put(stretch_r, follows * spread * (x < 0))
+            put(stretch_l, (depth * on_face + inside) * spread * (x > 0))
+            put(stretch_r, (depth * on_face + inside) * spread * (x < 0))
         put(16, lower * on_face * _falloff(np.linalg.norm(layout - point("2.3"), axis=1), 2.2))
         put(17, upper * on_face * _falloff(np.linalg.norm(layout - point("2.2"), axis=1), 2.2))
 
