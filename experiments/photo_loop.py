@@ -60,8 +60,9 @@ def grab_frame(video: Path, seed: int, out: Path) -> float:
     raise SystemExit(f"{video}: no frame at {at:.2f} s")
 
 
-def ssim_still(photo: Path) -> tuple[float, tuple[int, int]]:
-    """SSIM (grey) of a still stream's frame against the photo, at the photo's size."""
+def ssim_still(photo: Path) -> tuple[float, tuple[int, int], bool]:
+    """SSIM (grey) of a still stream's frame against the photo, at the photo's size; and whether the photo
+    head notes the brows raised in the photo."""
     from skimage.metrics import structural_similarity
 
     from prosody.head.photo import PhotoRenderer, photo_head
@@ -69,7 +70,8 @@ def ssim_still(photo: Path) -> tuple[float, tuple[int, int]]:
     head = photo_head(photo)
     frame = PhotoRenderer(head).render(np.zeros(68))
     grey = np.array([0.299, 0.587, 0.114])
-    return float(structural_similarity(frame @ grey, head.image @ grey, data_range=255.0)), frame.shape[:2]
+    raised = any("brows are raised" in note for note in head.notes)
+    return float(structural_similarity(frame @ grey, head.image @ grey, data_range=255.0)), frame.shape[:2], raised
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -88,8 +90,8 @@ def main(argv: list[str] | None = None) -> int:
           + ", ".join(f"{k} {PHOTO_AMPLITUDES[k]:g} / {PERIODS_S[k]:g} s" for k in PHOTO_AMPLITUDES)
           + f" (deg, MNS, ENS / period); frames drawn with seed {args.seed}")
     print("| person | frame at | size | SSIM still | found | pitch r / spread | yaw r / spread | roll r / spread "
-          "| lips r | brows r | lips read at | brows read at | control |r| | pass |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "| lips r | brows r | lips read at | brows read at | control |r| | brows raised in photo | pass |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     failures = measured = 0
     passes: dict[str, list[bool]] = {}
     summary: dict[str, list[float]] = {}
@@ -103,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             photo = work / f"{name}.png"
             at = grab_frame(videos / clip, (args.seed + j) * 1000 + index, photo)
-            ssim, size = ssim_still(photo)
+            ssim, size, raised = ssim_still(photo)
             subprocess.run([sys.executable, "-m", "prosody", "preview", str(work / "loop.fap"), "-o",
                             str(work / f"{name}.mp4"), "--face", str(photo), "--brow-scale", "1", "--no-strip",
                             "-q"], check=True)
@@ -124,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
             axes = " | ".join(f"{result.head_r[a]:.3f} / {result.head_spread[a]:.2f}" for a in ("pitch", "yaw", "roll"))
             print(f"| {name} ({who}) | {at:.2f} s | {size[1]}x{size[0]} | {ssim:.3f} | {100 * result.found:.1f} % "
                   f"| {axes} | {result.lips_r:.3f} | {result.brows_r:.3f} | {result.lips_gain:.2f} x "
-                  f"| {result.brows_gain:.2f} x | {result.crosstalk_r:.3f} "
+                  f"| {result.brows_gain:.2f} x | {result.crosstalk_r:.3f} | {'noted' if raised else '-'} "
                   f"| {'yes' if passed else 'no'} |")
             for key, value in (("ssim", ssim), ("pitch", abs(result.head_r["pitch"])),
                                ("yaw", abs(result.head_r["yaw"])), ("roll", abs(result.head_r["roll"])),

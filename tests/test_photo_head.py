@@ -293,6 +293,14 @@ def test_lips_apart_and_several_faces_are_said_in_notes(render_photo) -> None:
     assert not any("eyes" in note for note in photo_head(render_photo).notes)
 
 
+@pytest.mark.slow
+def test_brows_raised_in_the_photo_are_said_in_a_note(render_photo) -> None:
+    # the drawn head's brows read 0.03 at rest, 0.48 at 250 ENS and 0.83 at 400 on the landmarker's brow shapes
+    raised = HeadRenderer(480, 480).render(_values(**{f"f{n}": 400 for n in range(31, 37)}))
+    assert any("brows are raised" in note for note in photo_head(raised).notes)
+    assert not any("brows" in note for note in photo_head(render_photo).notes)
+
+
 def test_how_open_the_eyes_are_is_read_from_the_landmarks(render_photo) -> None:
     from prosody.head.landmarks import faces_in_image
     from prosody.head.photo import EYES_CLOSED, eye_opening

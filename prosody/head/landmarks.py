@@ -14,6 +14,7 @@ import os
 from collections.abc import Iterator
 from importlib import resources
 from importlib.abc import Traversable
+from typing import NamedTuple
 
 import numpy as np
 
@@ -100,16 +101,29 @@ def landmarker(*, video: bool, max_faces: int, blendshapes: bool = False):
         return vision.FaceLandmarker.create_from_options(options), mediapipe
 
 
-def faces_in_image(rgb: np.ndarray, *, max_faces: int = MAX_FACES) -> list[np.ndarray]:
-    """The landmarks (478, 3) of every face in one RGB image (uint8, (height, width, 3)), largest first:
-    x and y in pixels from the top-left corner (y down), z at the scale of x (smaller is nearer the camera)."""
-    detector, mediapipe = landmarker(video=False, max_faces=max_faces)
+class FoundFace(NamedTuple):
+    """One face of an image: its landmarks (478, 3), x and y in pixels from the top-left corner (y down), z at the
+    scale of x (smaller is nearer the camera); and its 52 blendshape weights (0..1) by name."""
+
+    points: np.ndarray
+    shapes: dict[str, float]
+
+
+def found_faces(rgb: np.ndarray, *, max_faces: int = MAX_FACES) -> list[FoundFace]:
+    """Every face in one RGB image (uint8, (height, width, 3)), largest first, with its blendshapes."""
+    detector, mediapipe = landmarker(video=False, max_faces=max_faces, blendshapes=True)
     try:
         image = mediapipe.Image(image_format=mediapipe.ImageFormat.SRGB, data=np.ascontiguousarray(rgb))
         result = detector.detect(image)
     finally:
         detector.close()
     height, width = rgb.shape[:2]
-    faces = [np.array([(p.x * width, p.y * height, p.z * width) for p in landmarks])
-             for landmarks in result.face_landmarks]
-    return sorted(faces, key=lambda points: -float(np.ptp(points[:, 0])))
+    faces = [FoundFace(np.array([(p.x * width, p.y * height, p.z * width) for p in landmarks]),
+                       {category.category_name: float(category.score) for category in shapes})
+             for landmarks, shapes in zip(result.face_landmarks, result.face_blendshapes, strict=True)]
+    return sorted(faces, key=lambda face: -float(np.ptp(face.points[:, 0])))
+
+
+def faces_in_image(rgb: np.ndarray, *, max_faces: int = MAX_FACES) -> list[np.ndarray]:
+    """The landmarks (478, 3) of every face in one RGB image, largest first (:func:`found_faces`' points)."""
+    return [face.points for face in found_faces(rgb, max_faces=max_faces)]

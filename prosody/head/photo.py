@@ -45,7 +45,7 @@ from ..errors import PhotoError
 from ..fap.table import HEAD_FAPS, N_FAPS, RADIANS_PER_AU
 from . import posing
 from .eyes import eye_pictures, lashes_to_lids
-from .landmarks import faces_in_image
+from .landmarks import found_faces
 from .mesh import (
     EYE_LEFT,
     EYE_RIGHT,
@@ -82,6 +82,13 @@ LIPS_APART = 0.08
 #: Eyes open less than this fraction of their width (the lids' gap over the corners' distance, both eyes' mean;
 #: open eyes measure about 0.3, a blink under 0.1): said in a note.
 EYES_CLOSED = 0.12
+#: Brows raised further than this in the photo (the mean of the landmarker's browInnerUp, browOuterUpLeft and
+#: browOuterUpRight blendshapes): said in a note. In 4,080 frames of seven people speaking (the StyleTalk clips)
+#: this mean reaches at most 0.59. FAP raises add to the photo's, and the landmarker stops following brows raised
+#: further (it reads them lower again), so motion tracked back from such a head understates the brows.
+BROWS_RAISED = 0.65
+#: The blendshapes whose mean says how far the photo's brows are raised.
+BROW_RAISE_SHAPES = ("browInnerUp", "browOuterUpLeft", "browOuterUpRight")
 #: The share of the landmarker's depth kept in the fitted face (the rest is the canonical face's).
 DEPTH_TRUST = 0.0
 #: The person's grid follows the face's skin within the face and fades out this far outside it (cm): the skin
@@ -159,7 +166,8 @@ class PhotoHead:
     coverage : float32 (height, width), how much of each pixel the person's layer covers: 1 over the person
         and a few pixels round it (:data:`EDGE_GROW`), fading to 0 beyond; where it is below 1 the filled
         background shows through, so the grid's cells round the outline carry no background with them.
-    notes : things worth telling the user (several faces, lips apart, eyes closed, scaled down).
+    notes : things worth telling the user (several faces, lips apart, eyes closed, brows raised,
+        scaled down).
     eye_texture : uint8 (height + rows, width, 3), what the head's triangles show: the photo and, below it,
         each eyeball as it would look with the lids open (:func:`eye_pictures`); None: the photo alone
         (:attr:`texture` is either).
@@ -329,7 +337,8 @@ def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None =
     ------
     PhotoError
         No face, a face too small or turned too far, an unreadable or too large image, or the track extra
-        missing; several faces, lips apart and eyes closed are said in :attr:`PhotoHead.notes`.
+        missing; several faces, lips apart, eyes closed and brows raised are said in
+        :attr:`PhotoHead.notes`.
     """
     from ..errors import TrackingError
 
@@ -342,12 +351,12 @@ def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None =
         image, notes = read_photo(photo)
         label = name or Path(photo).name
     try:
-        faces = faces_in_image(image)
+        faces = found_faces(image)
     except TrackingError as error:
         raise PhotoError(f"{label}: {error}") from None
     if not faces:
         raise PhotoError(f"{label}: no face found in the photo (one person, roughly frontal, well lit)")
-    landmarks = faces[0]
+    landmarks = faces[0].points
     if len(faces) > 1:
         x, y = landmarks[:, :2].mean(axis=0)
         notes.append(f"{len(faces)} faces in the photo: the largest is used (centred at x {x:.0f}, y {y:.0f})")
@@ -368,6 +377,9 @@ def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None =
     if eye_opening(landmarks) < EYES_CLOSED:
         notes.append("the eyes are closed or nearly so in the photo: they cannot open wider than it shows them, and "
                      "a photo with open eyes animates best")
+    if np.mean([faces[0].shapes.get(name, 0.0) for name in BROW_RAISE_SHAPES]) > BROWS_RAISED:
+        notes.append("the brows are raised in the photo: raises add to it, and a photo with the brows at rest "
+                     "animates best")
 
     from .mesh import build_head
 
