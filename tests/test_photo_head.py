@@ -220,6 +220,26 @@ def test_the_persons_grid_is_left_out_deep_under_the_face(head) -> None:
     assert np.sum(inside & ~deep) > 50  # the edge's band is kept
 
 
+@pytest.mark.parametrize("turn", [{"f49": 14}, {"f49": -14}, {"f48": -9}])
+def test_the_persons_grid_does_not_fold_over_itself_at_speechs_turns(head, turn) -> None:
+    """Off the face the grid's cells keep their winding when the head turns: a cell turned over shows the photo
+    mirrored and squeezed (hair drawn as a staircase of repeated strands). With the skull's rim and the outline's
+    nearest-point depth as they were, 63-68 cells turned over at 14 degrees of yaw."""
+    from prosody.head.mesh import face_outline
+    from prosody.head.person import inside_polygon
+
+    triangles = head.layer_triangles
+    outside = ~inside_polygon(head.layer_uv[triangles].mean(axis=1), head.uv[list(face_outline())])
+    renderer = PhotoRenderer(head)
+
+    def winding(values: np.ndarray) -> np.ndarray:
+        a, b, c = (renderer.pixels(values)[len(head.uv):][triangles[:, k]] for k in range(3))
+        return np.sign((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+    turned = winding(_values(**{name: _degrees(value) for name, value in turn.items()}))
+    assert np.sum((turned != winding(np.zeros(68))) & outside) <= 5
+
+
 def test_turning_uncovers_background_not_a_hole(head, render_photo) -> None:
     """The canonical render stands on one grey: where the head was, the background is filled with that grey (not
     a hole, not a copy of the head: skin differs from the grey by about 100 levels), and a turned head uncovers

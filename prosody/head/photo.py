@@ -136,6 +136,12 @@ INSIDE_SUPERSAMPLE = 2
 # Head axes (cm): the skull whose front carries the hair round the face, and the plane behind the neck.
 _SKULL_CENTRE, _SKULL_RADII = np.array([0.0, 2.5, -3.0]), np.array([8.2, 11.0, 9.4])
 _NECK_PLANE_Z = -4.0
+#: The person layer's depth falls off no steeper than this (cm per cm across the picture): it does not fold over
+#: itself under turns up to atan(1 / slope), 27 degrees.
+MAX_DEPTH_SLOPE = 2.0
+#: How far apart (cm) two of the outline's points may be from a point of the grid and still both give it their
+#: depth (Gaussian weights on the difference of their distances).
+EDGE_DEPTH_SPREAD_CM = 0.7
 #: Parts of the head drawn on a photo: the textured face and eyes, the mouth's inside shaded.
 _TEXTURED_PARTS = (FACE, EYE_LEFT, EYE_RIGHT)
 _SHADED_PARTS = (UPPER_TEETH, LOWER_TEETH, TONGUE, MOUTH_INSIDE)
@@ -435,14 +441,19 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
     for _ in range(4):  # z such that the point lies on the surface wanted (a few fixed-point steps)
         points = np.column_stack([uv[:, 0], -uv[:, 1], photo_z])
         vertices = ((points - offset) @ turn) / scale
-        distance, nearest = tree.query(vertices[:, :2])
+        distances, nearest = tree.query(vertices[:, :2], k=min(6, len(edge)))
+        distance = distances[:, 0]
+        # the outline's depth near each point, weighted smoothly (the nearest point's alone jumps where another
+        # becomes nearest, and the grid folded along those lines under a turn)
+        weights = np.exp(-(((distances - distance[:, None]) / EDGE_DEPTH_SPREAD_CM) ** 2))
+        edge_z = (weights * edge[nearest, 2]).sum(axis=1) / weights.sum(axis=1)
         relative = (vertices[:, :2] - _SKULL_CENTRE[:2]) / _SKULL_RADII[:2]
         cover = 1.0 - (relative ** 2).sum(axis=1)
         skull = np.where(cover > 0, _SKULL_CENTRE[2] + _SKULL_RADII[2] * np.sqrt(np.clip(cover, 0, 1)),
                          _NECK_PLANE_Z)
-        skull = np.maximum(skull, _NECK_PLANE_Z)
+        skull = _gentle(np.maximum(skull, _NECK_PLANE_Z).reshape(n_rows, n_columns), step / scale).ravel()
         blend = smoothstep(distance / 3.0)
-        wanted = (1 - blend) * edge[nearest, 2] + blend * skull
+        wanted = (1 - blend) * edge_z + blend * skull
         under = surface(vertices[:, :2])  # behind the face, which is drawn there, and moving as it does
         wanted = np.where(inside & np.isfinite(under), np.nan_to_num(under) - 0.3, wanted)
         photo_z = photo_z + scale * (wanted - vertices[:, 2]) / max(turn[2, 2], 0.5)
@@ -485,6 +496,23 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
     renumbered = np.full(len(uv), -1)
     renumbered[used] = np.arange(used.size)
     return vertices[used], uv[used], weight[used], renumbered[layer_triangles]
+
+
+def _gentle(depth: np.ndarray, step_cm: float) -> np.ndarray:
+    """``depth`` (cm, on a grid ``step_cm`` apart) raised where it falls off steeper than :data:`MAX_DEPTH_SLOPE`:
+    the lowest surface at least as near as ``depth`` whose slope nowhere exceeds it (its upper cone envelope).
+    A head's side drawn as steep as a skull's (the ellipsoid's rim) folds over itself under a turn of a few
+    degrees, and the photo's hair showed there as a staircase of repeated strands."""
+    from scipy.ndimage import grey_dilation
+
+    # a cone step by step: each pass lets a point's depth reach its neighbours', less the slope times the
+    # distance (the 8-neighbour metric, within 8 % of the straight one)
+    reach = max(1, math.ceil(float(np.ptp(depth)) / MAX_DEPTH_SLOPE / step_cm))
+    offsets = np.array([-1.0, 0.0, 1.0]) * step_cm
+    cone = -MAX_DEPTH_SLOPE * np.hypot(*np.meshgrid(offsets, offsets))
+    for _ in range(reach):
+        depth = grey_dilation(depth, structure=cone, mode="nearest")
+    return depth
 
 
 # ---------------------------------------------------------------------------------------------------------
