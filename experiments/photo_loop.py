@@ -9,6 +9,8 @@ random (``--frames``, 3 by default, from ``--seed``) each become the head (:func
   ENS, each on its own period) rendered on the photo head by ``prosody preview --face`` and tracked back by
   ``prosody track``: |r| >= 0.9 per head axis with the tracked spread 0.75-1.33 of the true one, the lips
   >= 0.9, the brows >= 0.7, the face found in >= 98 % of frames;
+- **the grid folded:** the person layer's cells off the face turned over at the largest turns (yaw +-14,
+  pitch +-9 degrees; a turned-over cell shows the photo mirrored and squeezed), summed over the four;
 - **the tracker's ruler:** what the tracker reads of the drawn lip opening and inner-brow raise, converted to
   FAP units as the tracked-motion readers convert people's (the slope of read over drawn; 1 is true size). It
   says how far a figure in FAP units from tracked people (``experiments/likeness.py``'s first table) is from
@@ -31,8 +33,9 @@ from pathlib import Path
 import numpy as np
 
 from experiments.common import data_folder, record
-from prosody.evaluation.head_loop import PERIODS_S, known_motion, measure
+from prosody.evaluation.head_loop import PERIODS_S, folded_cells, known_motion, measure
 from prosody.fap.fapfile import write_fap
+from prosody.fap.units import AU_PER_DEGREE
 
 #: The people: clip, and who speaks (w: a woman, m: a man).
 PEOPLE = (("SadTalker_WDA_KatieHill_000.mp4", "w"), ("Real3DPortrait_May_5s.mp4", "w"),
@@ -60,18 +63,27 @@ def grab_frame(video: Path, seed: int, out: Path) -> float:
     raise SystemExit(f"{video}: no frame at {at:.2f} s")
 
 
-def ssim_still(photo: Path) -> tuple[float, tuple[int, int], bool]:
-    """SSIM (grey) of a still stream's frame against the photo, at the photo's size; and whether the photo
-    head notes the brows raised in the photo."""
+def ssim_still(photo: Path) -> tuple[float, tuple[int, int], bool, int]:
+    """SSIM (grey) of a still stream's frame against the photo, at the photo's size; whether the photo head
+    notes the brows raised in the photo; and its person layer's cells off the face turned over at the loop's
+    largest turns (yaw either way, then pitch either way; :func:`prosody.evaluation.head_loop.folded_cells`)."""
     from skimage.metrics import structural_similarity
 
     from prosody.head.photo import PhotoRenderer, photo_head
 
     head = photo_head(photo)
-    frame = PhotoRenderer(head).render(np.zeros(68))
+    renderer = PhotoRenderer(head)
+    frame = renderer.render(np.zeros(68))
     grey = np.array([0.299, 0.587, 0.114])
     raised = any("brows are raised" in note for note in head.notes)
-    return float(structural_similarity(frame @ grey, head.image @ grey, data_range=255.0)), frame.shape[:2], raised
+    folded = 0
+    for fap, axis in ((49, "yaw"), (48, "pitch")):
+        for sign in (1, -1):
+            values = np.zeros(68)
+            values[fap - 1] = sign * PHOTO_AMPLITUDES[axis] * AU_PER_DEGREE
+            folded += folded_cells(renderer, values)
+    ssim = float(structural_similarity(frame @ grey, head.image @ grey, data_range=255.0))
+    return ssim, frame.shape[:2], raised, folded
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -90,8 +102,9 @@ def main(argv: list[str] | None = None) -> int:
           + ", ".join(f"{k} {PHOTO_AMPLITUDES[k]:g} / {PERIODS_S[k]:g} s" for k in PHOTO_AMPLITUDES)
           + f" (deg, MNS, ENS / period); frames drawn with seed {args.seed}")
     print("| person | frame at | size | SSIM still | found | pitch r / spread | yaw r / spread | roll r / spread "
-          "| lips r | brows r | lips read at | brows read at | control |r| | brows raised in photo | pass |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "| lips r | brows r | lips read at | brows read at | control |r| | brows raised in photo | cells folded "
+          "| pass |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     failures = measured = 0
     passes: dict[str, list[bool]] = {}
     summary: dict[str, list[float]] = {}
@@ -105,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             photo = work / f"{name}.png"
             at = grab_frame(videos / clip, (args.seed + j) * 1000 + index, photo)
-            ssim, size, raised = ssim_still(photo)
+            ssim, size, raised, folded = ssim_still(photo)
             subprocess.run([sys.executable, "-m", "prosody", "preview", str(work / "loop.fap"), "-o",
                             str(work / f"{name}.mp4"), "--face", str(photo), "--brow-scale", "1", "--no-strip",
                             "-q"], check=True)
@@ -126,12 +139,13 @@ def main(argv: list[str] | None = None) -> int:
             axes = " | ".join(f"{result.head_r[a]:.3f} / {result.head_spread[a]:.2f}" for a in ("pitch", "yaw", "roll"))
             print(f"| {name} ({who}) | {at:.2f} s | {size[1]}x{size[0]} | {ssim:.3f} | {100 * result.found:.1f} % "
                   f"| {axes} | {result.lips_r:.3f} | {result.brows_r:.3f} | {result.lips_gain:.2f} x "
-                  f"| {result.brows_gain:.2f} x | {result.crosstalk_r:.3f} | {'noted' if raised else '-'} "
+                  f"| {result.brows_gain:.2f} x | {result.crosstalk_r:.3f} | {'noted' if raised else '-'} | {folded} "
                   f"| {'yes' if passed else 'no'} |")
             for key, value in (("ssim", ssim), ("pitch", abs(result.head_r["pitch"])),
                                ("yaw", abs(result.head_r["yaw"])), ("roll", abs(result.head_r["roll"])),
                                ("lips", result.lips_r), ("brows", result.brows_r), ("control", result.crosstalk_r),
-                               ("lips read at", result.lips_gain), ("brows read at", result.brows_gain)):
+                               ("lips read at", result.lips_gain), ("brows read at", result.brows_gain),
+                               ("cells folded", folded)):
                 summary.setdefault(key, []).append(value)
     print("\nmedian over people: " + ", ".join(f"{k} {np.median(v):.3f} (min {np.min(v):.3f})"
                                                for k, v in summary.items()))

@@ -225,19 +225,10 @@ def test_the_persons_grid_does_not_fold_over_itself_at_speechs_turns(head, turn)
     """Off the face the grid's cells keep their winding when the head turns: a cell turned over shows the photo
     mirrored and squeezed (hair drawn as a staircase of repeated strands). With the skull's rim and the outline's
     nearest-point depth as they were, 63-68 cells turned over at 14 degrees of yaw."""
-    from prosody.head.mesh import face_outline
-    from prosody.head.person import inside_polygon
+    from prosody.evaluation.head_loop import folded_cells
 
-    triangles = head.layer_triangles
-    outside = ~inside_polygon(head.layer_uv[triangles].mean(axis=1), head.uv[list(face_outline())])
-    renderer = PhotoRenderer(head)
-
-    def winding(values: np.ndarray) -> np.ndarray:
-        a, b, c = (renderer.pixels(values)[len(head.uv):][triangles[:, k]] for k in range(3))
-        return np.sign((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
-
-    turned = winding(_values(**{name: _degrees(value) for name, value in turn.items()}))
-    assert np.sum((turned != winding(np.zeros(68))) & outside) <= 5
+    values = _values(**{name: _degrees(value) for name, value in turn.items()})
+    assert folded_cells(PhotoRenderer(head), values) <= 5
 
 
 def test_turning_uncovers_background_not_a_hole(head, render_photo) -> None:

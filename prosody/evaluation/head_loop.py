@@ -168,3 +168,22 @@ def jaggedness(frame: np.ndarray, points: np.ndarray) -> float:
     rows = [map_coordinates(grey, [y - d * dx / norm, x + d * dy / norm], order=1, mode="nearest")
             for d in range(-JAGGED_REACH_PX, JAGGED_REACH_PX + 1)]
     return float(np.mean([np.abs(row - gaussian_filter1d(row, JAGGED_SMOOTHING_PX)).mean() for row in rows]))
+
+
+def folded_cells(renderer, values: np.ndarray) -> int:
+    """How many of a photo head's person-layer cells off the face are turned over in the frame of ``values``
+    (68 FAP values) against the rest frame: a cell whose corners change their winding shows the photo mirrored
+    and squeezed, the layer folded over itself. ``renderer`` is a :class:`prosody.head.photo.PhotoRenderer`."""
+    from ..head.mesh import face_outline
+    from ..head.person import inside_polygon
+
+    head = renderer.head
+    triangles = head.layer_triangles
+    outside = ~inside_polygon(head.layer_uv[triangles].mean(axis=1), head.uv[list(face_outline())])
+
+    def winding(frame_values: np.ndarray) -> np.ndarray:
+        corners = renderer.pixels(frame_values)[len(head.uv):][triangles]
+        a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+        return np.sign((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+    return int(np.sum((winding(np.asarray(values, float)) != winding(np.zeros(len(values)))) & outside))
