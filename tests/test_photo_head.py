@@ -231,6 +231,32 @@ def test_the_persons_grid_does_not_fold_over_itself_at_speechs_turns(head, turn)
     assert folded_cells(PhotoRenderer(head), values) <= 5
 
 
+def test_the_matte_recovers_a_soft_edges_share_and_colours() -> None:
+    """A disc whose edge is a known ramp (4 pixels wide) from one colour to another: the matte gives back the
+    ramp, the disc's own colour along it (the photo there is a mix, 67 levels off) and the background's."""
+    from prosody.head.person import person_matte
+
+    y, x = np.mgrid[0:120, 0:160].astype(float)
+    share = np.clip((45 - np.hypot(x - 60, y - 60)) / 4 + 0.5, 0, 1)
+    person_colour, background_colour = np.array([120.0, 80.0, 40.0]), np.array([200.0, 230.0, 210.0])
+    image = np.rint(share[..., None] * person_colour + (1 - share[..., None]) * background_colour).astype(np.uint8)
+    alpha, foreground, background = person_matte(image, share >= 0.5, 6)
+    edge = (share > 0.1) & (share < 0.9)
+    assert np.abs(alpha - share)[edge].mean() < 0.05 and np.abs(alpha - share).max() < 0.2
+    assert np.abs(foreground[edge] - person_colour).mean() < 6
+    assert np.abs(background[edge] - background_colour).mean() < 6
+    np.testing.assert_array_equal(foreground[share >= 1], image[share >= 1])  # the photo's own inside
+
+
+def test_at_rest_the_persons_outline_is_the_photos(head, render_photo) -> None:
+    """Where a pixel is part person, the still frame is the photo: the person's colour there is made up so that
+    the matte's share of it over the background behind makes the photo's colour."""
+    frame = PhotoRenderer(head).render(np.zeros(68))
+    edge = (head.coverage > 0) & (head.coverage < 1)
+    assert edge.sum() > 1000
+    assert np.abs(frame.astype(float) - render_photo).max(axis=2)[edge].mean() < 1.0
+
+
 def test_turning_uncovers_background_not_a_hole(head, render_photo) -> None:
     """The canonical render stands on one grey: where the head was, the background is filled with that grey (not
     a hole, not a copy of the head: skin differs from the grey by about 100 levels), and a turned head uncovers

@@ -12,6 +12,12 @@ already finds the face.
 Before the model, GrabCut alone, started from the face and head-and-shoulder shapes round it, left out hair
 whose colour was near the background's (Katie Hill's hair on her left, Amy Klobuchar's) and took in backdrops
 near the clothes' (a red studio wall): a turned head then uncovered a smear where hair had been.
+
+Along the outline a pixel is part person, part background (wisps of hair, a blurred edge). The matte
+(:func:`person_matte`) tells how much of each is the person's and what colour the person and the background are
+there, so the person moves without the background's colour round their edge: closed-form matting (Levin,
+Lischinski and Weiss 2008) in a band round the outline, and the multilevel foreground and background estimation
+of Germer et al. (2020), both from the PyPI package ``pymatting``.
 """
 
 from __future__ import annotations
@@ -33,6 +39,11 @@ MASK_WORK_PX = 400
 MASK_BAND = 1 / 50
 #: A pixel is the person's where the model's chance is at least this (before GrabCut's refinement).
 PERSON_CHANCE = 0.5
+#: The matte is worked out this far either side of the person's outline (a share of the photo's longer side: 6
+#: pixels of 512), and at most :data:`MATTE_BAND_MAX_PX`; nearer the person it is 1, further out 0. Its cost
+#: grows with the band: on a 1920 x 1080 photo 23 pixels took 3 s.
+MATTE_BAND = 1 / 85
+MATTE_BAND_MAX_PX = 8
 
 
 def _cv2():
@@ -189,24 +200,52 @@ def fill_background(image: np.ndarray, person: np.ndarray, *, margin_px: int) ->
 
 
 
-def person_coverage(person: np.ndarray, edge_px: int) -> np.ndarray:
-    """How much the person's layer covers each pixel: 1 over the person grown by ``edge_px`` (where the
-    background is filled), fading to 0 over about a third of that beyond it.
+def person_matte(image: np.ndarray, person: np.ndarray, band_px: int
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """How much of each pixel is the person's, and the person's and the background's colours there.
 
     Parameters
     ----------
-    person : bool (height, width)
-    edge_px : int
+    image : uint8 (height, width, 3)
+    person : bool (height, width), the person's pixels (:func:`person_mask`).
+    band_px : int, the matte is worked out this far outside the outline and a third of it inside; 1 nearer the
+        person, 0 further out.
 
     Returns
     -------
-    float32 (height, width), 0..1
+    alpha : float32 (height, width), 0..1
+    foreground : uint8 (height, width, 3), the person's colour (the photo's where ``alpha`` is 1)
+    background : uint8 (height, width, 3), the background's colour (the photo's where ``alpha`` is 0)
     """
-    from scipy.ndimage import binary_dilation, gaussian_filter
+    from scipy.ndimage import binary_dilation, binary_erosion
 
-    grown = binary_dilation(person, iterations=max(1, edge_px))
-    soft = gaussian_filter(grown.astype(np.float32), max(0.5, edge_px / 3))
-    return np.maximum(soft, person).astype(np.float32)
+    try:
+        from pymatting import estimate_alpha_cf, estimate_foreground_ml
+    except ImportError:
+        raise PhotoError(f"a photo head needs pymatting: {INSTALL_HINT}") from None
+    band = max(1, int(band_px))
+    # inside the outline the band is a third as wide: the outline is placed on the photo's colours already, and a
+    # thin part of the person (an ear) wholly within the band was matted out as background
+    sure = binary_erosion(person, iterations=max(1, band // 3), border_value=1)
+    unsure = binary_dilation(person, iterations=band) & ~sure
+    alpha = person.astype(np.float64)
+    foreground = background = image.astype(np.float64) / 255.0
+    if unsure.any() and sure.any():
+        # worked out in the box round the band only (a pixel further out is all person or all background)
+        rows, columns = np.flatnonzero(unsure.any(axis=1)), np.flatnonzero(unsure.any(axis=0))
+        box = (slice(max(rows[0] - 2, 0), rows[-1] + 3), slice(max(columns[0] - 2, 0), columns[-1] + 3))
+        rgb = foreground[box]
+        trimap = np.where(sure[box], 1.0, np.where(unsure[box], 0.5, 0.0))
+        alpha[box] = np.clip(estimate_alpha_cf(rgb, trimap), 0.0, 1.0)
+        foreground, background = foreground.copy(), background.copy()
+        foreground[box], background[box] = estimate_foreground_ml(rgb, alpha[box], return_background=True)
+
+    def colours(values: np.ndarray, keep: np.ndarray) -> np.ndarray:
+        out = np.clip(np.rint(values * 255.0), 0, 255).astype(np.uint8)
+        out[keep] = image[keep]  # the photo itself where the pixel is all the person's (or all background)
+        return out
+
+    return alpha.astype(np.float32), colours(foreground, alpha >= 1.0), colours(background, alpha <= 0.0)
 
 
 def inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:

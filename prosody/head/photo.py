@@ -23,9 +23,9 @@ and a texture). Here the photo gives both:
    the chin and stays still at the shoulders, the neck bending between.
 4. **The background** stays as photographed; behind the person it is filled with the background round it,
    blurred (a normalised convolution), so that what a turned head uncovers is background, not a hole, a
-   streak or the head twice. The person's grid carries the photo over the person and :data:`EDGE_GROW` past
-   the outline only (:attr:`PhotoHead.coverage`); beyond, its cells are transparent, so a turned head moves
-   no strip of the background with it.
+   streak or the head twice. Along the outline the matte (:func:`.person.person_matte`) tells how much of
+   each pixel is the person's (:attr:`PhotoHead.coverage`) and what colour the person is there, so a turned
+   head moves no strip of the background with it and leaves none of its hair's edge behind.
 
 The photo is seen by an orthographic camera (a face's depth is small beside its distance from the camera),
 so the frames keep the photo's framing and pixels. Everything needs the ``track`` extra (MediaPipe, whose
@@ -64,7 +64,7 @@ from .mesh import (
     face_outline,
     smoothstep,
 )
-from .person import fill_background, inside_polygon, person_coverage, person_mask
+from .person import MATTE_BAND, MATTE_BAND_MAX_PX, fill_background, inside_polygon, person_mask, person_matte
 from .raster import Canvas, rasterise_textured
 from .render import SUPERSAMPLE
 from .rig import HeadRig, build_rig, rotation
@@ -119,9 +119,6 @@ RELIGHT_RANGE = (0.6, 1.4)
 RELIGHT_FADE_CM = 2.0
 #: Side of the person layer's grid cells, as a fraction of the photo's longer side.
 GRID_STEP = 1 / 110
-#: How far past the person's outline the photo moves with the person, as a share of the photo's longer side
-#: (3 pixels at 512): the outline's own soft edge, and no more of the background.
-EDGE_GROW = 1 / 170
 #: The person's grid is left out this far inside the face's outline (the face always covers it there), cm.
 HIDDEN_UNDER_FACE_CM = 1.0
 #: Samples per pixel along each axis. One: a pixel inside a triangle reads the photo at its centre, as four
@@ -167,16 +164,19 @@ class PhotoHead:
     layer_weight : float (k,), how much of the head's turn each grid vertex follows (1 above the chin,
         0 at the shoulders).
     layer_triangles : int (q, 3).
-    background : uint8 (height, width, 3), the photo with the person filled in.
+    background : uint8 (height, width, 3), the photo with the person filled in (along the outline, the
+        background's own colour where a pixel is part person).
     person : bool (height, width), where the person is.
-    coverage : float32 (height, width), how much of each pixel the person's layer covers: 1 over the person
-        and a few pixels round it (:data:`EDGE_GROW`), fading to 0 beyond; where it is below 1 the filled
-        background shows through, so the grid's cells round the outline carry no background with them.
+    coverage : float32 (height, width), how much of each pixel is the person's (the matte,
+        :func:`.person.person_matte`): 1 over the person, 0 off them, between along the outline; where it is
+        below 1 the background shows through, so the grid's cells round the outline carry no background
+        with them.
     notes : things worth telling the user (several faces, lips apart, eyes closed, brows raised,
         scaled down).
-    eye_texture : uint8 (height + rows, width, 3), what the head's triangles show: the photo and, below it,
-        each eyeball as it would look with the lids open (:func:`eye_pictures`); None: the photo alone
-        (:attr:`texture` is either).
+    eye_texture : uint8 (height + rows, width, 3), what the head's triangles show: the photo (along the
+        person's outline, the person's colours without the background's) and, below it, each eyeball as it
+        would look with the lids open (:func:`eye_pictures`); None: the photo alone (:attr:`texture` is
+        either).
     """
 
     name: str
@@ -398,14 +398,33 @@ def photo_head(photo: str | os.PathLike[str] | np.ndarray, *, name: str | None =
 
     uv = project(mesh.vertices.astype(float))
     uv[:N_FACE_VERTICES] = project(mesh.layout[:N_FACE_VERTICES].astype(float))  # the lips as photographed
-    texture, uv = eye_pictures(image, fitted, uv, mesh.part)
-
     person = person_mask(image, landmarks)
+    alpha, foreground, background = _matted(image, person)
+    # the person's colours along their outline (no background's in them), the eyeballs' pictures below
+    texture, uv = eye_pictures(foreground, fitted, uv, mesh.part)
     layer = _person_layer(image.shape[:2], person, face, scale, turn, offset, landmarks)
-    edge = max(2, round(EDGE_GROW * max(image.shape[:2])))
-    background = fill_background(image, person, margin_px=edge)
-    return PhotoHead(label, image, rig, scale, turn, offset, uv, *layer, background, person,
-                     person_coverage(person, edge), tuple(notes), texture)
+    return PhotoHead(label, image, rig, scale, turn, offset, uv, *layer, background, person, alpha,
+                     tuple(notes), texture)
+
+
+def _matted(image: np.ndarray, person: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The person's matte, their colours and the background behind them (:func:`.person.person_matte`), such
+    that at rest the frame is the photo.
+
+    Behind the person the background is filled in. Where a pixel is mostly background it is the matte's estimate
+    of the background's colour there, blending into the fill as the person's share grows to a half: beyond, that
+    estimate is the person's colour as much as the background's, and a turned head showed it as a streak where
+    the hair's edge had been. The person's colours then make up the rest: share x person + (1 - share) x
+    background is the photo (the correction is at most twice the estimate's difference from the fill)."""
+    band = min(MATTE_BAND_MAX_PX, max(2, round(MATTE_BAND * max(image.shape[:2]))))
+    alpha, foreground, behind = person_matte(image, person, band)
+    share = alpha[..., None].astype(np.float64)
+    trust = np.clip(1.0 - 2.0 * share, 0.0, 1.0)
+    background = trust * behind + (1.0 - trust) * fill_background(image, alpha > 0, margin_px=1)
+    background[alpha <= 0] = image[alpha <= 0]
+    made_up = (image - (1.0 - share) * background) / np.maximum(share, 1e-6)
+    foreground = np.where(share > 0, np.clip(np.rint(made_up), 0, 255), foreground).astype(np.uint8)
+    return alpha, foreground, np.rint(background).astype(np.uint8)
 
 
 def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, scale: float, turn: np.ndarray,
