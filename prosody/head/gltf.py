@@ -240,10 +240,10 @@ def glb_document(stream: FapStream, *, rig: HeadRig | None = None, photo: PhotoH
         meshes += _photo_meshes(photo, buffer, place, pivot)
         nodes += [{"name": "person", "mesh": 1, "skin": 0}, {"name": "backdrop", "mesh": 2}]
         scene_nodes = [0, 3, 4]
-        # the person's texture carries its coverage as alpha: round the outline the backdrop shows (MASK)
-        coverage = np.round(255 * np.clip(photo.coverage, 0, 1)).astype(np.uint8)
-        images = [_image_bytes(photo.texture), _image_bytes(photo.background),
-                  _image_bytes(np.dstack([photo.image, coverage]))]
+        # the person's texture carries its coverage as alpha: round the outline the backdrop shows (MASK); its
+        # colours there are the person's, without the background's (the texture's photo part)
+        person = photo.texture_with_coverage()[:photo.height, :photo.width]
+        images = [_image_bytes(photo.texture), _image_bytes(photo.background), _image_bytes(person)]
 
     animation = _animation(stream, values, targets, buffer)
     image_entries = [_embed(buffer, *image) for image in images]
