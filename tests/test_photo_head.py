@@ -257,6 +257,20 @@ def test_at_rest_the_persons_outline_is_the_photos(head, render_photo) -> None:
     assert np.abs(frame.astype(float) - render_photo).max(axis=2)[edge].mean() < 1.0
 
 
+def test_past_the_photos_edge_the_grid_shows_the_edges_own_colours(render_photo) -> None:
+    """A photo that cuts the person at the neck: the grid goes on past the bottom edge, its texture the edge's own.
+    The texture goes on below the photo with the eyeballs' pictures; read from there, a tilted head showed their
+    white and black in the bottom rows (346-351 pixels of the last four rows off every colour the photo's last
+    twelve rows have in their column, against 60-62 now: the neck moved off the background there)."""
+    cut = np.ascontiguousarray(render_photo[:360])
+    head = photo_head(cut)
+    assert (head.layer_uv >= 0.5).all() and (head.layer_uv <= [head.width - 0.5, head.height - 0.5]).all()
+    frame = PhotoRenderer(head).render(_values(f50=_degrees(8))).astype(float)
+    last, edge = frame[-4:], cut[-12:].astype(float)
+    off = np.abs(last[:, None] - edge[None, :]).max(axis=3).min(axis=1)  # each pixel against its column's
+    assert np.sum(off > 40) < 150
+
+
 def test_turning_uncovers_background_not_a_hole(head, render_photo) -> None:
     """The canonical render stands on one grey: where the head was, the background is filled with that grey (not
     a hole, not a copy of the head: skin differs from the grey by about 100 levels), and a turned head uncovers

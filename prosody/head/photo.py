@@ -514,7 +514,10 @@ def _person_layer(size: tuple[int, int], person: np.ndarray, face: np.ndarray, s
     used = np.unique(layer_triangles)  # the grid's vertices off the person are never drawn: left out
     renumbered = np.full(len(uv), -1)
     renumbered[used] = np.arange(used.size)
-    return vertices[used], uv[used], weight[used], renumbered[layer_triangles]
+    # past the photo's edge the grid's texture is the edge's own (the texture goes on below the photo with the
+    # eyeballs' pictures, which a cell past the bottom edge showed as a grey wedge when the head tilted)
+    texture_uv = np.clip(uv[used], 0.5, [width - 0.5, height - 0.5])
+    return vertices[used], texture_uv, weight[used], renumbered[layer_triangles]
 
 
 def _gentle(depth: np.ndarray, step_cm: float) -> np.ndarray:
