@@ -405,7 +405,8 @@ def test_a_head_cut_by_the_photos_top_stays_a_head_when_it_nods(render_photo, pi
     grey = render_photo[0, 0].astype(float)
     cut = np.ascontiguousarray(render_photo[60:])
     head = photo_head(cut, name="cut.png")
-    assert head.person[0].any() and head.layer_uv[:, 1].min() < -10  # the grid reaches above the frame
+    rows = -head.to_photo(head.layer_vertices)[:, 1]  # where the grid is at rest, in the photo's rows
+    assert head.person[0].any() and rows.min() < -10  # the grid reaches above the frame
     frame = PhotoRenderer(head).render(_values(f48=_degrees(pitch), f49=_degrees(5)))
     top = head.person[:12]
     background_now = np.all(np.abs(frame[:12].astype(float) - grey) <= 6, axis=2) & top
