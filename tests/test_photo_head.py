@@ -248,6 +248,13 @@ def test_the_matte_recovers_a_soft_edges_share_and_colours() -> None:
     np.testing.assert_array_equal(foreground[share >= 1], image[share >= 1])  # the photo's own inside
 
 
+def test_building_a_head_prints_nothing(capsys) -> None:
+    """The matte's solver prints a warning each time it retries (the drawn head's flat backdrop at 512 x 512 made
+    it retry three times); a command's standard output must hold only what the command writes."""
+    photo_head(HeadRenderer(512, 512).render(np.zeros(68)))
+    assert capsys.readouterr().out == ""
+
+
 def test_at_rest_the_persons_outline_is_the_photos(head, render_photo) -> None:
     """Where a pixel is part person, the still frame is the photo: the person's colour there is made up so that
     the matte's share of it over the background behind makes the photo's colour."""

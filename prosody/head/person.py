@@ -22,6 +22,8 @@ of Germer et al. (2020), both from the PyPI package ``pymatting``.
 
 from __future__ import annotations
 
+import contextlib
+import io
 from pathlib import Path
 
 import numpy as np
@@ -236,7 +238,13 @@ def person_matte(image: np.ndarray, person: np.ndarray, band_px: int
         box = (slice(max(rows[0] - 2, 0), rows[-1] + 3), slice(max(columns[0] - 2, 0), columns[-1] + 3))
         rgb = foreground[box]
         trimap = np.where(sure[box], 1.0, np.where(unsure[box], 0.5, 0.0))
-        alpha[box] = np.clip(estimate_alpha_cf(rgb, trimap), 0.0, 1.0)
+        # its solver's preconditioner prints to standard output each time it retries with a larger shift
+        # (a flat backdrop makes the system nearly singular): the command's own output stays clean
+        with contextlib.redirect_stdout(io.StringIO()):
+            try:
+                alpha[box] = np.clip(estimate_alpha_cf(rgb, trimap), 0.0, 1.0)
+            except ValueError:  # no shift helped: the outline as it is, hard
+                pass
         foreground, background = foreground.copy(), background.copy()
         foreground[box], background[box] = estimate_foreground_ml(rgb, alpha[box], return_background=True)
 
