@@ -360,12 +360,12 @@ def test_brows_raised_in_the_photo_are_said_in_a_note(render_photo) -> None:
 
 
 def test_how_open_the_eyes_are_is_read_from_the_landmarks(render_photo) -> None:
-    from prosody.head.landmarks import faces_in_image
+    from prosody.head.landmarks import found_faces
     from prosody.head.photo import EYES_CLOSED, eye_opening
 
     shut = HeadRenderer(480, 480).render(_values(f19=1500, f20=1500, f21=300, f22=300))
     wide = HeadRenderer(480, 480).render(_values(f19=-300, f20=-300))
-    rest, closed, opened = (eye_opening(faces_in_image(frame)[0]) for frame in (render_photo, shut, wide))
+    rest, closed, opened = (eye_opening(found_faces(frame)[0].points) for frame in (render_photo, shut, wide))
     assert closed < EYES_CLOSED < rest < opened
 
 
@@ -508,12 +508,12 @@ def test_the_person_is_cut_out_where_the_drawn_head_covers_the_picture(render_ph
     """The 3D head drawn on its plain background: the person mask is the pixels the head covers (known from the
     renderer), by the segmentation model and, where the model sees no one, by GrabCut's head-and-shoulder start."""
     from prosody.head import person
-    from prosody.head.landmarks import faces_in_image
+    from prosody.head.landmarks import found_faces
 
     renderer = HeadRenderer(*render_photo.shape[1::-1])
     renderer.render(np.zeros(68))
     covered = renderer._canvas.nearest[::renderer.supersample, ::renderer.supersample] >= 0
-    landmarks = faces_in_image(render_photo)[0]
+    landmarks = found_faces(render_photo)[0].points
     chance = person.person_chance(render_photo)
     assert chance.shape == render_photo.shape[:2] and chance.dtype == np.float32
     mask = person.person_mask(render_photo, landmarks)
@@ -542,14 +542,14 @@ def test_a_changed_segmentation_model_is_refused(tmp_path: Path, monkeypatch) ->
 
 @pytest.fixture
 def hill_frame(shared_data: Path) -> tuple[np.ndarray, np.ndarray]:
-    from prosody.head.landmarks import faces_in_image
+    from prosody.head.landmarks import found_faces
     from prosody.tracking.video import iter_frames
 
     clip = shared_data / "talking-videos" / "SadTalker_WDA_KatieHill_000.mp4"
     if not clip.is_file():
         pytest.skip(f"{clip.name} is not in the shared data")
     frame = next(rgb for k, (_, rgb) in enumerate(iter_frames(clip)) if k == 45)
-    return frame, faces_in_image(frame)[0]
+    return frame, found_faces(frame)[0].points
 
 
 @pytest.mark.shared_data

@@ -123,7 +123,3 @@ def found_faces(rgb: np.ndarray, *, max_faces: int = MAX_FACES) -> list[FoundFac
              for landmarks, shapes in zip(result.face_landmarks, result.face_blendshapes, strict=True)]
     return sorted(faces, key=lambda face: -float(np.ptp(face.points[:, 0])))
 
-
-def faces_in_image(rgb: np.ndarray, *, max_faces: int = MAX_FACES) -> list[np.ndarray]:
-    """The landmarks (478, 3) of every face in one RGB image, largest first (:func:`found_faces`' points)."""
-    return [face.points for face in found_faces(rgb, max_faces=max_faces)]

@@ -202,7 +202,7 @@ def fill_background(image: np.ndarray, person: np.ndarray, *, margin_px: int) ->
 
 
 
-def person_matte(image: np.ndarray, person: np.ndarray, band_px: int
+def person_matte(image: np.ndarray, person: np.ndarray, band_px: int | None = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """How much of each pixel is the person's, and the person's and the background's colours there.
 
@@ -210,8 +210,9 @@ def person_matte(image: np.ndarray, person: np.ndarray, band_px: int
     ----------
     image : uint8 (height, width, 3)
     person : bool (height, width), the person's pixels (:func:`person_mask`).
-    band_px : int, the matte is worked out this far outside the outline and a third of it inside; 1 nearer the
-        person, 0 further out.
+    band_px : int, optional
+        The matte is worked out this far outside the outline and a third of it inside; 1 nearer the person, 0
+        further out. Default: :data:`MATTE_BAND` of the image's longer side, 2 to :data:`MATTE_BAND_MAX_PX`.
 
     Returns
     -------
@@ -225,6 +226,8 @@ def person_matte(image: np.ndarray, person: np.ndarray, band_px: int
         from pymatting import estimate_alpha_cf, estimate_foreground_ml
     except ImportError:
         raise PhotoError(f"a photo head needs pymatting: {INSTALL_HINT}") from None
+    if band_px is None:
+        band_px = min(MATTE_BAND_MAX_PX, max(2, round(MATTE_BAND * max(image.shape[:2]))))
     band = max(1, int(band_px))
     # inside the outline the band is a third as wide: the outline is placed on the photo's colours already, and a
     # thin part of the person (an ear) wholly within the band was matted out as background

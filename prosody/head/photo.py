@@ -64,7 +64,7 @@ from .mesh import (
     face_outline,
     smoothstep,
 )
-from .person import MATTE_BAND, MATTE_BAND_MAX_PX, fill_background, inside_polygon, person_mask, person_matte
+from .person import fill_background, inside_polygon, person_mask, person_matte
 from .raster import Canvas, rasterise_textured
 from .render import SUPERSAMPLE
 from .rig import HeadRig, build_rig, rotation
@@ -416,8 +416,7 @@ def _matted(image: np.ndarray, person: np.ndarray) -> tuple[np.ndarray, np.ndarr
     estimate is the person's colour as much as the background's, and a turned head showed it as a streak where
     the hair's edge had been. The person's colours then make up the rest: share x person + (1 - share) x
     background is the photo (the correction is at most twice the estimate's difference from the fill)."""
-    band = min(MATTE_BAND_MAX_PX, max(2, round(MATTE_BAND * max(image.shape[:2]))))
-    alpha, foreground, behind = person_matte(image, person, band)
+    alpha, foreground, behind = person_matte(image, person)
     share = alpha[..., None].astype(np.float64)
     trust = np.clip(1.0 - 2.0 * share, 0.0, 1.0)
     background = trust * behind + (1.0 - trust) * fill_background(image, alpha > 0, margin_px=1)
